@@ -1,0 +1,402 @@
+//! Parameter identification: one-shot linear least squares (eq. (32) of both seeds), recursive
+//! least squares (3T1R paper §5), and the iterated nonlinear solver kinecal uses by default
+//! (Gauss–Newton with a Levenberg–Marquardt fallback) on the identifiable subset.
+//!
+//! # Weighting
+//! Every residual row is divided by the standard deviation of its measurement ([`Noise`]): mm rows
+//! by `σ_p` (mm), rad rows by `σ_θ` (rad). The weighted problem is dimensionless and its solution
+//! is the maximum-likelihood estimate under independent Gaussian noise. With
+//! [`Options::reweight`] the two standard deviations are re-estimated from the residuals
+//! (variance-component estimation), which is what real data needs when the unmodelled error, not
+//! the tracker, dominates.
+//!
+//! # Uncertainty
+//! Parameter standard deviations are `sqrt(diag(σ̂₀²·(AᵀA)⁻¹))` on the identifiable subset, with
+//! `A` the weighted Jacobian at the solution and `σ̂₀² = |r|²/(m − k)` the a-posteriori variance of
+//! unit weight (the issue's `σ²(JᵀJ)⁻¹`).
+use crate::error::CalibError;
+use crate::identifiability::{self, Identifiability};
+use crate::measure::{self, Measurement, Noise};
+use crate::model::Mechanism;
+use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// Identification algorithm.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Default)]
+pub enum Method {
+    /// Iterated Gauss–Newton with Levenberg–Marquardt damping when a step does not decrease the
+    /// cost; converges to the nonlinear least-squares solution (the default).
+    #[default]
+    GaussNewton,
+    /// One linearisation at the starting model, batch least squares, one update (the seeds' method).
+    Linear,
+    /// One linearisation, solved by recursive least squares pose after pose (3T1R paper §5).
+    Recursive,
+}
+
+/// Options of [`identify`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Options {
+    /// Algorithm.
+    pub method: Method,
+    /// Measurement noise (weights).
+    pub noise: Noise,
+    /// Re-estimate the position / orientation standard deviations from the residuals.
+    pub reweight: bool,
+    /// Parameters allowed to change, in priority order (default: all, in model order).
+    pub free: Option<Vec<usize>>,
+    /// Maximum iterations of the nonlinear solver.
+    pub max_iterations: usize,
+    /// Convergence: stop when the predicted change of the weighted residual is below
+    /// `step_tolerance·(1 + |r|)`.
+    pub step_tolerance: f64,
+    /// Relative rank tolerance for the identifiable subset.
+    pub rank_tolerance: f64,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            method: Method::GaussNewton,
+            noise: Noise::default(),
+            reweight: false,
+            free: None,
+            max_iterations: 100,
+            step_tolerance: 1e-12,
+            rank_tolerance: identifiability::DEFAULT_RANK_TOLERANCE,
+        }
+    }
+}
+
+/// One iteration of the solver.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Iteration {
+    /// Weighted cost `½|r|²` before the step.
+    pub cost: f64,
+    /// Norm of the weighted predicted change `|A·δ|`.
+    pub step: f64,
+    /// Levenberg–Marquardt damping used (0 for a pure Gauss–Newton step).
+    pub damping: f64,
+}
+
+/// Result of an identification.
+#[derive(Debug, Clone)]
+pub struct Identification<M> {
+    /// The calibrated model.
+    pub model: M,
+    /// Identifiability at the starting model on the free parameters.
+    pub identifiability: Identifiability,
+    /// Sum of all increments applied, per parameter (local coordinates; for additive models the
+    /// identified error itself).
+    pub delta: DVector<f64>,
+    /// Standard deviation per parameter (0 for parameters not identified).
+    pub std_dev: DVector<f64>,
+    /// Solver history.
+    pub iterations: Vec<Iteration>,
+    /// Whether the convergence test was met.
+    pub converged: bool,
+    /// A-posteriori standard deviation of unit weight `σ̂₀` (1 when the noise model is right).
+    pub sigma0: f64,
+    /// Noise model used for the final weights (after re-estimation when asked).
+    pub noise: Noise,
+}
+
+/// Weighted residual vector and weighted Jacobian of a data set at a model.
+#[derive(Debug, Clone)]
+pub struct Linearization {
+    /// Weighted Jacobian of the predictions (rows × parameters).
+    pub jacobian: DMatrix<f64>,
+    /// Weighted residual "measured − predicted".
+    pub residual: DVector<f64>,
+    /// First row of each pose's block.
+    pub offsets: Vec<usize>,
+    /// For each row: true if it is an orientation (rad) row.
+    pub angular_rows: Vec<bool>,
+}
+
+/// Linearise `model` at every measurement (in parallel), weighting rows by `noise`.
+pub fn linearize<M: Mechanism + ?Sized>(model: &M, data: &[Measurement], noise: &Noise) -> Result<Linearization, CalibError> {
+    let blocks: Vec<_> = data
+        .par_iter()
+        .enumerate()
+        .map(|(i, m)| {
+            let (pose, jac) = model
+                .forward_with_jacobian(&m.q)
+                .map_err(|source| CalibError::Kinematics { pose: i, source })?;
+            let a = measure::residual_jacobian(&m.obs, &pose, &jac);
+            let r = measure::residual(&m.obs, &pose);
+            let w = measure::row_weights(&m.obs, noise);
+            Ok((a, r, w))
+        })
+        .collect::<Result<Vec<_>, CalibError>>()?;
+    let rows: usize = blocks.iter().map(|b| b.1.len()).sum();
+    let p = model.n_params();
+    let mut jacobian = DMatrix::zeros(rows, p);
+    let mut residual = DVector::zeros(rows);
+    let mut offsets = Vec::with_capacity(blocks.len());
+    let mut angular_rows = Vec::with_capacity(rows);
+    let mut row = 0;
+    for (a, r, w) in &blocks {
+        offsets.push(row);
+        for k in 0..r.len() {
+            for c in 0..p {
+                jacobian[(row + k, c)] = a[(k, c)] * w[k];
+            }
+            residual[row + k] = r[k] * w[k];
+            angular_rows.push(r.len() == 6 && k >= 3);
+        }
+        row += r.len();
+    }
+    Ok(Linearization {
+        jacobian,
+        residual,
+        offsets,
+        angular_rows,
+    })
+}
+
+/// Solve `min |A_S·x − b|` on the columns `cols` with column scaling; returns the full-length
+/// step. With `rank = Some(r)` the solve is the minimum-norm solution truncated to the `r` largest
+/// singular values (gauge-free over redundant parameters); with `damping > 0` it is the
+/// Levenberg–Marquardt step `(AᵀA + λI)⁻¹Aᵀb` in scaled coordinates.
+fn solve_subset(a: &DMatrix<f64>, b: &DVector<f64>, cols: &[usize], damping: f64, rank: Option<usize>) -> Result<DVector<f64>, CalibError> {
+    let (scaled, norms) = identifiability::scale_columns(a, cols);
+    let svd = scaled.svd(true, true);
+    let (u, vt) = match (&svd.u, &svd.v_t) {
+        (Some(u), Some(vt)) => (u, vt),
+        _ => return Err(CalibError::Numerical("SVD failed".into())),
+    };
+    let mut order: Vec<usize> = (0..svd.singular_values.len()).collect();
+    order.sort_by(|&i, &j| svd.singular_values[j].total_cmp(&svd.singular_values[i]));
+    let keep = rank.unwrap_or(order.len()).min(order.len());
+    let mut y = DVector::zeros(cols.len());
+    for &i in order.iter().take(keep) {
+        let s = svd.singular_values[i];
+        if s <= 0.0 {
+            continue;
+        }
+        let coef = u.column(i).dot(b) * s / (s * s + damping);
+        y.axpy(coef, &vt.row(i).transpose(), 1.0);
+    }
+    if y.iter().any(|v| !v.is_finite()) {
+        return Err(CalibError::Numerical("non-finite step".into()));
+    }
+    let mut delta = DVector::zeros(a.ncols());
+    for (k, &c) in cols.iter().enumerate() {
+        if norms[k] > 0.0 {
+            delta[c] = y[k] / norms[k];
+        }
+    }
+    Ok(delta)
+}
+
+/// Standard deviations on the columns `cols` from `σ₀²·(AᵀA)⁻¹`.
+fn std_devs(a: &DMatrix<f64>, cols: &[usize], sigma0: f64) -> DVector<f64> {
+    let (scaled, norms) = identifiability::scale_columns(a, cols);
+    let mut out = DVector::zeros(a.ncols());
+    let n = scaled.transpose() * &scaled;
+    if let Some(inv) = n.try_inverse() {
+        for (k, &c) in cols.iter().enumerate() {
+            out[c] = sigma0 * inv[(k, k)].max(0.0).sqrt() / norms[k];
+        }
+    }
+    out
+}
+
+/// Re-estimate the position and orientation noise from weighted residuals (one variance
+/// component per row kind), keeping the ratio meaningful when one kind is absent.
+fn reestimate_noise(lin: &Linearization, noise: &Noise, dof_ratio: f64) -> Noise {
+    let (mut sp, mut np, mut sa, mut na) = (0.0, 0usize, 0.0, 0usize);
+    for (k, &ang) in lin.angular_rows.iter().enumerate() {
+        let r2 = lin.residual[k] * lin.residual[k];
+        if ang {
+            sa += r2;
+            na += 1;
+        } else {
+            sp += r2;
+            np += 1;
+        }
+    }
+    let scale = |s: f64, n: usize| if n > 0 { (s / (n as f64 * dof_ratio)).sqrt() } else { 1.0 };
+    Noise {
+        position: noise.position * scale(sp, np),
+        orientation: noise.orientation * scale(sa, na),
+    }
+}
+
+/// Identify the free parameters of `initial` from `data`.
+///
+/// Errors: kinematics failing at a pose, fewer residual rows than identifiable parameters,
+/// nothing free or identifiable, a numerical failure.
+pub fn identify<M: Mechanism + Clone>(initial: &M, data: &[Measurement], opts: &Options) -> Result<Identification<M>, CalibError> {
+    let p = initial.n_params();
+    let free: Vec<usize> = opts.free.clone().unwrap_or_else(|| (0..p).collect());
+    if free.is_empty() {
+        return Err(CalibError::NothingToIdentify("no free parameters".into()));
+    }
+    if let Some(&bad) = free.iter().find(|&&c| c >= p) {
+        return Err(CalibError::InvalidOption(format!("free parameter index {bad} ≥ {p} parameters")));
+    }
+    if !(opts.noise.position > 0.0 && opts.noise.orientation > 0.0) {
+        return Err(CalibError::InvalidOption("noise standard deviations must be positive".into()));
+    }
+    let mut model = initial.clone();
+    let mut noise = opts.noise;
+    let mut lin = linearize(&model, data, &noise)?;
+    let ident = identifiability::analyze(&lin.jacobian, &free, opts.rank_tolerance);
+    let cols = ident.identifiable.clone();
+    if cols.is_empty() {
+        return Err(CalibError::NothingToIdentify(
+            "every free parameter is unidentifiable from these measurements".into(),
+        ));
+    }
+    let rows = lin.residual.len();
+    if rows <= cols.len() {
+        let per_pose = if data.is_empty() { 6 } else { rows.max(1) / data.len().max(1) };
+        let needed = cols.len() / per_pose.max(1) + 1;
+        return Err(CalibError::TooFewMeasurements {
+            poses: data.len(),
+            rows,
+            params: cols.len(),
+            needed,
+        });
+    }
+    let dof_ratio = (rows - cols.len()) as f64 / rows as f64;
+    let mut delta_total = DVector::zeros(p);
+    let mut iterations = Vec::new();
+    let mut converged = false;
+
+    match opts.method {
+        Method::Linear | Method::Recursive => {
+            let step = if opts.method == Method::Linear {
+                solve_subset(&lin.jacobian, &lin.residual, &cols, 0.0, None)?
+            } else {
+                rls_solve(&lin, &cols)?
+            };
+            let pred = (&lin.jacobian * &step).norm();
+            iterations.push(Iteration {
+                cost: 0.5 * lin.residual.norm_squared(),
+                step: pred,
+                damping: 0.0,
+            });
+            model.retract(&step);
+            delta_total += step;
+            lin = linearize(&model, data, &noise)?;
+            converged = true;
+        }
+        Method::GaussNewton => {
+            // Steps are minimum-norm over every free parameter that has an effect, truncated at
+            // the numerical rank: the same fit as the identifiable subset, but without moving
+            // along the weak directions a particular choice of subset can have.
+            let effective: Vec<usize> = free.iter().copied().filter(|c| !ident.no_effect.contains(c)).collect();
+            let mut damping = 0.0;
+            let mut stalls = 0;
+            for _ in 0..opts.max_iterations {
+                if opts.reweight {
+                    noise = reestimate_noise(&lin, &noise, dof_ratio);
+                    lin = linearize(&model, data, &noise)?;
+                }
+                let cost = 0.5 * lin.residual.norm_squared();
+                let step = solve_subset(&lin.jacobian, &lin.residual, &effective, damping, Some(ident.rank))?;
+                let pred = (&lin.jacobian * &step).norm();
+                let mut trial = model.clone();
+                trial.retract(&step);
+                let trial_lin = linearize(&trial, data, &noise)?;
+                let trial_cost = 0.5 * trial_lin.residual.norm_squared();
+                iterations.push(Iteration { cost, step: pred, damping });
+                let tiny = pred <= opts.step_tolerance * (1.0 + lin.residual.norm());
+                // At round-off level the cost no longer decreases; a step that small is converged.
+                let negligible = pred <= 1e-6 * (1.0 + lin.residual.norm()) && trial_cost >= cost * (1.0 - 1e-12);
+                if trial_cost <= cost {
+                    model = trial;
+                    lin = trial_lin;
+                    delta_total += step;
+                    damping = if damping > 1e-9 { damping / 3.0 } else { 0.0 };
+                } else if !negligible {
+                    damping = if damping == 0.0 { 1e-3 } else { damping * 4.0 };
+                }
+                if tiny || negligible {
+                    stalls += 1;
+                    if tiny || stalls >= 2 {
+                        converged = true;
+                        break;
+                    }
+                } else {
+                    stalls = 0;
+                }
+                if damping > 1e12 {
+                    break;
+                }
+            }
+            if opts.reweight {
+                noise = reestimate_noise(&lin, &noise, dof_ratio);
+                lin = linearize(&model, data, &noise)?;
+            }
+        }
+    }
+    let sigma0 = (lin.residual.norm_squared() / (rows - cols.len()) as f64).sqrt();
+    let std_dev = std_devs(&lin.jacobian, &cols, sigma0);
+    Ok(Identification {
+        model,
+        identifiability: ident,
+        delta: delta_total,
+        std_dev,
+        iterations,
+        converged,
+        sigma0,
+        noise,
+    })
+}
+
+/// Recursive least squares over the pose blocks of a linearisation, restricted to `cols`.
+///
+/// The recursion is started from the batch solution of the first poses whose rows reach full
+/// column rank (so it equals batch least squares exactly, not approximately through a large
+/// initial covariance), then updated pose by pose with the Woodbury identity:
+/// `K = P·Aᵢᵀ(I + Aᵢ·P·Aᵢᵀ)⁻¹`, `x ← x + K(bᵢ − Aᵢx)`, `P ← P − K·Aᵢ·P`.
+pub fn rls_solve(lin: &Linearization, cols: &[usize]) -> Result<DVector<f64>, CalibError> {
+    let (scaled, norms) = identifiability::scale_columns(&lin.jacobian, cols);
+    let k = cols.len();
+    let rows = scaled.nrows();
+    let mut ends: Vec<usize> = lin.offsets.iter().skip(1).copied().collect();
+    ends.push(rows);
+    // Find the first block end where the stacked rows have full column rank.
+    let mut start = None;
+    for &e in &ends {
+        if e < k {
+            continue;
+        }
+        let head = scaled.rows(0, e).into_owned();
+        let n = head.transpose() * &head;
+        if let Some(ch) = n.clone().cholesky() {
+            let rc = identifiability::singular_values(&head);
+            if rc.last().copied().unwrap_or(0.0) > 1e-10 * rc[0] {
+                let p = ch.inverse();
+                let x = &p * (head.transpose() * lin.residual.rows(0, e));
+                start = Some((e, p, x));
+                break;
+            }
+        }
+    }
+    let (e0, mut p, mut x) =
+        start.ok_or_else(|| CalibError::Numerical("recursive least squares: the data never reach full rank".into()))?;
+    let mut row = e0;
+    for &e in ends.iter().filter(|&&e| e > e0) {
+        let a = scaled.rows(row, e - row).into_owned();
+        let b = lin.residual.rows(row, e - row).into_owned();
+        let s = DMatrix::identity(e - row, e - row) + &a * &p * a.transpose();
+        let s_inv = s
+            .try_inverse()
+            .ok_or_else(|| CalibError::Numerical("recursive least squares: singular innovation".into()))?;
+        let gain = &p * a.transpose() * s_inv;
+        x += &gain * (b - &a * &x);
+        p -= &gain * &a * &p;
+        row = e;
+    }
+    let mut delta = DVector::zeros(lin.jacobian.ncols());
+    for (i, &c) in cols.iter().enumerate() {
+        delta[c] = x[i] / norms[i];
+    }
+    Ok(delta)
+}

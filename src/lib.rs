@@ -1,0 +1,18 @@
+//! # kinecal — kinematic calibration of parallel and serial manipulators
+//!
+//! model → identifiability → measurement planning → identification → validation → compensation.
+//!
+//! Units inside the library: millimetres and radians. Twists are ordered (v, ω) (see [`se3`]).
+#![warn(missing_docs)]
+
+pub mod error;
+pub mod identifiability;
+pub mod identify;
+pub mod measure;
+pub mod model;
+pub mod params;
+pub mod se3;
+pub mod simulate;
+
+pub use error::{CalibError, KinError};
+pub use model::Mechanism;

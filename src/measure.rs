@@ -1,0 +1,183 @@
+//! Measurements: what a laser tracker (or any external device) observes, and the residuals and
+//! residual Jacobians that identification minimises.
+//!
+//! * [`Observation::Pose`]: the full tool-frame pose, e.g. from three reflectors
+//!   ([`frame_from_reflectors`], eq. (38) of the 5-DOF paper). Residual
+//!   `(p_meas − p, log(R_meas·Rᵀ))`: 3 rows in mm, 3 rows in rad.
+//! * [`Observation::Position`]: the position of the tool-frame origin (one reflector whose centre
+//!   *is* the tool point). Residual `p_meas − p`, 3 rows in mm.
+//!
+//! Rows are weighted by the measurement noise ([`Noise`]): dividing each residual by its standard
+//! deviation makes the least-squares solution the maximum-likelihood estimate under Gaussian
+//! noise and puts millimetres and radians on one dimensionless scale.
+use crate::se3::{self, Pose};
+use nalgebra::{DMatrix, Matrix3, Matrix6xX, Vector3, Vector6};
+use serde::{Deserialize, Serialize};
+
+/// One observation of the tool frame, expressed in the world (measurement) frame.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Observation {
+    /// Full pose of the tool frame.
+    Pose(Pose),
+    /// Position of the tool-frame origin (mm).
+    Position(Vector3<f64>),
+}
+
+impl Observation {
+    /// Number of residual rows.
+    pub fn rows(&self) -> usize {
+        match self {
+            Observation::Pose(_) => 6,
+            Observation::Position(_) => 3,
+        }
+    }
+}
+
+/// One measured pose of a mechanism: its inputs and what was observed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Measurement {
+    /// Input values (rad for revolute, mm for prismatic joints), in the mechanism's input order.
+    pub q: Vec<f64>,
+    /// What was observed.
+    pub obs: Observation,
+}
+
+/// Standard deviations of the measurement noise, used as residual weights.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Noise {
+    /// Position noise (mm, per axis).
+    pub position: f64,
+    /// Orientation noise (rad, per axis).
+    pub orientation: f64,
+}
+
+impl Default for Noise {
+    /// 20 µm and 0.02°, the noise of the 5-DOF paper's simulation study (§5.1).
+    fn default() -> Self {
+        Noise {
+            position: 0.020,
+            orientation: 0.02_f64.to_radians(),
+        }
+    }
+}
+
+/// The unweighted residual of an observation against a predicted tool pose.
+pub fn residual(obs: &Observation, predicted: &Pose) -> Vec<f64> {
+    match obs {
+        Observation::Pose(m) => se3::pose_error(m, predicted).as_slice().to_vec(),
+        Observation::Position(p) => (p - predicted.translation.vector).as_slice().to_vec(),
+    }
+}
+
+/// Rows of the residual Jacobian (`d residual / dδ`) from the spatial identification Jacobian
+/// `J` (6 × p) at a predicted pose. The residual is "measured − predicted", so a model change `δ`
+/// that moves the prediction by `J·δ` reduces the residual by the same amount: the returned
+/// matrix is the derivative of the *prediction*, and least squares solves `A·δ ≈ r`.
+pub fn residual_jacobian(obs: &Observation, predicted: &Pose, jac: &Matrix6xX<f64>) -> DMatrix<f64> {
+    let m = se3::spatial_to_pose_error(&predicted.translation.vector);
+    let full = m * jac;
+    match obs {
+        Observation::Pose(_) => DMatrix::from_iterator(6, jac.ncols(), full.iter().copied()),
+        Observation::Position(_) => DMatrix::from_fn(3, jac.ncols(), |i, j| full[(i, j)]),
+    }
+}
+
+/// Weights (1/σ) of the residual rows of an observation.
+pub fn row_weights(obs: &Observation, noise: &Noise) -> Vec<f64> {
+    match obs {
+        Observation::Pose(_) => {
+            let (a, b) = (1.0 / noise.position, 1.0 / noise.orientation);
+            vec![a, a, a, b, b, b]
+        }
+        Observation::Position(_) => vec![1.0 / noise.position; 3],
+    }
+}
+
+/// Position error (mm) and rotation error (rad) of an observation against a predicted pose; the
+/// rotation error is `None` for a position observation.
+pub fn errors(obs: &Observation, predicted: &Pose) -> (f64, Option<f64>) {
+    match obs {
+        Observation::Pose(m) => {
+            let e: Vector6<f64> = se3::pose_error(m, predicted);
+            (se3::lin(&e).norm(), Some(se3::ang(&e).norm()))
+        }
+        Observation::Position(p) => ((p - predicted.translation.vector).norm(), None),
+    }
+}
+
+/// The tool frame of three reflector centres `M1, M2, M3` (eq. (38) of the 5-DOF paper): origin at
+/// the centroid, `x` along `M2 − M3`, `y` toward `M1` from the midpoint of `M2 M3`, `z = x × y`.
+///
+/// Eq. (38) takes `r_y` as printed, which is orthogonal to `r_x` only when `|M1 M2| = |M1 M3|`;
+/// kinecal keeps `r_x`, takes `r_z = r_x × r_y` normalised and re-derives `r_y = r_z × r_x`, so the
+/// frame is orthonormal for any triangle and equals the paper's for an isosceles one.
+pub fn frame_from_reflectors(m1: &Vector3<f64>, m2: &Vector3<f64>, m3: &Vector3<f64>) -> Option<Pose> {
+    let origin = (m1 + m2 + m3) / 3.0;
+    let rx = (m2 - m3).try_normalize(1e-9)?;
+    let ry0 = m1 - (m2 + m3) * 0.5;
+    let rz = rx.cross(&ry0).try_normalize(1e-9)?;
+    let ry = rz.cross(&rx);
+    let r = Matrix3::from_columns(&[rx, ry, rz]);
+    Some(se3::pose_from_matrix(&r, &origin))
+}
+
+/// Rigid registration by SVD (eq. (39)–(44) of the 5-DOF paper, with the reflection guard of
+/// Arun/Umeyama): the pose `T` minimising `Σ |T·src_i − dst_i|²`. Needs at least three points not
+/// on one line; returns `None` otherwise.
+pub fn register_points(src: &[Vector3<f64>], dst: &[Vector3<f64>]) -> Option<Pose> {
+    if src.len() != dst.len() || src.len() < 3 {
+        return None;
+    }
+    let n = src.len() as f64;
+    let cs = src.iter().sum::<Vector3<f64>>() / n;
+    let cd = dst.iter().sum::<Vector3<f64>>() / n;
+    let mut z = Matrix3::zeros();
+    for (s, d) in src.iter().zip(dst) {
+        z += (d - cd) * (s - cs).transpose();
+    }
+    let svd = z.svd(true, true);
+    let (u, vt) = (svd.u?, svd.v_t?);
+    let sv = svd.singular_values;
+    if sv[1] < 1e-9 * sv[0].max(1e-300) {
+        return None;
+    }
+    let mut d = Matrix3::identity();
+    if (u * vt).determinant() < 0.0 {
+        d[(2, 2)] = -1.0;
+    }
+    let r = u * d * vt;
+    let p = cd - r * cs;
+    Some(se3::pose_from_matrix(&r, &p))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+
+    #[test]
+    fn registration_recovers_a_pose() {
+        let t = se3::exp(&se3::Twist::new(100.0, -20.0, 5.0, 0.3, -1.1, 2.0));
+        let src: Vec<Vector3<f64>> = (0..10)
+            .map(|i| {
+                let f = i as f64;
+                Vector3::new(f.sin() * 300.0, (2.0 * f).cos() * 200.0, f * 10.0)
+            })
+            .collect();
+        let dst: Vec<Vector3<f64>> = src.iter().map(|p| t.transform_point(&(*p).into()).coords).collect();
+        let est = register_points(&src, &dst).unwrap();
+        assert_relative_eq!(est.to_homogeneous(), t.to_homogeneous(), epsilon = 1e-9);
+    }
+
+    #[test]
+    fn reflector_frame_is_orthonormal_and_matches_paper_for_isosceles() {
+        let m1 = Vector3::new(0.0, 100.0, 0.0);
+        let m2 = Vector3::new(80.0, -50.0, 0.0);
+        let m3 = Vector3::new(-80.0, -50.0, 0.0);
+        let f = frame_from_reflectors(&m1, &m2, &m3).unwrap();
+        assert_relative_eq!(se3::rotation_matrix(&f), Matrix3::identity(), epsilon = 1e-12);
+        assert_relative_eq!(f.translation.vector, Vector3::new(0.0, 0.0, 0.0), epsilon = 1e-12);
+        // Degenerate triangle: no frame.
+        assert!(frame_from_reflectors(&m1, &m1, &m3).is_none());
+    }
+}

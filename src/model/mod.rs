@@ -1,0 +1,93 @@
+//! Mechanisms: what kinecal calibrates.
+//!
+//! A [`Mechanism`] maps actuator (and sensed passive-joint) values `q` to the pose of its tool frame
+//! in the world frame (for a tracker measurement: the tracker frame), and exposes its geometric
+//! error coordinates as named [`Param`]s. Identification only ever needs three things from it:
+//!
+//! * the tool pose at `q`,
+//! * the *spatial* identification Jacobian `J(q)`, 6 × p, defined by
+//!   `log(T(q; θ ⊕ δ)·T(q; θ)⁻¹) = J(q)·δ + O(|δ|²)` (twist order (v, ω), see [`crate::se3`]),
+//! * the update `θ ← θ ⊕ δ` ([`Mechanism::retract`]): for a local-POE chain `T(0) ← T(0)·exp(δt)`
+//!   (eq. (33) of the 3T1R paper), for a constraint model `θ ← θ + δ`.
+//!
+//! Because every model is re-linearised at its current parameters, identification iterates to
+//! convergence on any mechanism that implements this trait.
+use crate::error::KinError;
+use crate::params::Param;
+use crate::se3::Pose;
+use nalgebra::{DVector, Matrix6xX};
+
+pub mod chain;
+
+/// A calibratable mechanism.
+pub trait Mechanism: Send + Sync {
+    /// A short name, e.g. `"irb120"`.
+    fn name(&self) -> &str;
+    /// Names of the input values `q` of one pose, in order (actuators first, then sensed passive
+    /// joints), with their unit: revolute joints in rad, prismatic in mm.
+    fn input_names(&self) -> Vec<String>;
+    /// The error parameters, in Jacobian column order.
+    fn params(&self) -> Vec<Param>;
+    /// Number of error parameters.
+    fn n_params(&self) -> usize {
+        self.params().len()
+    }
+    /// Tool pose in the world frame at inputs `q`.
+    fn forward(&self, q: &[f64]) -> Result<Pose, KinError>;
+    /// Tool pose and spatial identification Jacobian (6 × p) at inputs `q`.
+    fn forward_with_jacobian(&self, q: &[f64]) -> Result<(Pose, Matrix6xX<f64>), KinError>;
+    /// Apply an increment of the error coordinates (length p) to the model's geometry.
+    fn retract(&mut self, delta: &DVector<f64>);
+    /// Inputs that bring the tool to `target` (inverse kinematics); `seed` is a starting guess for
+    /// mechanisms that solve numerically.
+    fn inverse(&self, target: &Pose, seed: Option<&[f64]>) -> Result<Vec<f64>, KinError>;
+    /// A boxed copy (lets command-line code hold any mechanism).
+    fn box_clone(&self) -> Box<dyn Mechanism>;
+}
+
+impl Clone for Box<dyn Mechanism> {
+    fn clone(&self) -> Self {
+        self.box_clone()
+    }
+}
+
+impl Mechanism for Box<dyn Mechanism> {
+    fn name(&self) -> &str {
+        (**self).name()
+    }
+    fn input_names(&self) -> Vec<String> {
+        (**self).input_names()
+    }
+    fn params(&self) -> Vec<Param> {
+        (**self).params()
+    }
+    fn n_params(&self) -> usize {
+        (**self).n_params()
+    }
+    fn forward(&self, q: &[f64]) -> Result<Pose, KinError> {
+        (**self).forward(q)
+    }
+    fn forward_with_jacobian(&self, q: &[f64]) -> Result<(Pose, Matrix6xX<f64>), KinError> {
+        (**self).forward_with_jacobian(q)
+    }
+    fn retract(&mut self, delta: &DVector<f64>) {
+        (**self).retract(delta)
+    }
+    fn inverse(&self, target: &Pose, seed: Option<&[f64]>) -> Result<Vec<f64>, KinError> {
+        (**self).inverse(target, seed)
+    }
+    fn box_clone(&self) -> Box<dyn Mechanism> {
+        (**self).box_clone()
+    }
+}
+
+/// Check an input vector: length and finiteness.
+pub fn check_inputs(q: &[f64], expected: usize) -> Result<(), KinError> {
+    if q.len() != expected {
+        return Err(KinError::InputLength { expected, got: q.len() });
+    }
+    if q.iter().any(|v| !v.is_finite()) {
+        return Err(KinError::NonFinite("joint values".into()));
+    }
+    Ok(())
+}

@@ -1,0 +1,56 @@
+//! Named error parameters: what a model can be calibrated in.
+//!
+//! Every mechanism exposes its error coordinates as a list of [`Param`]s, in a fixed order that is
+//! also the column order of its identification Jacobian. Lengths are in millimetres, angles in
+//! radians, everywhere inside kinecal; files and reports convert at the edges.
+use serde::{Deserialize, Serialize};
+
+/// Physical kind of a parameter (decides its unit and its scale in weighting and reports).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Unit {
+    /// A length, in millimetres.
+    Length,
+    /// An angle, in radians.
+    Angle,
+    /// A pure number.
+    Dimensionless,
+}
+
+impl Unit {
+    /// The unit symbol used inside kinecal.
+    pub fn symbol(self) -> &'static str {
+        match self {
+            Unit::Length => "mm",
+            Unit::Angle => "rad",
+            Unit::Dimensionless => "",
+        }
+    }
+}
+
+/// One error parameter of a mechanism.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Param {
+    /// Unique name, e.g. `"2-3.wy"` (a local-POE dyad error) or `"dl1"` (a link length).
+    pub name: String,
+    /// Physical kind and unit.
+    pub unit: Unit,
+    /// Group for reports, e.g. `"base"`, `"tool"`, `"joint 2"`, `"limb 1"`.
+    pub group: String,
+}
+
+impl Param {
+    /// A new parameter.
+    pub fn new(name: impl Into<String>, unit: Unit, group: impl Into<String>) -> Self {
+        Param {
+            name: name.into(),
+            unit,
+            group: group.into(),
+        }
+    }
+}
+
+/// Index of the parameter called `name`, if any.
+pub fn index_of(params: &[Param], name: &str) -> Option<usize> {
+    params.iter().position(|p| p.name == name)
+}

@@ -1,0 +1,254 @@
+//! SE(3) and se(3): hat, vee, exponential, logarithm, adjoints.
+//!
+//! # Conventions (written once, used everywhere in kinecal)
+//!
+//! * A pose is an [`Pose`] (`nalgebra::Isometry3<f64>`): `T = [R p; 0 1]`, mapping points of the
+//!   child frame into the parent frame, `x_parent = R·x_child + p`.
+//! * A twist is a 6-vector in the order **(v, ω)** — linear part first, as in both seed papers
+//!   (`s = [0 1 0 0 0 0]ᵀ` is a prismatic joint along y, `s = [0 0 0 1 0 0]ᵀ` a revolute about x).
+//!   `hat(ξ) = [[ω̂, v], [0, 0]]`.
+//! * `exp(hat(ξ))` is computed in closed form (Rodrigues and the `V` matrix); `log` goes through a
+//!   unit quaternion, `θ = 2·atan2(|q_xyz|, q_w)`, which is well conditioned for every angle: near
+//!   the identity it degrades to the series `ω ≈ 2·q_xyz`, and at a half turn (`trace R = −1`,
+//!   the special case of eq. (38) in the 3T1R paper) the axis comes from the quaternion's vector
+//!   part without any division by `sin θ`.
+//! * The adjoint `Ad_T = [[R, p̂R], [0, R]]` maps twists: `hat(Ad_T ξ) = T·hat(ξ)·T⁻¹`.
+//! * A *spatial* (left) perturbation `T' = exp(hat(δ))·T` is what the local-POE error model of the
+//!   3T1R paper, eq. (17)–(19), produces: `log(T'·T⁻¹) = δ`.
+//! * A *pose error* for reporting and for weighted residuals is `(p' − p, log(R'·Rᵀ))`: a position
+//!   difference in length units and a rotation vector in radians, both in the parent frame. For a
+//!   spatial perturbation `δ = (v, ω)` its first-order value is `(v − p̂·ω, ω)`
+//!   ([`spatial_to_pose_error`]).
+use nalgebra::{Isometry3, Matrix3, Matrix6, Quaternion, Translation3, UnitQuaternion, Vector3, Vector6};
+
+/// A rigid-body pose, an element of SE(3).
+pub type Pose = Isometry3<f64>;
+/// A twist `(v, ω)`, an element of se(3) in vector form.
+pub type Twist = Vector6<f64>;
+
+/// The skew-symmetric matrix `ω̂` with `ω̂·x = ω × x`.
+pub fn skew(w: &Vector3<f64>) -> Matrix3<f64> {
+    Matrix3::new(0.0, -w.z, w.y, w.z, 0.0, -w.x, -w.y, w.x, 0.0)
+}
+
+/// The vector `ω` of a skew-symmetric matrix (the inverse of [`skew`]); only the skew part of `m` counts.
+pub fn unskew(m: &Matrix3<f64>) -> Vector3<f64> {
+    Vector3::new(m[(2, 1)] - m[(1, 2)], m[(0, 2)] - m[(2, 0)], m[(1, 0)] - m[(0, 1)]) * 0.5
+}
+
+/// `hat(ξ)`: the 4×4 matrix of a twist `(v, ω)`.
+pub fn hat(xi: &Twist) -> nalgebra::Matrix4<f64> {
+    let mut m = nalgebra::Matrix4::zeros();
+    let w = Vector3::new(xi[3], xi[4], xi[5]);
+    m.fixed_view_mut::<3, 3>(0, 0).copy_from(&skew(&w));
+    m[(0, 3)] = xi[0];
+    m[(1, 3)] = xi[1];
+    m[(2, 3)] = xi[2];
+    m
+}
+
+/// `vee(M)`: the twist `(v, ω)` of a 4×4 matrix of se(3) (inverse of [`hat`]).
+pub fn vee(m: &nalgebra::Matrix4<f64>) -> Twist {
+    let w = unskew(&m.fixed_view::<3, 3>(0, 0).into_owned());
+    Twist::new(m[(0, 3)], m[(1, 3)], m[(2, 3)], w.x, w.y, w.z)
+}
+
+/// Linear part of a twist.
+pub fn lin(xi: &Twist) -> Vector3<f64> {
+    Vector3::new(xi[0], xi[1], xi[2])
+}
+
+/// Angular part of a twist.
+pub fn ang(xi: &Twist) -> Vector3<f64> {
+    Vector3::new(xi[3], xi[4], xi[5])
+}
+
+/// Build a twist from its linear and angular parts.
+pub fn twist(v: &Vector3<f64>, w: &Vector3<f64>) -> Twist {
+    Twist::new(v.x, v.y, v.z, w.x, w.y, w.z)
+}
+
+/// Rotation exponential `exp(ω̂)` as a unit quaternion (exact for every angle).
+pub fn so3_exp(w: &Vector3<f64>) -> UnitQuaternion<f64> {
+    let theta = w.norm();
+    let half = 0.5 * theta;
+    // sin(θ/2)/θ with its series near zero.
+    let k = if theta < 1e-6 {
+        0.5 - theta * theta / 48.0
+    } else {
+        half.sin() / theta
+    };
+    UnitQuaternion::new_unchecked(Quaternion::new(half.cos(), k * w.x, k * w.y, k * w.z))
+}
+
+/// Rotation logarithm: the rotation vector `ω` (|ω| ≤ π) of a unit quaternion.
+pub fn so3_log(q: &UnitQuaternion<f64>) -> Vector3<f64> {
+    let (mut w, mut v) = (q.w, q.imag());
+    if w < 0.0 {
+        w = -w;
+        v = -v;
+    }
+    let s = v.norm();
+    let theta = 2.0 * s.atan2(w);
+    // θ / sin(θ/2) with sin(θ/2) = s; series when s is tiny (w ≈ 1).
+    let k = if s < 1e-8 { 2.0 / w } else { theta / s };
+    v * k
+}
+
+/// The `V` matrix of the SE(3) exponential (left Jacobian of SO(3)): `p = V(ω)·v`.
+pub fn so3_left_jacobian(w: &Vector3<f64>) -> Matrix3<f64> {
+    let t2 = w.norm_squared();
+    let t = t2.sqrt();
+    let wx = skew(w);
+    // a = (1 − cos t)/t² written as ½·(sin(t/2)/(t/2))² (no cancellation); b = (t − sin t)/t³ by
+    // its Taylor series below 0.01 rad, where the closed form loses digits.
+    let a = if t < 1e-8 {
+        0.5
+    } else {
+        let s = (0.5 * t).sin() / (0.5 * t);
+        0.5 * s * s
+    };
+    let b = if t < 1e-2 {
+        1.0 / 6.0 - t2 / 120.0 + t2 * t2 / 5040.0 - t2 * t2 * t2 / 362880.0
+    } else {
+        (t - t.sin()) / (t2 * t)
+    };
+    Matrix3::identity() + wx * a + wx * wx * b
+}
+
+/// The inverse of [`so3_left_jacobian`]: `v = V(ω)⁻¹·p` (the `A*` matrix of the 3T1R paper, eq. (38)).
+pub fn so3_left_jacobian_inv(w: &Vector3<f64>) -> Matrix3<f64> {
+    let t2 = w.norm_squared();
+    let t = t2.sqrt();
+    let wx = skew(w);
+    // c = (1 − (t/2)·cot(t/2))/t², by its Taylor series below 0.01 rad.
+    let c = if t < 1e-2 {
+        1.0 / 12.0 + t2 / 720.0 + t2 * t2 / 30240.0 + t2 * t2 * t2 / 1209600.0
+    } else {
+        let h = 0.5 * t;
+        (1.0 - h * h.cos() / h.sin()) / t2
+    };
+    Matrix3::identity() - wx * 0.5 + wx * wx * c
+}
+
+/// The SE(3) exponential `exp(hat(ξ))` of a twist `(v, ω)`.
+pub fn exp(xi: &Twist) -> Pose {
+    let w = ang(xi);
+    let p = so3_left_jacobian(&w) * lin(xi);
+    Isometry3::from_parts(Translation3::from(p), so3_exp(&w))
+}
+
+/// The SE(3) logarithm: the twist `(v, ω)` with `exp(hat(ξ)) = T` and `|ω| ≤ π`.
+pub fn log(t: &Pose) -> Twist {
+    let w = so3_log(&t.rotation);
+    let v = so3_left_jacobian_inv(&w) * t.translation.vector;
+    twist(&v, &w)
+}
+
+/// Exponential of a joint motion `exp(hat(s)·q)`.
+pub fn exp_joint(s: &Twist, q: f64) -> Pose {
+    exp(&(s * q))
+}
+
+/// The adjoint matrix `Ad_T = [[R, p̂R], [0, R]]` in (v, ω) order.
+pub fn adjoint(t: &Pose) -> Matrix6<f64> {
+    let r = t.rotation.to_rotation_matrix().into_inner();
+    let p = t.translation.vector;
+    let mut m = Matrix6::zeros();
+    m.fixed_view_mut::<3, 3>(0, 0).copy_from(&r);
+    m.fixed_view_mut::<3, 3>(3, 3).copy_from(&r);
+    m.fixed_view_mut::<3, 3>(0, 3).copy_from(&(skew(&p) * r));
+    m
+}
+
+/// The small adjoint `ad_ξ = [[ω̂, v̂], [0, ω̂]]`: `ad_ξ η` is the Lie bracket `[ξ, η]`.
+pub fn ad(xi: &Twist) -> Matrix6<f64> {
+    let mut m = Matrix6::zeros();
+    let wx = skew(&ang(xi));
+    m.fixed_view_mut::<3, 3>(0, 0).copy_from(&wx);
+    m.fixed_view_mut::<3, 3>(3, 3).copy_from(&wx);
+    m.fixed_view_mut::<3, 3>(0, 3).copy_from(&skew(&lin(xi)));
+    m
+}
+
+/// Pose error `(p_a − p_b, log(R_a·R_bᵀ))` of `a` relative to `b`, both expressed in the common
+/// parent frame: position difference (length unit of the poses) and rotation vector (rad).
+pub fn pose_error(a: &Pose, b: &Pose) -> Vector6<f64> {
+    let dp = a.translation.vector - b.translation.vector;
+    let dw = so3_log(&(a.rotation * b.rotation.inverse()));
+    twist(&dp, &dw)
+}
+
+/// The 6×6 map from a spatial perturbation `δ` of a pose with position `p` to the first-order pose
+/// error `(δp, δφ) = (v − p̂ω, ω)`.
+pub fn spatial_to_pose_error(p: &Vector3<f64>) -> Matrix6<f64> {
+    let mut m = Matrix6::identity();
+    m.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-skew(p)));
+    m
+}
+
+/// A pose from a translation and a rotation vector.
+pub fn pose_from_parts(p: Vector3<f64>, rotvec: Vector3<f64>) -> Pose {
+    Isometry3::from_parts(Translation3::from(p), so3_exp(&rotvec))
+}
+
+/// A pure translation.
+pub fn translation(x: f64, y: f64, z: f64) -> Pose {
+    Isometry3::translation(x, y, z)
+}
+
+/// Rotation matrix of a pose.
+pub fn rotation_matrix(t: &Pose) -> Matrix3<f64> {
+    t.rotation.to_rotation_matrix().into_inner()
+}
+
+/// A pose from a rotation matrix (projected onto SO(3) if not exactly orthonormal) and a position.
+pub fn pose_from_matrix(r: &Matrix3<f64>, p: &Vector3<f64>) -> Pose {
+    let rot = nalgebra::Rotation3::from_matrix(r);
+    Isometry3::from_parts(Translation3::from(*p), UnitQuaternion::from_rotation_matrix(&rot))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+
+    #[test]
+    fn hat_vee_roundtrip() {
+        let xi = Twist::new(1.0, -2.0, 3.0, 0.4, -0.5, 0.6);
+        assert_relative_eq!(vee(&hat(&xi)), xi, epsilon = 1e-15);
+    }
+
+    #[test]
+    fn exp_matches_matrix_series() {
+        let xi = Twist::new(0.3, -0.2, 0.5, 0.7, -0.4, 0.2);
+        let m = hat(&xi);
+        let mut term = nalgebra::Matrix4::identity();
+        let mut sum = nalgebra::Matrix4::identity();
+        for k in 1..40 {
+            term = term * m / k as f64;
+            sum += term;
+        }
+        assert_relative_eq!(exp(&xi).to_homogeneous(), sum, epsilon = 1e-12);
+    }
+
+    #[test]
+    fn adjoint_is_conjugation() {
+        let t = exp(&Twist::new(0.3, -1.2, 0.5, 0.7, -0.4, 1.2));
+        let xi = Twist::new(0.1, 0.2, -0.3, -0.5, 0.25, 0.4);
+        let lhs = hat(&(adjoint(&t) * xi));
+        let rhs = t.to_homogeneous() * hat(&xi) * t.inverse().to_homogeneous();
+        assert_relative_eq!(lhs, rhs, epsilon = 1e-12);
+    }
+
+    #[test]
+    fn half_turn_log() {
+        for axis in [Vector3::x(), Vector3::y(), Vector3::new(1.0, 2.0, -2.0).normalize()] {
+            let xi = twist(&Vector3::new(0.5, -1.0, 2.0), &(axis * std::f64::consts::PI));
+            let t = exp(&xi);
+            let back = exp(&log(&t));
+            assert_relative_eq!(back.to_homogeneous(), t.to_homogeneous(), epsilon = 1e-12);
+            assert_relative_eq!(ang(&log(&t)).norm(), std::f64::consts::PI, epsilon = 1e-12);
+        }
+    }
+}

@@ -1,0 +1,124 @@
+//! Virtual prototypes: random geometric errors, synthetic measurements with noise, random chains.
+//!
+//! Every random draw takes an explicit seed or RNG, so the same inputs give the same outputs.
+use crate::error::CalibError;
+use crate::measure::{Measurement, Noise, Observation};
+use crate::model::chain::{ChainJoint, SerialChain};
+use crate::model::Mechanism;
+use crate::params::Unit;
+use crate::se3::{self, Pose};
+use nalgebra::{DVector, Vector3};
+use rand::{Rng, RngExt};
+use rand_distr::{Distribution, Normal};
+
+/// Uniform random error coordinates: lengths in `±length` (mm), angles in `±angle` (rad),
+/// dimensionless ones in `±length`. Only the parameters in `which` (default: all) are drawn.
+pub fn random_errors<M: Mechanism + ?Sized, R: Rng>(
+    model: &M,
+    rng: &mut R,
+    length: f64,
+    angle: f64,
+    which: Option<&[usize]>,
+) -> DVector<f64> {
+    let params = model.params();
+    let mut d = DVector::zeros(params.len());
+    let all: Vec<usize> = (0..params.len()).collect();
+    for &i in which.unwrap_or(&all) {
+        let r = match params[i].unit {
+            Unit::Angle => angle,
+            _ => length,
+        };
+        d[i] = rng.random_range(-1.0..=1.0) * r;
+    }
+    d
+}
+
+/// A copy of `model` with the error `delta` applied (a virtual prototype's "true" geometry).
+pub fn perturbed<M: Mechanism + Clone>(model: &M, delta: &DVector<f64>) -> M {
+    let mut m = model.clone();
+    m.retract(delta);
+    m
+}
+
+/// Kind of synthetic observation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ObservationKind {
+    /// Full tool pose.
+    Pose,
+    /// Tool-frame origin position.
+    Position,
+}
+
+/// Measure `truth` at each input vector, adding Gaussian noise (`None`: noise-free). The noise is
+/// applied as a position offset `N(0, σ_p²)` per axis and a rotation vector `N(0, σ_θ²)` per axis.
+pub fn measure<M: Mechanism + ?Sized, R: Rng>(
+    truth: &M,
+    inputs: &[Vec<f64>],
+    kind: ObservationKind,
+    noise: Option<&Noise>,
+    rng: &mut R,
+) -> Result<Vec<Measurement>, CalibError> {
+    let mut out = Vec::with_capacity(inputs.len());
+    for (i, q) in inputs.iter().enumerate() {
+        let t = truth.forward(q).map_err(|source| CalibError::Kinematics { pose: i, source })?;
+        let (dp, dw) = match noise {
+            Some(n) => {
+                let np = Normal::new(0.0, n.position).map_err(|e| CalibError::InvalidOption(e.to_string()))?;
+                let nw = Normal::new(0.0, n.orientation).map_err(|e| CalibError::InvalidOption(e.to_string()))?;
+                (
+                    Vector3::new(np.sample(rng), np.sample(rng), np.sample(rng)),
+                    Vector3::new(nw.sample(rng), nw.sample(rng), nw.sample(rng)),
+                )
+            }
+            None => (Vector3::zeros(), Vector3::zeros()),
+        };
+        let obs = match kind {
+            ObservationKind::Pose => {
+                Observation::Pose(Pose::from_parts((t.translation.vector + dp).into(), se3::so3_exp(&dw) * t.rotation))
+            }
+            ObservationKind::Position => Observation::Position(t.translation.vector + dp),
+        };
+        out.push(Measurement { q: q.clone(), obs });
+    }
+    Ok(out)
+}
+
+/// A random serial chain with `revolute` + `prismatic` joints in random order, random joint axes
+/// and link offsets of a few hundred millimetres (for tests and benchmarks).
+pub fn random_serial_chain<R: Rng>(rng: &mut R, revolute: usize, prismatic: usize) -> SerialChain {
+    let mut kinds: Vec<bool> = std::iter::repeat_n(true, revolute)
+        .chain(std::iter::repeat_n(false, prismatic))
+        .collect();
+    // Fisher–Yates with the given RNG.
+    for i in (1..kinds.len()).rev() {
+        let j = rng.random_range(0..=i);
+        kinds.swap(i, j);
+    }
+    let mut rand_vec = |s: f64| Vector3::new(rng.random_range(-s..s), rng.random_range(-s..s), rng.random_range(-s..s));
+    let mut joints = Vec::new();
+    let mut initial = Vec::new();
+    for (j, &rev) in kinds.iter().enumerate() {
+        let axis = rand_vec(1.0).normalize();
+        let name = format!("q{}", j + 1);
+        joints.push(if rev {
+            ChainJoint::revolute(name, axis)
+        } else {
+            ChainJoint::prismatic(name, axis)
+        });
+        initial.push(se3::pose_from_parts(rand_vec(300.0), rand_vec(1.5)));
+    }
+    let tool = se3::pose_from_parts(rand_vec(100.0), rand_vec(1.5));
+    SerialChain::new(format!("random-{revolute}r{prismatic}p"), joints, initial, tool)
+}
+
+/// Random joint values: revolute in `±angle` rad, prismatic in `±length` mm.
+pub fn random_joint_values<R: Rng>(chain: &SerialChain, rng: &mut R, angle: f64, length: f64) -> Vec<f64> {
+    chain
+        .joints()
+        .iter()
+        .map(|j| match j.kind {
+            crate::model::chain::JointKind::Revolute => rng.random_range(-angle..angle),
+            crate::model::chain::JointKind::Prismatic => rng.random_range(-length..length),
+        })
+        .collect()
+}

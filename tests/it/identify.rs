@@ -1,0 +1,128 @@
+use kinecal::identify::{identify, linearize, rls_solve, Method, Options};
+use kinecal::measure::{self, Noise};
+use kinecal::model::Mechanism;
+use kinecal::simulate::{self, random_joint_values, random_serial_chain, ObservationKind};
+use kinecal::CalibError;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+fn held_out_error<M: Mechanism>(model: &M, truth: &M, inputs: &[Vec<f64>]) -> (f64, f64) {
+    let (mut dp, mut dw) = (0.0f64, 0.0f64);
+    for q in inputs {
+        let (p, w) = measure::errors(&measure::Observation::Pose(truth.forward(q).unwrap()), &model.forward(q).unwrap());
+        dp = dp.max(p);
+        dw = dw.max(w.unwrap());
+    }
+    (dp, dw)
+}
+
+#[test]
+fn noise_free_calibration_of_random_chains_is_exact() {
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    for (r, p, kind) in [
+        (6, 0, ObservationKind::Pose),
+        (3, 2, ObservationKind::Pose),
+        (4, 1, ObservationKind::Position),
+        (6, 0, ObservationKind::Position),
+    ] {
+        let nominal = random_serial_chain(&mut rng, r, p);
+        let delta = simulate::random_errors(&nominal, &mut rng, 2.0, 0.02, None);
+        let truth = simulate::perturbed(&nominal, &delta);
+        let ident_q: Vec<Vec<f64>> = (0..40).map(|_| random_joint_values(&nominal, &mut rng, 2.5, 200.0)).collect();
+        let test_q: Vec<Vec<f64>> = (0..20).map(|_| random_joint_values(&nominal, &mut rng, 2.5, 200.0)).collect();
+        let data = simulate::measure(&truth, &ident_q, kind, None, &mut rng).unwrap();
+        let before = held_out_error(&nominal, &truth, &test_q);
+        let res = identify(&nominal, &data, &Options::default()).unwrap();
+        assert!(res.converged, "{r}r{p}p {kind:?} did not converge");
+        let (ep, ew) = if kind == ObservationKind::Pose {
+            held_out_error(&res.model, &truth, &test_q)
+        } else {
+            // Position-only: the tool orientation is unobservable, compare positions only.
+            let mut e = 0.0f64;
+            for q in &test_q {
+                e = e.max((truth.forward(q).unwrap().translation.vector - res.model.forward(q).unwrap().translation.vector).norm());
+            }
+            (e, 0.0)
+        };
+        assert!(before.0 > 1.0, "the errors must be visible before calibration");
+        assert!(
+            ep < 1e-9 && ew < 1e-9,
+            "{r}r{p}p {kind:?}: held-out error {ep:.3e} mm, {ew:.3e} rad"
+        );
+    }
+}
+
+#[test]
+fn recursive_least_squares_equals_batch() {
+    let mut rng = ChaCha8Rng::seed_from_u64(12);
+    let nominal = random_serial_chain(&mut rng, 5, 1);
+    let delta = simulate::random_errors(&nominal, &mut rng, 1.0, 0.01, None);
+    let truth = simulate::perturbed(&nominal, &delta);
+    let q: Vec<Vec<f64>> = (0..30).map(|_| random_joint_values(&nominal, &mut rng, 2.5, 200.0)).collect();
+    let data = simulate::measure(&truth, &q, ObservationKind::Pose, Some(&Noise::default()), &mut rng).unwrap();
+    let batch = identify(
+        &nominal,
+        &data,
+        &Options {
+            method: Method::Linear,
+            ..Options::default()
+        },
+    )
+    .unwrap();
+    let rls = identify(
+        &nominal,
+        &data,
+        &Options {
+            method: Method::Recursive,
+            ..Options::default()
+        },
+    )
+    .unwrap();
+    let diff = (&batch.delta - &rls.delta).amax();
+    assert!(diff < 1e-9 * batch.delta.amax(), "RLS differs from batch by {diff:.3e}");
+    // And directly on one linearisation.
+    let lin = linearize(&nominal, &data, &Noise::default()).unwrap();
+    let cols = batch.identifiability.identifiable.clone();
+    let x = rls_solve(&lin, &cols).unwrap();
+    assert!((&x - &batch.delta).amax() < 1e-9 * batch.delta.amax());
+}
+
+#[test]
+fn noisy_calibration_reports_consistent_uncertainty() {
+    let mut rng = ChaCha8Rng::seed_from_u64(13);
+    let nominal = random_serial_chain(&mut rng, 6, 0);
+    let delta = simulate::random_errors(&nominal, &mut rng, 1.0, 0.01, None);
+    let truth = simulate::perturbed(&nominal, &delta);
+    let q: Vec<Vec<f64>> = (0..200).map(|_| random_joint_values(&nominal, &mut rng, 2.5, 200.0)).collect();
+    let noise = Noise {
+        position: 0.02,
+        orientation: 2e-4,
+    };
+    let data = simulate::measure(&truth, &q, ObservationKind::Pose, Some(&noise), &mut rng).unwrap();
+    let res = identify(
+        &nominal,
+        &data,
+        &Options {
+            noise,
+            ..Options::default()
+        },
+    )
+    .unwrap();
+    // With the right noise model the unit-weight standard deviation is close to 1.
+    assert!((res.sigma0 - 1.0).abs() < 0.1, "sigma0 = {}", res.sigma0);
+    let ident = &res.identifiability.identifiable;
+    assert_eq!(ident.len(), 30);
+    assert!(ident.iter().all(|&c| res.std_dev[c] > 0.0));
+}
+
+#[test]
+fn too_few_poses_is_a_clear_error() {
+    let mut rng = ChaCha8Rng::seed_from_u64(14);
+    let nominal = random_serial_chain(&mut rng, 6, 0);
+    let q: Vec<Vec<f64>> = (0..3).map(|_| random_joint_values(&nominal, &mut rng, 2.5, 200.0)).collect();
+    let data = simulate::measure(&nominal, &q, ObservationKind::Pose, None, &mut rng).unwrap();
+    match identify(&nominal, &data, &Options::default()) {
+        Err(CalibError::TooFewMeasurements { poses: 3, .. }) => {}
+        other => panic!("expected TooFewMeasurements, got {other:?}"),
+    }
+}
