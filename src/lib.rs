@@ -8,6 +8,7 @@
 pub mod error;
 pub mod identifiability;
 pub mod identify;
+pub mod io;
 pub mod measure;
 pub mod model;
 pub mod params;

@@ -1,0 +1,2 @@
+//! One module per subcommand: each parses its arguments, calls the library and prints.
+pub mod irb120;

@@ -1,0 +1,1 @@
+//! Laser-tracker data sets (written next).
