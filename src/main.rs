@@ -31,7 +31,8 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("kinecal: error: {e:#}");
+            // Library errors already include their cause in their message: print the top one only.
+            eprintln!("kinecal: error: {e}");
             ExitCode::FAILURE
         }
     }

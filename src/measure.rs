@@ -21,6 +21,9 @@ pub enum Observation {
     Pose(Pose),
     /// Position of the tool-frame origin (mm).
     Position(Vector3<f64>),
+    /// Positions of several points rigidly attached to the tool (e.g. tracker reflectors):
+    /// `(point in the tool frame, measured position)` pairs, mm.
+    Points(Vec<(Vector3<f64>, Vector3<f64>)>),
 }
 
 impl Observation {
@@ -29,6 +32,7 @@ impl Observation {
         match self {
             Observation::Pose(_) => 6,
             Observation::Position(_) => 3,
+            Observation::Points(p) => 3 * p.len(),
         }
     }
 }
@@ -66,6 +70,10 @@ pub fn residual(obs: &Observation, predicted: &Pose) -> Vec<f64> {
     match obs {
         Observation::Pose(m) => se3::pose_error(m, predicted).as_slice().to_vec(),
         Observation::Position(p) => (p - predicted.translation.vector).as_slice().to_vec(),
+        Observation::Points(pts) => pts
+            .iter()
+            .flat_map(|(r, m)| (m - predicted.transform_point(&(*r).into()).coords).as_slice().to_vec())
+            .collect(),
     }
 }
 
@@ -74,11 +82,24 @@ pub fn residual(obs: &Observation, predicted: &Pose) -> Vec<f64> {
 /// that moves the prediction by `J·δ` reduces the residual by the same amount: the returned
 /// matrix is the derivative of the *prediction*, and least squares solves `A·δ ≈ r`.
 pub fn residual_jacobian(obs: &Observation, predicted: &Pose, jac: &Matrix6xX<f64>) -> DMatrix<f64> {
-    let m = se3::spatial_to_pose_error(&predicted.translation.vector);
-    let full = m * jac;
     match obs {
-        Observation::Pose(_) => DMatrix::from_iterator(6, jac.ncols(), full.iter().copied()),
-        Observation::Position(_) => DMatrix::from_fn(3, jac.ncols(), |i, j| full[(i, j)]),
+        Observation::Pose(_) => {
+            let full = se3::spatial_to_pose_error(&predicted.translation.vector) * jac;
+            DMatrix::from_iterator(6, jac.ncols(), full.iter().copied())
+        }
+        Observation::Position(_) => {
+            let full = se3::spatial_to_pose_error(&predicted.translation.vector) * jac;
+            DMatrix::from_fn(3, jac.ncols(), |i, j| full[(i, j)])
+        }
+        Observation::Points(pts) => {
+            let mut out = DMatrix::zeros(3 * pts.len(), jac.ncols());
+            for (k, (r, _)) in pts.iter().enumerate() {
+                let p = predicted.transform_point(&(*r).into()).coords;
+                let full = se3::spatial_to_pose_error(&p) * jac;
+                out.view_mut((3 * k, 0), (3, jac.ncols())).copy_from(&full.rows(0, 3));
+            }
+            out
+        }
     }
 }
 
@@ -90,6 +111,7 @@ pub fn row_weights(obs: &Observation, noise: &Noise) -> Vec<f64> {
             vec![a, a, a, b, b, b]
         }
         Observation::Position(_) => vec![1.0 / noise.position; 3],
+        Observation::Points(p) => vec![1.0 / noise.position; 3 * p.len()],
     }
 }
 
@@ -102,6 +124,14 @@ pub fn errors(obs: &Observation, predicted: &Pose) -> (f64, Option<f64>) {
             (se3::lin(&e).norm(), Some(se3::ang(&e).norm()))
         }
         Observation::Position(p) => ((p - predicted.translation.vector).norm(), None),
+        Observation::Points(pts) => {
+            // RMS over the points of their position errors.
+            let s: f64 = pts
+                .iter()
+                .map(|(r, m)| (m - predicted.transform_point(&(*r).into()).coords).norm_squared())
+                .sum();
+            ((s / pts.len().max(1) as f64).sqrt(), None)
+        }
     }
 }
 
