@@ -162,7 +162,19 @@ pub fn linearize<M: Mechanism + ?Sized>(model: &M, data: &[Measurement], noise: 
 /// Levenberg–Marquardt step `(AᵀA + λI)⁻¹Aᵀb` in scaled coordinates.
 fn solve_subset(a: &DMatrix<f64>, b: &DVector<f64>, cols: &[usize], damping: f64, rank: Option<usize>) -> Result<DVector<f64>, CalibError> {
     let (scaled, norms) = identifiability::scale_columns(a, cols);
-    let svd = scaled.svd(true, true);
+    // Tall problems: a thin QR first, then the SVD of the small k×k factor R (A = Q·R, so the
+    // singular values and right vectors of A are those of R, and Uᵀb = U_Rᵀ·Qᵀb).
+    let (small, rhs) = if scaled.nrows() > scaled.ncols() {
+        let k = scaled.ncols();
+        let qr = scaled.qr();
+        let mut qtb = b.clone();
+        qr.q_tr_mul(&mut qtb);
+        (qr.r(), qtb.rows(0, k).into_owned())
+    } else {
+        (scaled, b.clone())
+    };
+    let b = &rhs;
+    let svd = small.svd(true, true);
     let (u, vt) = match (&svd.u, &svd.v_t) {
         (Some(u), Some(vt)) => (u, vt),
         _ => return Err(CalibError::Numerical("SVD failed".into())),

@@ -301,6 +301,11 @@ pub struct SchemeResult {
     pub seconds: f64,
     /// Final noise model (re-estimated standard deviations: mm, and rad).
     pub noise: Noise,
+    /// Identified parameters: (name, unit, value of the accumulated increment, standard deviation),
+    /// in mm or rad, for the identifiable subset.
+    pub parameters: Vec<(String, String, f64, f64)>,
+    /// A-posteriori standard deviation of unit weight (1 when the weights match the residual).
+    pub sigma0: f64,
     /// Errors on the identification poses.
     pub identification: ErrorStats,
     /// Errors on the held-out poses.
@@ -359,7 +364,23 @@ pub fn calibrate(
     let t0 = Instant::now();
     let res = identify::identify(&start, fit, &options)?;
     let seconds = t0.elapsed().as_secs_f64();
+    let params = start.params();
+    let parameters = res
+        .identifiability
+        .identifiable
+        .iter()
+        .map(|&c| {
+            (
+                params[c].name.clone(),
+                params[c].unit.symbol().to_string(),
+                res.delta[c],
+                res.std_dev[c],
+            )
+        })
+        .collect();
     Ok(SchemeResult {
+        parameters,
+        sigma0: res.sigma0,
         measurement,
         scheme,
         identified: res.identifiability.rank,
