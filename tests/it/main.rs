@@ -3,3 +3,4 @@ mod chain;
 mod closed;
 mod identify;
 mod se3_props;
+mod study;
