@@ -196,6 +196,17 @@ pub trait ConstraintSystem: Clone + Send + Sync + 'static {
     fn workspace(&self) -> Workspace;
 }
 
+/// Partial derivatives of the constraint equations at one configuration.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ConstraintJacobians {
+    /// `F_X` (6×6).
+    pub x: DMatrix<f64>,
+    /// `F_q` (6 × inputs).
+    pub q: DMatrix<f64>,
+    /// `F_θ` (6 × geometric parameters).
+    pub theta: DMatrix<f64>,
+}
+
 /// Newton-solver settings of [`ClosedLoop`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SolverOptions {
@@ -340,13 +351,28 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
         v
     }
 
-    /// Constraint residual `F(X, q, θ)` at the current geometry.
-    pub fn residual(&self, x: &[f64; 6], q: &[f64]) -> [f64; 6] {
+    /// Constraint residual `F(X, q, θ)` at the current geometry. Errors: wrong input count.
+    pub fn residual(&self, x: &[f64; 6], q: &[f64]) -> Result<[f64; 6], KinError> {
+        check_inputs(q, self.system.input_names().len())?;
+        Ok(self.residual_raw(x, q))
+    }
+
+    /// `F_X` (6×6), `F_q` (6 × inputs) and `F_θ` (6 × geometric parameters) at `(x, q)`, by
+    /// forward-mode differentiation. Errors: wrong input count.
+    pub fn constraint_jacobians(&self, x: &[f64; 6], q: &[f64]) -> Result<ConstraintJacobians, KinError> {
+        check_inputs(q, self.system.input_names().len())?;
+        Ok(ConstraintJacobians {
+            x: self.jacobian_x_raw(x, q),
+            q: self.jacobian_q_raw(x, q),
+            theta: self.jacobian_theta_raw(x, q),
+        })
+    }
+
+    fn residual_raw(&self, x: &[f64; 6], q: &[f64]) -> [f64; 6] {
         self.system.equations(x, q, &self.geometry)
     }
 
-    /// `F_X` (6×6), by forward-mode differentiation.
-    pub fn jacobian_x(&self, x: &[f64; 6], q: &[f64]) -> DMatrix<f64> {
+    fn jacobian_x_raw(&self, x: &[f64; 6], q: &[f64]) -> DMatrix<f64> {
         let qd = dual_vec(q, None);
         let td = dual_vec(&self.geometry, None);
         let mut m = DMatrix::zeros(6, 6);
@@ -359,8 +385,7 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
         m
     }
 
-    /// `F_q` (6 × inputs), by forward-mode differentiation.
-    pub fn jacobian_q(&self, x: &[f64; 6], q: &[f64]) -> DMatrix<f64> {
+    fn jacobian_q_raw(&self, x: &[f64; 6], q: &[f64]) -> DMatrix<f64> {
         let xd = dual_arr6(x, None);
         let td = dual_vec(&self.geometry, None);
         let mut m = DMatrix::zeros(6, q.len());
@@ -373,8 +398,7 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
         m
     }
 
-    /// `F_θ` (6 × geometric parameters), by forward-mode differentiation.
-    pub fn jacobian_theta(&self, x: &[f64; 6], q: &[f64]) -> DMatrix<f64> {
+    fn jacobian_theta_raw(&self, x: &[f64; 6], q: &[f64]) -> DMatrix<f64> {
         let xd = dual_arr6(x, None);
         let qd = dual_vec(q, None);
         let n = self.geometry.len();
@@ -425,7 +449,7 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
         check_inputs(q, self.system.input_names().len())?;
         self.check_strokes(q)?;
         let mut x = seed.copied().unwrap_or_else(|| self.system.home());
-        let mut f = self.residual(&x, q);
+        let mut f = self.residual_raw(&x, q);
         let mut norm = max_abs(&f);
         for _ in 0..self.solver.max_iterations {
             if !norm.is_finite() {
@@ -434,7 +458,7 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
             if norm <= self.solver.tolerance {
                 return Ok(x);
             }
-            let jx = self.jacobian_x(&x, q);
+            let jx = self.jacobian_x_raw(&x, q);
             let cond = condition(&jx);
             if cond > self.solver.max_condition {
                 return Err(KinError::Singular {
@@ -454,7 +478,7 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
                 for i in 0..6 {
                     trial[i] += t * step[i];
                 }
-                let ft = self.residual(&trial, q);
+                let ft = self.residual_raw(&trial, q);
                 let nt = max_abs(&ft);
                 if nt.is_finite() && (nt < norm || t < 1e-3) {
                     x = trial;
@@ -636,8 +660,8 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
     /// the frame parameters) by the implicit function theorem `dX = −F_X⁻¹·F_θ·dθ`.
     pub fn pose_sensitivity(&self, q: &[f64], seed: Option<&[f64; 6]>) -> Result<([f64; 6], DMatrix<f64>), KinError> {
         let x = self.platform_pose(q, seed)?;
-        let fx = self.jacobian_x(&x, q);
-        let ft = self.jacobian_theta(&x, q);
+        let fx = self.jacobian_x_raw(&x, q);
+        let ft = self.jacobian_theta_raw(&x, q);
         let lu = fx.lu();
         let sol = lu.solve(&(-ft)).ok_or_else(|| KinError::Singular {
             what: "identification Jacobian (F_X)".into(),

@@ -71,15 +71,15 @@ fn constraint_partials_match_finite_differences() {
     let mut rng = ChaCha8Rng::seed_from_u64(4);
     let q = m.random_configurations(&mut rng, 1).unwrap().remove(0);
     let x = m.platform_pose(&q, None).unwrap();
-    let fx = m.jacobian_x(&x, &q);
-    let fq = m.jacobian_q(&x, &q);
-    let ft = m.jacobian_theta(&x, &q);
+    let jacs = m.constraint_jacobians(&x, &q).unwrap();
+    let (fx, fq, ft) = (jacs.x, jacs.q, jacs.theta);
+    assert!(matches!(m.residual(&x, &q[..3]), Err(KinError::InputLength { .. })));
     for j in 0..6 {
         let h = if j < 3 { 1e-4 } else { 1e-7 };
         let (mut a, mut b) = (x, x);
         a[j] += h;
         b[j] -= h;
-        let (fa, fb) = (m.residual(&a, &q), m.residual(&b, &q));
+        let (fa, fb) = (m.residual(&a, &q).unwrap(), m.residual(&b, &q).unwrap());
         for i in 0..6 {
             assert!((fx[(i, j)] - (fa[i] - fb[i]) / (2.0 * h)).abs() < 1e-5 * fx.column(j).amax().max(1.0));
         }
@@ -88,7 +88,7 @@ fn constraint_partials_match_finite_differences() {
         let (mut a, mut b) = (q.clone(), q.clone());
         a[j] += 1e-4;
         b[j] -= 1e-4;
-        let (fa, fb) = (m.residual(&x, &a), m.residual(&x, &b));
+        let (fa, fb) = (m.residual(&x, &a).unwrap(), m.residual(&x, &b).unwrap());
         for i in 0..6 {
             assert!((fq[(i, j)] - (fa[i] - fb[i]) / 2e-4).abs() < 1e-6);
         }
@@ -101,7 +101,7 @@ fn constraint_partials_match_finite_differences() {
         e[j] = h;
         plus.retract(&e);
         minus.retract(&(-e));
-        let (fa, fb) = (plus.residual(&x, &q), minus.residual(&x, &q));
+        let (fa, fb) = (plus.residual(&x, &q).unwrap(), minus.residual(&x, &q).unwrap());
         for i in 0..6 {
             let fd = (fa[i] - fb[i]) / (2.0 * h);
             assert!(
@@ -247,6 +247,10 @@ fn error_paths_are_typed() {
     });
     assert!(matches!(starved.forward(&q), Err(KinError::NoConvergence { .. })));
     // Inputs within the strokes for which the machine cannot assemble.
+    for q in [[300.0, 160.0, -20.0, 160.0, 280.0], [550.0, -20.0, -20.0, 280.0, 280.0]] {
+        let r = m.forward(&q);
+        assert!(matches!(r, Err(KinError::NoConvergence { .. })), "{r:?}");
+    }
     let s = Stewart::mechanism(StewartGeometry::default());
     let r = s.forward(&[120.0, -120.0, 120.0, -120.0, 120.0, -120.0]);
     assert!(
