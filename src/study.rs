@@ -24,12 +24,14 @@
 //! * Noise-free, the iterated identification recovers the pose map exactly: after exact
 //!   compensation the position and tool-axis errors are at round-off (≈1e-12 mm, 1e-12°). The
 //!   full rotation error keeps the uncommandable rotation about the tool axis.
-//! * With noise, the sub-loop lengths `dl2, dl3` (`dl6, dl7`) are poorly determined (standard
-//!   deviations of 10–20 mm: over the `g4` stroke their effect on `L22` is nearly one
-//!   combination), so the identified dW′ can be millimetres away from the truth along a direction
-//!   the poses hardly see. Exact compensation does not mind; the paper's first-order
-//!   compensation `Q − H′·dW′` does (second-order terms of mm-sized errors), which is why its
-//!   noisy row is far worse than the exact one.
+//! * With noise and dW′ keeping `dl2, dl3, dg4` (the default, issue #3's advice), `dl2, dl3`
+//!   (`dl6, dl7`) are poorly determined (standard deviations of 10–20 mm: their Jacobian
+//!   `∂(A, B)/∂(l2, l3)` of `L22² = A − B·g4²` has determinant `∝ (l2 + l5)² − l3²`), so the
+//!   identified dW′ can be millimetres away from the truth along a direction the poses hardly
+//!   see. Exact compensation does not mind; the paper's first-order compensation `Q − H′·dW′`
+//!   does (second-order terms of mm-sized errors). Keeping `dl4, dl5, dg4` instead
+//!   ([`SubLoopChoice::KeepL4L5`], the paper's dW′) gives the same exact-compensation accuracy and
+//!   small identified values, and then the first-order compensation is close to the exact one.
 //!
 //! The paper's figures (noise-free 0.515 → 0.004 mm and 0.249° → 0.001°; with noise 0.015 mm and
 //! 0.019°) are averages over its 30 identification configurations; kinecal reports the same set
@@ -67,6 +69,18 @@ pub struct StudyOptions {
     pub noise: Noise,
     /// Parasitic-constraint model (the same for the truth and the identified model).
     pub parasitic: Parasitic,
+    /// Which sub-loop parameters dW′ keeps.
+    pub sub_loop: SubLoopChoice,
+}
+
+/// Which two of the five sub-loop parameters (`dl2…dl5, dg4`, likewise for limb 3) dW′ drops.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+pub enum SubLoopChoice {
+    /// Keep `dl2, dl3, dg4`, drop `dl4, dl5` (issue #3's advice; [`pm5::natural_priority`]).
+    #[default]
+    KeepL2L3,
+    /// Keep `dl4, dl5, dg4`, drop `dl2, dl3` (the paper's dW′; [`pm5::paper_priority`]).
+    KeepL4L5,
 }
 
 impl Default for StudyOptions {
@@ -80,6 +94,7 @@ impl Default for StudyOptions {
             error_angle: 0.02f64.to_radians(),
             noise: Noise::default(),
             parasitic: Parasitic::Physical,
+            sub_loop: SubLoopChoice::KeepL2L3,
         }
     }
 }
@@ -216,8 +231,8 @@ pub struct Pm5Study {
     pub rank: usize,
     /// The identified vector dW′, by name.
     pub identified: Vec<String>,
-    /// Identifiability of both parasitic models (physical first, then the paper's), natural
-    /// priority order, 40 random configurations.
+    /// Identifiability of both parasitic models (physical first, then the paper's) in the
+    /// priority order of [`StudyOptions::sub_loop`], 40 random configurations.
     pub identifiability: Vec<pm5::Pm5Identifiability>,
     /// Noise-free trial.
     pub noise_free: Trial,
@@ -331,9 +346,13 @@ pub fn pm5_study(opts: &StudyOptions) -> Result<Pm5Study, CalibError> {
             "the study needs identification and verification configurations".into(),
         ));
     }
+    let priority = match opts.sub_loop {
+        SubLoopChoice::KeepL2L3 => pm5::natural_priority(),
+        SubLoopChoice::KeepL4L5 => pm5::paper_priority(),
+    };
     let both = [Parasitic::Physical, Parasitic::NominalGeometry]
         .iter()
-        .map(|&p| pm5::identifiability(p, 40, opts.seed, &pm5::natural_priority()))
+        .map(|&p| pm5::identifiability(p, 40, opts.seed, &priority))
         .collect::<Result<Vec<_>, _>>()?;
     let ident = both
         .iter()

@@ -1,7 +1,7 @@
 //! `kinecal study pm5`: the simulation study of §5.1 of the 5-DOF paper, paper vs kinecal.
 use clap::{Args, ValueEnum};
 use kinecal::model::presets::pm5::Parasitic;
-use kinecal::study::{pm5_study, Compensation, ErrorStats, Pm5Study, StudyOptions};
+use kinecal::study::{pm5_study, Compensation, ErrorStats, Pm5Study, StudyOptions, SubLoopChoice};
 use std::time::Instant;
 
 /// Which study.
@@ -18,6 +18,15 @@ pub enum ParasiticArg {
     Physical,
     /// Evaluated error-free on the nominal geometry (the paper's model).
     Paper,
+}
+
+/// Sub-loop parameters kept in dW′.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum SubLoopArg {
+    /// Keep dl2, dl3, dg4 (and dl6, dl7, dg5).
+    L2l3,
+    /// Keep dl4, dl5, dg4 (and dl8, dl9, dg5), as the paper.
+    L4l5,
 }
 
 /// Arguments of `kinecal study`.
@@ -40,6 +49,9 @@ pub struct StudyArgs {
     /// Parasitic-constraint model of truth and identified model.
     #[arg(long, value_enum, default_value_t = ParasiticArg::Physical)]
     pub parasitic: ParasiticArg,
+    /// Sub-loop parameters dW′ keeps: l2l3 (dl2 dl3 dg4, issue #3's advice) or l4l5 (the paper's).
+    #[arg(long, value_enum, default_value_t = SubLoopArg::L2l3)]
+    pub sub_loop: SubLoopArg,
     /// Print JSON instead of tables.
     #[arg(long)]
     pub json: bool,
@@ -91,6 +103,7 @@ fn print(study: &Pm5Study, secs: f64) {
             a.redundant.join(" ")
         );
     }
+    println!("dW′ sub-loop choice: {:?}", o.sub_loop);
     println!("paper (§3.2): rank 35 of 44, redundant db1y db2y dl2 dl3 db3y dl6 dl7 dty dy0 (after reordering)");
     println!(
         "identified dW′ ({} parameters) = {}",
@@ -155,9 +168,10 @@ fn print(study: &Pm5Study, secs: f64) {
     println!("  independent reference (issue #3, 30 random configurations, 100 draws): 0.021 mm, 0.011° tool axis");
     println!();
     println!("notes: the full rotation includes the rotation about the tool axis, a parasitic motion the machine");
-    println!("cannot command; the tool axis is the controllable part. With noise, dl2/dl3 (dl6/dl7) are poorly");
-    println!("determined, so dW′ can be mm away from the truth along directions the poses hardly see: exact");
-    println!("compensation is insensitive to that, the first-order Q − H′dW′ is not.");
+    println!("cannot command; the tool axis is the controllable part. With noise and dW′ keeping dl2 dl3 dg4, dl2/dl3");
+    println!("(dl6/dl7) are poorly determined (σ of 10-20 mm), so dW′ can be mm away from the truth along directions");
+    println!("the poses hardly see: exact compensation is insensitive to that, the first-order Q − H′dW′ is not");
+    println!("(try --sub-loop l4l5, the paper's dW′, for small identified values and a working first-order row).");
     println!();
     println!("time {secs:.2} s");
 }
@@ -174,6 +188,10 @@ pub fn run(args: StudyArgs) -> anyhow::Result<()> {
                 parasitic: match args.parasitic {
                     ParasiticArg::Physical => Parasitic::Physical,
                     ParasiticArg::Paper => Parasitic::NominalGeometry,
+                },
+                sub_loop: match args.sub_loop {
+                    SubLoopArg::L2l3 => SubLoopChoice::KeepL2L3,
+                    SubLoopArg::L4l5 => SubLoopChoice::KeepL4L5,
                 },
                 ..StudyOptions::default()
             };

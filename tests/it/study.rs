@@ -1,6 +1,6 @@
 //! The §5.1 simulation study of the 5-DOF paper.
 use kinecal::model::presets::pm5::Parasitic;
-use kinecal::study::{pm5_study, StudyOptions};
+use kinecal::study::{pm5_study, StudyOptions, SubLoopChoice};
 
 #[test]
 fn pm5_study_is_exact_noise_free_and_noise_limited_with_noise() {
@@ -43,4 +43,19 @@ fn cli_study_prints_paper_and_kinecal() {
     assert_eq!(v["rank"], 32);
     assert_eq!(v["paper"]["before"][0], 0.515);
     assert!(v["noise_free"]["verification_set"]["exact"]["position_max"].as_f64().unwrap() < 1e-6);
+}
+
+#[test]
+fn paper_sub_loop_choice_keeps_first_order_compensation_working() {
+    let opts = StudyOptions {
+        draws: 4,
+        sub_loop: SubLoopChoice::KeepL4L5,
+        ..StudyOptions::default()
+    };
+    let s = pm5_study(&opts).unwrap();
+    assert!(s.identified.iter().any(|n| n == "dl4") && !s.identified.iter().any(|n| n == "dl2"));
+    assert!(s.noise_free.verification_set.exact.position_max < 1e-6);
+    // First-order compensation close to the exact one with noise.
+    let v = &s.noisy.verification_set;
+    assert!(v.first_order.position_mean < 1.5 * v.exact.position_mean + 0.005, "{v:?}");
 }
