@@ -143,7 +143,7 @@ impl Task {
 }
 
 /// A box of platform poses `X = (x, y, z, α, β, γ)` (mm, rad): the prescribed workspace.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Workspace {
     /// Lower bounds.
     pub min: [f64; 6],

@@ -18,12 +18,13 @@
 //! `60° ± 45°, 180° ± 45°, 300° ± 45°`, paired so that each leg joins neighbouring groups; home
 //! pose `(0, 0, 300 mm, 0, 0, 0)` with `L0_i` the home leg lengths (so `q = 0` at home); strokes
 //! `±120 mm`; workspace `x, y ∈ [−40, 40] mm`, `z ∈ [260, 340] mm`, `α, β, γ ∈ [−8°, 8°]`.
-use crate::error::KinError;
+use crate::error::{CalibError, KinError};
 use crate::model::closed::{v3, ClosedLoop, ConstraintSystem, Scalar, Task, Workspace};
 use crate::params::{Param, Unit};
 
-/// Geometry of a 6-UPS platform (mm).
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+/// Geometry of a 6-UPS platform (mm, rad). Deserialisable, so users give their own geometry in
+/// a model file ([`StewartGeometry::from_toml_str`]).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct StewartGeometry {
     /// Base joints `U_i` (base frame).
     pub base: [[f64; 3]; 6],
@@ -55,6 +56,54 @@ impl Default for StewartGeometry {
                 max: [40.0, 40.0, 340.0, a, a, a],
             },
         }
+    }
+}
+
+impl StewartGeometry {
+    /// Read a geometry from TOML text, e.g.
+    ///
+    /// ```toml
+    /// base = [[200.0, 0.0, 0.0], ...]      # six U_i (mm, base frame)
+    /// platform = [[100.0, 0.0, 0.0], ...]  # six S_i (mm, platform frame)
+    /// home = [0.0, 0.0, 300.0, 0.0, 0.0, 0.0]
+    /// stroke = 120.0
+    /// [workspace]
+    /// min = [-40.0, -40.0, 260.0, -0.14, -0.14, -0.14]
+    /// max = [40.0, 40.0, 340.0, 0.14, 0.14, 0.14]
+    /// ```
+    ///
+    /// Errors: syntax, missing keys, non-finite values, a non-positive stroke, an empty
+    /// workspace, or a home pose where a leg has zero length.
+    pub fn from_toml_str(text: &str) -> Result<Self, CalibError> {
+        let g: StewartGeometry = toml::from_str(text).map_err(|e| CalibError::InvalidOption(format!("Stewart geometry: {e}")))?;
+        let finite = g
+            .base
+            .iter()
+            .chain(g.platform.iter())
+            .flatten()
+            .chain(g.home.iter())
+            .all(|v| v.is_finite());
+        if !finite {
+            return Err(CalibError::InvalidOption("Stewart geometry: non-finite value".into()));
+        }
+        if g.stroke <= 0.0 {
+            return Err(CalibError::InvalidOption(format!(
+                "Stewart geometry: stroke {} must be positive",
+                g.stroke
+            )));
+        }
+        if (0..6).any(|i| g.workspace.min[i] > g.workspace.max[i]) {
+            return Err(CalibError::InvalidOption(
+                "Stewart geometry: workspace min must not exceed max".into(),
+            ));
+        }
+        let s = Stewart::new(g.clone());
+        if s.nominal.chunks(7).any(|c| c[6] <= 1e-9) {
+            return Err(CalibError::InvalidOption(
+                "Stewart geometry: a leg has zero length at the home pose".into(),
+            ));
+        }
+        Ok(g)
     }
 }
 
