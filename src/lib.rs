@@ -14,6 +14,7 @@ pub mod model;
 pub mod params;
 pub mod se3;
 pub mod simulate;
+pub mod study;
 pub mod tracker_calibration;
 
 pub use error::{CalibError, KinError};

@@ -21,12 +21,16 @@ enum Command {
     /// Calibrate the ABB IRB 120 from real laser-tracker data (three tool reflectors), identify
     /// on poses idx < 500 and validate on idx ≥ 500.
     Irb120(cli::irb120::Irb120Args),
+    /// Reproduce a paper's simulation study (`study pm5`: §5.1 of the 5-DOF paper) and print
+    /// the paper's figures beside kinecal's.
+    Study(cli::study::StudyArgs),
 }
 
 fn main() -> ExitCode {
     let args = Args::parse();
     let result = match args.command {
         Command::Irb120(a) => cli::irb120::run(a),
+        Command::Study(a) => cli::study::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

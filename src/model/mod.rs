@@ -18,7 +18,9 @@ use crate::se3::Pose;
 use nalgebra::{DVector, Matrix6xX};
 
 pub mod chain;
+pub mod closed;
 pub mod irb120;
+pub mod presets;
 
 /// A calibratable mechanism.
 pub trait Mechanism: Send + Sync {

@@ -1,5 +1,7 @@
 //! kinecal integration tests (one binary, one module per concern).
 mod chain;
+mod closed;
 mod identify;
 mod irb120;
 mod se3_props;
+mod study;

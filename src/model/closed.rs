@@ -1,0 +1,789 @@
+//! Closed-loop (parallel) mechanisms described by constraint equations.
+//!
+//! A parallel mechanism is a set of limb constraint equations
+//!
+//! ```text
+//! F(X, q, θ) = 0,   F: 6 equations
+//! ```
+//!
+//! in the platform pose `X = (x, y, z, α, β, γ)` (position of the platform frame and its X-Y-Z
+//! Euler angles, `R = Rot(x,α)·Rot(y,β)·Rot(z,γ)`, eq. (2) of the 5-DOF paper), the actuator values
+//! `q` and the geometric parameters `θ` — the closed-loop vector method of §2.2 of the 5-DOF
+//! paper, plus any extra constraint such as its parasitic motion (eq. (15)–(16)). A
+//! [`ConstraintSystem`] writes these equations once, generic over the scalar type
+//! ([`Scalar`]: `f64` or a forward-mode dual number of `num-dual`); [`ClosedLoop`] derives
+//! everything else from that single description:
+//!
+//! * **forward kinematics**: damped Newton on `F(·, q, θ) = 0` from a seed (by default the home
+//!   pose), with [`KinError::NoConvergence`] or [`KinError::Singular`] when it fails;
+//! * **inverse kinematics**: the system's per-limb closed form gives a first guess (and
+//!   [`KinError::Unreachable`] when a limb cannot reach), then Newton on the square system
+//!   `F(X, q, θ) = 0`, `G(X) = 0` in `(X, q)`, where `G` matches the commanded part of the tool
+//!   pose ([`Task`]); actuator strokes are checked ([`KinError::OutOfWorkspace`]);
+//! * **the identification Jacobian** by the implicit function theorem,
+//!   `dX = −F_X⁻¹·F_θ·dθ` (what eq. (14)–(20) of the paper derive by hand), mapped through the
+//!   base and tool frames to the *spatial* twist Jacobian of [`Mechanism`]:
+//!   `ω = vee(dR·Rᵀ)`, `v = dp − ω × p`.
+//!
+//! All partial derivatives `F_X`, `F_q`, `F_θ` and those of the tool pose come from forward-mode
+//! automatic differentiation (one dual pass per variable): exact to round-off.
+//!
+//! # Frames (§2.3 of the 5-DOF paper)
+//! With frame errors enabled the parameter vector is `[θ_geometry, t (3), base (6)]`: the tool
+//! offset `t` (platform frame) and the base pose `(x0, y0, z0, α0, β0, γ0)` (X-Y-Z Euler angles).
+//! The tool pose in the world (measurement) frame is
+//! `T_tool = T_base · T(X) · Trans(t)`, its rotation that of the platform. All parameters are
+//! additive: [`Mechanism::retract`] is `θ ← θ + δ`.
+use super::{check_inputs, Mechanism};
+use crate::error::KinError;
+use crate::params::{Param, Unit};
+use crate::se3::{self, Pose};
+use nalgebra::{DMatrix, DVector, Matrix3, Matrix6xX, Rotation3, Translation3, UnitQuaternion, Vector3};
+use num_dual::{Dual64, DualNum};
+use rand::{Rng, RngExt};
+
+/// Scalar types the constraint equations are written for: `f64` and forward-mode dual numbers.
+pub trait Scalar: DualNum<Primitive = f64> + Copy + Send + Sync {}
+impl<T: DualNum<Primitive = f64> + Copy + Send + Sync> Scalar for T {}
+
+/// Small generic 3-vector / 3×3-matrix algebra on [`Scalar`]s (row-major arrays), used to write
+/// constraint equations once for `f64` and dual numbers.
+pub mod v3 {
+    use super::Scalar;
+
+    /// A 3-vector.
+    pub type V3<D> = [D; 3];
+    /// A 3×3 matrix, rows first.
+    pub type M3<D> = [[D; 3]; 3];
+
+    /// A constant as a scalar.
+    pub fn c<D: Scalar>(v: f64) -> D {
+        D::from(v)
+    }
+    /// `a + b`.
+    pub fn add<D: Scalar>(a: &V3<D>, b: &V3<D>) -> V3<D> {
+        [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+    }
+    /// `a − b`.
+    pub fn sub<D: Scalar>(a: &V3<D>, b: &V3<D>) -> V3<D> {
+        [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+    }
+    /// `s·a`.
+    pub fn scale<D: Scalar>(a: &V3<D>, s: D) -> V3<D> {
+        [a[0] * s, a[1] * s, a[2] * s]
+    }
+    /// `a·b`.
+    pub fn dot<D: Scalar>(a: &V3<D>, b: &V3<D>) -> D {
+        a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+    }
+    /// `a × b`.
+    pub fn cross<D: Scalar>(a: &V3<D>, b: &V3<D>) -> V3<D> {
+        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    }
+    /// `|a|`.
+    pub fn norm<D: Scalar>(a: &V3<D>) -> D {
+        dot(a, a).sqrt()
+    }
+    /// `M·a`.
+    pub fn mul<D: Scalar>(m: &M3<D>, a: &V3<D>) -> V3<D> {
+        [dot(&m[0], a), dot(&m[1], a), dot(&m[2], a)]
+    }
+    /// `A·B`.
+    pub fn matmul<D: Scalar>(a: &M3<D>, b: &M3<D>) -> M3<D> {
+        let mut out = [[c::<D>(0.0); 3]; 3];
+        for (i, row) in out.iter_mut().enumerate() {
+            for (j, v) in row.iter_mut().enumerate() {
+                *v = a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j];
+            }
+        }
+        out
+    }
+    /// Column `j` of `M`.
+    pub fn column<D: Scalar>(m: &M3<D>, j: usize) -> V3<D> {
+        [m[0][j], m[1][j], m[2][j]]
+    }
+    /// `R = Rot(x,α)·Rot(y,β)·Rot(z,γ)` (X-Y-Z Euler angles, eq. (2) of the 5-DOF paper).
+    pub fn rot_xyz<D: Scalar>(a: D, b: D, g: D) -> M3<D> {
+        let (sa, ca) = a.sin_cos();
+        let (sb, cb) = b.sin_cos();
+        let (sg, cg) = g.sin_cos();
+        [
+            [cb * cg, -(cb * sg), sb],
+            [ca * sg + sa * sb * cg, ca * cg - sa * sb * sg, -(cb * sa)],
+            [sa * sg - ca * sb * cg, sa * cg + ca * sb * sg, ca * cb],
+        ]
+    }
+    /// `(cos φ, sin φ, 0)`: a rail direction in the base plane.
+    pub fn planar<D: Scalar>(phi: D) -> V3<D> {
+        let (s, co) = phi.sin_cos();
+        [co, s, c(0.0)]
+    }
+}
+
+use v3::{M3, V3};
+
+/// Which part of the tool pose the actuators command.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub enum Task {
+    /// All six degrees of freedom (e.g. a Stewart platform).
+    Full,
+    /// Tool position and tool z-axis direction (5 DOF): rotation about the tool axis is a
+    /// parasitic motion the mechanism cannot command (e.g. the 5-DOF PUU-2PR(RPRR)S machine).
+    PositionAndAxis,
+}
+
+impl Task {
+    /// Number of commanded degrees of freedom.
+    pub fn dof(self) -> usize {
+        match self {
+            Task::Full => 6,
+            Task::PositionAndAxis => 5,
+        }
+    }
+}
+
+/// A box of platform poses `X = (x, y, z, α, β, γ)` (mm, rad): the prescribed workspace.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Workspace {
+    /// Lower bounds.
+    pub min: [f64; 6],
+    /// Upper bounds.
+    pub max: [f64; 6],
+}
+
+impl Workspace {
+    /// Whether `x` lies in the box (a coordinate with `min == max` is not checked: a parasitic
+    /// coordinate such as γ of the 5-DOF machine).
+    pub fn contains(&self, x: &[f64; 6]) -> bool {
+        (0..6).all(|i| self.min[i] == self.max[i] || (x[i] >= self.min[i] - 1e-9 && x[i] <= self.max[i] + 1e-9))
+    }
+    /// A uniformly random pose in the box.
+    pub fn sample<R: Rng>(&self, rng: &mut R) -> [f64; 6] {
+        let mut x = [0.0; 6];
+        for (i, v) in x.iter_mut().enumerate() {
+            *v = if self.max[i] > self.min[i] {
+                rng.random_range(self.min[i]..self.max[i])
+            } else {
+                self.min[i]
+            };
+        }
+        x
+    }
+}
+
+/// The constraint equations of a closed-loop mechanism (see the [module docs](self)).
+pub trait ConstraintSystem: Clone + Send + Sync + 'static {
+    /// Short name, e.g. `"pm5"`.
+    fn name(&self) -> &str;
+    /// Names of the actuator inputs `q`, in order.
+    fn input_names(&self) -> Vec<String>;
+    /// Geometric parameters (error names, units, groups), in the order of `θ`.
+    fn geometry_params(&self) -> Vec<Param>;
+    /// Nominal values of the geometric parameters `θ` (absolute values, mm and rad).
+    fn nominal_geometry(&self) -> Vec<f64>;
+    /// The six constraint equations `F(X, q, θ)`; they vanish on every assembled configuration.
+    fn equations<D: Scalar>(&self, x: &[D; 6], q: &[D], theta: &[D]) -> [D; 6];
+    /// Inputs for a full platform pose `x` from each limb's closed-form inverse kinematics
+    /// (equations not involving `q` may be violated by `x`). Errors: [`KinError::Unreachable`].
+    fn inputs_for_pose(&self, x: &[f64; 6], theta: &[f64]) -> Result<Vec<f64>, KinError>;
+    /// What the actuators command.
+    fn task(&self) -> Task;
+    /// Home platform pose (the forward-kinematics seed).
+    fn home(&self) -> [f64; 6];
+    /// Actuator strokes `(min, max)` per input.
+    fn strokes(&self) -> Vec<(f64, f64)>;
+    /// The prescribed workspace.
+    fn workspace(&self) -> Workspace;
+}
+
+/// Partial derivatives of the constraint equations at one configuration.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ConstraintJacobians {
+    /// `F_X` (6×6).
+    pub x: DMatrix<f64>,
+    /// `F_q` (6 × inputs).
+    pub q: DMatrix<f64>,
+    /// `F_θ` (6 × geometric parameters).
+    pub theta: DMatrix<f64>,
+}
+
+/// Newton-solver settings of [`ClosedLoop`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SolverOptions {
+    /// Maximum Newton iterations.
+    pub max_iterations: usize,
+    /// Convergence: max-norm of the constraint residual (mm).
+    pub tolerance: f64,
+    /// Condition number of the Newton matrix above which the configuration is singular.
+    pub max_condition: f64,
+}
+
+impl Default for SolverOptions {
+    fn default() -> Self {
+        SolverOptions {
+            max_iterations: 50,
+            tolerance: 1e-11,
+            max_condition: 1e10,
+        }
+    }
+}
+
+/// A closed-loop mechanism: a [`ConstraintSystem`] with its current geometry, tool and base
+/// frames. Implements [`Mechanism`].
+#[derive(Debug, Clone)]
+pub struct ClosedLoop<C: ConstraintSystem> {
+    system: C,
+    geometry: Vec<f64>,
+    tool: [f64; 3],
+    base: [f64; 6],
+    frame_errors: bool,
+    solver: SolverOptions,
+}
+
+/// Names of the tool-offset parameters.
+pub const TOOL_PARAMS: [&str; 3] = ["dtx", "dty", "dtz"];
+/// Names of the base-frame parameters.
+pub const BASE_PARAMS: [&str; 6] = ["dx0", "dy0", "dz0", "dα0", "dβ0", "dγ0"];
+
+/// X-Y-Z Euler angles `(α, β, γ)` of a rotation matrix (`β` in `[−π/2, π/2]`).
+pub fn euler_xyz(r: &Matrix3<f64>) -> [f64; 3] {
+    let b = r[(0, 2)].clamp(-1.0, 1.0).asin();
+    let a = (-r[(1, 2)]).atan2(r[(2, 2)]);
+    let g = (-r[(0, 1)]).atan2(r[(0, 0)]);
+    [a, b, g]
+}
+
+/// The pose of platform coordinates `X`.
+pub fn pose_of(x: &[f64; 6]) -> Pose {
+    let r = v3::rot_xyz(x[3], x[4], x[5]);
+    let m = Matrix3::new(r[0][0], r[0][1], r[0][2], r[1][0], r[1][1], r[1][2], r[2][0], r[2][1], r[2][2]);
+    se3::pose_from_matrix(&m, &Vector3::new(x[0], x[1], x[2]))
+}
+
+/// Platform coordinates `X` of a pose.
+pub fn coords_of(t: &Pose) -> [f64; 6] {
+    let e = euler_xyz(&se3::rotation_matrix(t));
+    let p = t.translation.vector;
+    [p.x, p.y, p.z, e[0], e[1], e[2]]
+}
+
+fn dual_vec(v: &[f64], seed: Option<usize>) -> Vec<Dual64> {
+    v.iter()
+        .enumerate()
+        .map(|(i, &x)| Dual64::new(x, if Some(i) == seed { 1.0 } else { 0.0 }))
+        .collect()
+}
+
+fn dual_arr6(v: &[f64; 6], seed: Option<usize>) -> [Dual64; 6] {
+    let d = dual_vec(v, seed);
+    [d[0], d[1], d[2], d[3], d[4], d[5]]
+}
+
+/// Tool position and rotation `T_base · T(X) · Trans(t)` for any scalar.
+pub fn tool_pose_generic<D: Scalar>(x: &[D; 6], tool: &[D; 3], base: &[D; 6]) -> (V3<D>, M3<D>) {
+    let r = v3::rot_xyz(x[3], x[4], x[5]);
+    let r0 = v3::rot_xyz(base[3], base[4], base[5]);
+    let p_plat = v3::add(&[x[0], x[1], x[2]], &v3::mul(&r, tool));
+    let p = v3::add(&[base[0], base[1], base[2]], &v3::mul(&r0, &p_plat));
+    (p, v3::matmul(&r0, &r))
+}
+
+fn max_abs(v: &[f64]) -> f64 {
+    v.iter().fold(0.0, |m, x| m.max(x.abs()))
+}
+
+fn condition(m: &DMatrix<f64>) -> f64 {
+    let s = m.clone().singular_values();
+    let hi = s.iter().cloned().fold(0.0, f64::max);
+    let lo = s.iter().cloned().fold(f64::INFINITY, f64::min);
+    if lo > 0.0 {
+        hi / lo
+    } else {
+        f64::INFINITY
+    }
+}
+
+impl<C: ConstraintSystem> ClosedLoop<C> {
+    /// The mechanism at its nominal geometry, with base and tool frame errors as parameters
+    /// (`frame_errors`) or without (frames then fixed: identity base, `tool` offset).
+    pub fn new(system: C, tool: [f64; 3], frame_errors: bool) -> Self {
+        let geometry = system.nominal_geometry();
+        ClosedLoop {
+            system,
+            geometry,
+            tool,
+            base: [0.0; 6],
+            frame_errors,
+            solver: SolverOptions::default(),
+        }
+    }
+
+    /// Replace the Newton settings.
+    pub fn with_solver(mut self, solver: SolverOptions) -> Self {
+        self.solver = solver;
+        self
+    }
+
+    /// The constraint system.
+    pub fn system(&self) -> &C {
+        &self.system
+    }
+    /// Current geometric parameters `θ` (absolute values).
+    pub fn geometry(&self) -> &[f64] {
+        &self.geometry
+    }
+    /// Current tool offset `t` (mm, platform frame).
+    pub fn tool(&self) -> [f64; 3] {
+        self.tool
+    }
+    /// Current base pose `(x0, y0, z0, α0, β0, γ0)`.
+    pub fn base(&self) -> [f64; 6] {
+        self.base
+    }
+    /// All parameter values in Jacobian column order (geometry, then tool and base when frame
+    /// errors are enabled).
+    pub fn values(&self) -> Vec<f64> {
+        let mut v = self.geometry.clone();
+        if self.frame_errors {
+            v.extend_from_slice(&self.tool);
+            v.extend_from_slice(&self.base);
+        }
+        v
+    }
+
+    /// Constraint residual `F(X, q, θ)` at the current geometry. Errors: wrong input count.
+    pub fn residual(&self, x: &[f64; 6], q: &[f64]) -> Result<[f64; 6], KinError> {
+        check_inputs(q, self.system.input_names().len())?;
+        Ok(self.residual_raw(x, q))
+    }
+
+    /// `F_X` (6×6), `F_q` (6 × inputs) and `F_θ` (6 × geometric parameters) at `(x, q)`, by
+    /// forward-mode differentiation. Errors: wrong input count.
+    pub fn constraint_jacobians(&self, x: &[f64; 6], q: &[f64]) -> Result<ConstraintJacobians, KinError> {
+        check_inputs(q, self.system.input_names().len())?;
+        Ok(ConstraintJacobians {
+            x: self.jacobian_x_raw(x, q),
+            q: self.jacobian_q_raw(x, q),
+            theta: self.jacobian_theta_raw(x, q),
+        })
+    }
+
+    fn residual_raw(&self, x: &[f64; 6], q: &[f64]) -> [f64; 6] {
+        self.system.equations(x, q, &self.geometry)
+    }
+
+    fn jacobian_x_raw(&self, x: &[f64; 6], q: &[f64]) -> DMatrix<f64> {
+        let qd = dual_vec(q, None);
+        let td = dual_vec(&self.geometry, None);
+        let mut m = DMatrix::zeros(6, 6);
+        for j in 0..6 {
+            let f = self.system.equations(&dual_arr6(x, Some(j)), &qd, &td);
+            for i in 0..6 {
+                m[(i, j)] = f[i].eps;
+            }
+        }
+        m
+    }
+
+    fn jacobian_q_raw(&self, x: &[f64; 6], q: &[f64]) -> DMatrix<f64> {
+        let xd = dual_arr6(x, None);
+        let td = dual_vec(&self.geometry, None);
+        let mut m = DMatrix::zeros(6, q.len());
+        for j in 0..q.len() {
+            let f = self.system.equations(&xd, &dual_vec(q, Some(j)), &td);
+            for i in 0..6 {
+                m[(i, j)] = f[i].eps;
+            }
+        }
+        m
+    }
+
+    fn jacobian_theta_raw(&self, x: &[f64; 6], q: &[f64]) -> DMatrix<f64> {
+        let xd = dual_arr6(x, None);
+        let qd = dual_vec(q, None);
+        let n = self.geometry.len();
+        let mut m = DMatrix::zeros(6, n);
+        for j in 0..n {
+            let f = self.system.equations(&xd, &qd, &dual_vec(&self.geometry, Some(j)));
+            for i in 0..6 {
+                m[(i, j)] = f[i].eps;
+            }
+        }
+        m
+    }
+
+    /// Check inputs against the strokes.
+    pub fn check_strokes(&self, q: &[f64]) -> Result<(), KinError> {
+        let names = self.system.input_names();
+        for (i, (&v, &(lo, hi))) in q.iter().zip(self.system.strokes().iter()).enumerate() {
+            if v < lo - 1e-9 || v > hi + 1e-9 {
+                return Err(KinError::OutOfWorkspace(format!(
+                    "actuator {} = {v:.3} outside its stroke [{lo}, {hi}]",
+                    names.get(i).map(String::as_str).unwrap_or("?")
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// Check that platform coordinates lie in the prescribed workspace.
+    pub fn check_workspace(&self, x: &[f64; 6]) -> Result<(), KinError> {
+        let ws = self.system.workspace();
+        if ws.contains(x) {
+            Ok(())
+        } else {
+            Err(KinError::OutOfWorkspace(format!(
+                "platform pose (x, y, z) = ({:.2}, {:.2}, {:.2}) mm, (α, β, γ) = ({:.3}, {:.3}, {:.3})° outside the prescribed workspace",
+                x[0],
+                x[1],
+                x[2],
+                x[3].to_degrees(),
+                x[4].to_degrees(),
+                x[5].to_degrees()
+            )))
+        }
+    }
+
+    /// Forward kinematics of the platform: Newton on `F(·, q, θ) = 0` from `seed` (default: home).
+    pub fn platform_pose(&self, q: &[f64], seed: Option<&[f64; 6]>) -> Result<[f64; 6], KinError> {
+        check_inputs(q, self.system.input_names().len())?;
+        self.check_strokes(q)?;
+        let mut x = seed.copied().unwrap_or_else(|| self.system.home());
+        let mut f = self.residual_raw(&x, q);
+        let mut norm = max_abs(&f);
+        for _ in 0..self.solver.max_iterations {
+            if !norm.is_finite() {
+                break;
+            }
+            if norm <= self.solver.tolerance {
+                return Ok(x);
+            }
+            let jx = self.jacobian_x_raw(&x, q);
+            let cond = condition(&jx);
+            if cond > self.solver.max_condition {
+                return Err(KinError::Singular {
+                    what: "forward kinematics (constraint Jacobian F_X)".into(),
+                    condition: cond,
+                });
+            }
+            let rhs = DVector::from_iterator(6, f.iter().map(|v| -v));
+            let step = jx.lu().solve(&rhs).ok_or_else(|| KinError::Singular {
+                what: "forward kinematics (constraint Jacobian F_X)".into(),
+                condition: f64::INFINITY,
+            })?;
+            // Backtracking on the residual max-norm.
+            let mut t = 1.0;
+            loop {
+                let mut trial = x;
+                for i in 0..6 {
+                    trial[i] += t * step[i];
+                }
+                let ft = self.residual_raw(&trial, q);
+                let nt = max_abs(&ft);
+                if nt.is_finite() && (nt < norm || t < 1e-3) {
+                    x = trial;
+                    f = ft;
+                    norm = nt;
+                    break;
+                }
+                t *= 0.5;
+            }
+        }
+        if norm <= self.solver.tolerance {
+            return Ok(x);
+        }
+        Err(KinError::NoConvergence {
+            what: format!("{} forward kinematics", self.system.name()),
+            iterations: self.solver.max_iterations,
+            residual: norm,
+        })
+    }
+
+    /// Tool pose of platform coordinates `x` at the current frames.
+    pub fn tool_pose_of(&self, x: &[f64; 6]) -> Pose {
+        let (p, r) = tool_pose_generic(x, &self.tool, &self.base);
+        let m = Matrix3::new(r[0][0], r[0][1], r[0][2], r[1][0], r[1][1], r[1][2], r[2][0], r[2][1], r[2][2]);
+        se3::pose_from_matrix(&m, &Vector3::new(p[0], p[1], p[2]))
+    }
+
+    /// Platform coordinates of a tool pose (inverse of [`Self::tool_pose_of`]).
+    pub fn platform_of_tool(&self, target: &Pose) -> [f64; 6] {
+        let base = pose_of(&self.base);
+        let tool = Pose::from_parts(
+            Translation3::new(self.tool[0], self.tool[1], self.tool[2]),
+            UnitQuaternion::identity(),
+        );
+        coords_of(&(base.inverse() * target * tool.inverse()))
+    }
+
+    /// Task equations `G(X)`: tool position minus target position (mm), then the rotation
+    /// mismatch — `vee(skew(R·R_tᵀ))` for [`Task::Full`], the target-frame x and y components of the
+    /// tool z-axis (scaled by 1000 mm) for [`Task::PositionAndAxis`].
+    fn task_equations<D: Scalar>(&self, x: &[D; 6], target: &Pose) -> Vec<D> {
+        let c = v3::c::<D>;
+        let tool = [c(self.tool[0]), c(self.tool[1]), c(self.tool[2])];
+        let base = [
+            c(self.base[0]),
+            c(self.base[1]),
+            c(self.base[2]),
+            c(self.base[3]),
+            c(self.base[4]),
+            c(self.base[5]),
+        ];
+        let (p, r) = tool_pose_generic(x, &tool, &base);
+        let pt = target.translation.vector;
+        let rt = se3::rotation_matrix(target);
+        let mut g = vec![p[0] - pt.x, p[1] - pt.y, p[2] - pt.z];
+        let scale: D = c(1000.0);
+        match self.system.task() {
+            Task::Full => {
+                // M = R·R_tᵀ; vee of its skew part.
+                let mut m: [[D; 3]; 3] = [[c(0.0); 3]; 3];
+                for (i, row) in m.iter_mut().enumerate() {
+                    for (j, v) in row.iter_mut().enumerate() {
+                        *v = r[i][0] * rt[(j, 0)] + r[i][1] * rt[(j, 1)] + r[i][2] * rt[(j, 2)];
+                    }
+                }
+                g.push((m[2][1] - m[1][2]) * c(0.5) * scale);
+                g.push((m[0][2] - m[2][0]) * c(0.5) * scale);
+                g.push((m[1][0] - m[0][1]) * c(0.5) * scale);
+            }
+            Task::PositionAndAxis => {
+                let z = v3::column(&r, 2);
+                for k in 0..2 {
+                    let a = [c(rt[(0, k)]), c(rt[(1, k)]), c(rt[(2, k)])];
+                    g.push(v3::dot(&z, &a) * scale);
+                }
+            }
+        }
+        g
+    }
+
+    /// Inverse kinematics with the platform solution: inputs `q` and platform coordinates `X`
+    /// that put the tool at `target` (all six DOF for [`Task::Full`]; position and tool axis for
+    /// [`Task::PositionAndAxis`], the rotation about the tool axis then follows from the
+    /// constraints).
+    pub fn inverse_with_pose(&self, target: &Pose) -> Result<(Vec<f64>, [f64; 6]), KinError> {
+        let t = target.translation.vector;
+        if !(t.iter().all(|v| v.is_finite()) && target.rotation.coords.iter().all(|v| v.is_finite())) {
+            return Err(KinError::NonFinite("target pose".into()));
+        }
+        let nq = self.system.input_names().len();
+        let task = self.system.task();
+        if task.dof() != nq {
+            return Err(KinError::Singular {
+                what: format!("{}: {} inputs for a {}-DOF task", self.system.name(), nq, task.dof()),
+                condition: f64::INFINITY,
+            });
+        }
+        let x0 = self.platform_of_tool(target);
+        let q0 = self.system.inputs_for_pose(&x0, &self.geometry)?;
+        let n = 6 + nq;
+        let mut z: Vec<f64> = x0.iter().copied().chain(q0.iter().copied()).collect();
+        let eval = |z: &[f64]| -> Vec<f64> {
+            let x = [z[0], z[1], z[2], z[3], z[4], z[5]];
+            let mut e: Vec<f64> = self.system.equations(&x, &z[6..], &self.geometry).to_vec();
+            e.extend(self.task_equations(&x, target));
+            e
+        };
+        let mut f = eval(&z);
+        let mut norm = max_abs(&f);
+        let td = dual_vec(&self.geometry, None);
+        for _ in 0..self.solver.max_iterations {
+            if norm <= self.solver.tolerance || !norm.is_finite() {
+                break;
+            }
+            let mut jac = DMatrix::zeros(n, n);
+            for j in 0..n {
+                let zd = dual_vec(&z, Some(j));
+                let x = [zd[0], zd[1], zd[2], zd[3], zd[4], zd[5]];
+                let mut e: Vec<Dual64> = self.system.equations(&x, &zd[6..], &td).to_vec();
+                e.extend(self.task_equations(&x, target));
+                for i in 0..n {
+                    jac[(i, j)] = e[i].eps;
+                }
+            }
+            let cond = condition(&jac);
+            if cond > self.solver.max_condition {
+                return Err(KinError::Singular {
+                    what: format!("{} inverse kinematics", self.system.name()),
+                    condition: cond,
+                });
+            }
+            let rhs = DVector::from_iterator(n, f.iter().map(|v| -v));
+            let step = jac.lu().solve(&rhs).ok_or_else(|| KinError::Singular {
+                what: format!("{} inverse kinematics", self.system.name()),
+                condition: f64::INFINITY,
+            })?;
+            let mut s = 1.0;
+            loop {
+                let trial: Vec<f64> = z.iter().zip(step.iter()).map(|(a, b)| a + s * b).collect();
+                let ft = eval(&trial);
+                let nt = max_abs(&ft);
+                if nt.is_finite() && (nt < norm || s < 1e-3) {
+                    z = trial;
+                    f = ft;
+                    norm = nt;
+                    break;
+                }
+                s *= 0.5;
+            }
+        }
+        if norm.is_nan() || norm > self.solver.tolerance {
+            return Err(KinError::NoConvergence {
+                what: format!("{} inverse kinematics", self.system.name()),
+                iterations: self.solver.max_iterations,
+                residual: norm,
+            });
+        }
+        let q = z[6..].to_vec();
+        self.check_strokes(&q)?;
+        Ok((q, [z[0], z[1], z[2], z[3], z[4], z[5]]))
+    }
+
+    /// Inputs that bring the platform to the commanded coordinates `x` (for
+    /// [`Task::PositionAndAxis`] the γ of `x` is ignored), checked against the workspace.
+    pub fn inputs_for(&self, x: &[f64; 6]) -> Result<Vec<f64>, KinError> {
+        self.check_workspace(x)?;
+        let target = self.tool_pose_of(x);
+        self.inverse_with_pose(&target).map(|r| r.0)
+    }
+
+    /// `n` random configurations (inputs) in the prescribed workspace, drawn uniformly in
+    /// platform coordinates and mapped through this model's inverse kinematics.
+    pub fn random_configurations<R: Rng>(&self, rng: &mut R, n: usize) -> Result<Vec<Vec<f64>>, KinError> {
+        let ws = self.system.workspace();
+        (0..n).map(|_| self.inputs_for(&ws.sample(rng))).collect()
+    }
+
+    /// Platform coordinates and their sensitivity `dX/dθ` (6 × all parameters; zero columns for
+    /// the frame parameters) by the implicit function theorem `dX = −F_X⁻¹·F_θ·dθ`.
+    pub fn pose_sensitivity(&self, q: &[f64], seed: Option<&[f64; 6]>) -> Result<([f64; 6], DMatrix<f64>), KinError> {
+        let x = self.platform_pose(q, seed)?;
+        let fx = self.jacobian_x_raw(&x, q);
+        let ft = self.jacobian_theta_raw(&x, q);
+        let lu = fx.lu();
+        let sol = lu.solve(&(-ft)).ok_or_else(|| KinError::Singular {
+            what: "identification Jacobian (F_X)".into(),
+            condition: f64::INFINITY,
+        })?;
+        let p = self.n_params_total();
+        let mut dx = DMatrix::zeros(6, p);
+        dx.columns_mut(0, self.geometry.len()).copy_from(&sol);
+        Ok((x, dx))
+    }
+
+    fn n_params_total(&self) -> usize {
+        self.geometry.len() + if self.frame_errors { 9 } else { 0 }
+    }
+}
+
+impl<C: ConstraintSystem> Mechanism for ClosedLoop<C> {
+    fn name(&self) -> &str {
+        self.system.name()
+    }
+    fn input_names(&self) -> Vec<String> {
+        self.system.input_names()
+    }
+    fn params(&self) -> Vec<Param> {
+        let mut p = self.system.geometry_params();
+        if self.frame_errors {
+            for n in TOOL_PARAMS {
+                p.push(Param::new(n, Unit::Length, "tool"));
+            }
+            for (i, n) in BASE_PARAMS.iter().enumerate() {
+                p.push(Param::new(*n, if i < 3 { Unit::Length } else { Unit::Angle }, "base"));
+            }
+        }
+        p
+    }
+    fn n_params(&self) -> usize {
+        self.n_params_total()
+    }
+    fn forward(&self, q: &[f64]) -> Result<Pose, KinError> {
+        let x = self.platform_pose(q, None)?;
+        Ok(self.tool_pose_of(&x))
+    }
+    fn forward_with_jacobian(&self, q: &[f64]) -> Result<(Pose, Matrix6xX<f64>), KinError> {
+        let (x, dx) = self.pose_sensitivity(q, None)?;
+        let pose = self.tool_pose_of(&x);
+        let p = pose.translation.vector;
+        let r = se3::rotation_matrix(&pose);
+        let np = self.n_params_total();
+        let ng = self.geometry.len();
+        let mut jac = Matrix6xX::zeros(np);
+        for j in 0..np {
+            let xd: [Dual64; 6] = std::array::from_fn(|i| Dual64::new(x[i], dx[(i, j)]));
+            let tool: [Dual64; 3] =
+                std::array::from_fn(|i| Dual64::new(self.tool[i], if self.frame_errors && j == ng + i { 1.0 } else { 0.0 }));
+            let base: [Dual64; 6] =
+                std::array::from_fn(|i| Dual64::new(self.base[i], if self.frame_errors && j == ng + 3 + i { 1.0 } else { 0.0 }));
+            let (pd, rd) = tool_pose_generic(&xd, &tool, &base);
+            let dp = Vector3::new(pd[0].eps, pd[1].eps, pd[2].eps);
+            let dr = Matrix3::from_fn(|a, b| rd[a][b].eps);
+            let w = se3::unskew(&(dr * r.transpose()));
+            let v = dp - w.cross(&p);
+            for k in 0..3 {
+                jac[(k, j)] = v[k];
+                jac[(3 + k, j)] = w[k];
+            }
+        }
+        Ok((pose, jac))
+    }
+    fn retract(&mut self, delta: &DVector<f64>) {
+        let ng = self.geometry.len();
+        for i in 0..ng.min(delta.len()) {
+            self.geometry[i] += delta[i];
+        }
+        if self.frame_errors && delta.len() >= ng + 9 {
+            for i in 0..3 {
+                self.tool[i] += delta[ng + i];
+            }
+            for i in 0..6 {
+                self.base[i] += delta[ng + 3 + i];
+            }
+        }
+    }
+    fn inverse(&self, target: &Pose, _seed: Option<&[f64]>) -> Result<Vec<f64>, KinError> {
+        self.inverse_with_pose(target).map(|r| r.0)
+    }
+    fn box_clone(&self) -> Box<dyn Mechanism> {
+        Box::new(self.clone())
+    }
+}
+
+/// A rotation matrix of X-Y-Z Euler angles (f64).
+pub fn rotation_xyz(a: f64, b: f64, g: f64) -> Rotation3<f64> {
+    let r = v3::rot_xyz(a, b, g);
+    Rotation3::from_matrix_unchecked(Matrix3::new(
+        r[0][0], r[0][1], r[0][2], r[1][0], r[1][1], r[1][2], r[2][0], r[2][1], r[2][2],
+    ))
+}
+
+/// Identifiability of a mechanism's parameters from full-pose measurements at `inputs`: the
+/// noise-weighted stacked identification Jacobian analysed in `priority` order
+/// ([`crate::identifiability::analyze`]).
+pub fn identifiability_at<M: Mechanism + ?Sized>(
+    mechanism: &M,
+    inputs: &[Vec<f64>],
+    priority: &[usize],
+    noise: &crate::measure::Noise,
+    tolerance: f64,
+) -> Result<crate::identifiability::Identifiability, crate::error::CalibError> {
+    use crate::measure::{Measurement, Observation};
+    let data = inputs
+        .iter()
+        .enumerate()
+        .map(|(i, q)| {
+            mechanism
+                .forward(q)
+                .map(|t| Measurement {
+                    q: q.clone(),
+                    obs: Observation::Pose(t),
+                })
+                .map_err(|source| crate::error::CalibError::Kinematics { pose: i, source })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let lin = crate::identify::linearize(mechanism, &data, noise)?;
+    Ok(crate::identifiability::analyze(&lin.jacobian, priority, tolerance))
+}

@@ -1,0 +1,197 @@
+//! A 6-UPS Stewart platform as a [`ConstraintSystem`]: the same engine as the 5-DOF machine,
+//! showing that nothing in [`crate::model::closed`] is specific to one mechanism.
+//!
+//! Leg `i` joins the base joint `U_i` (base frame) to the platform joint `S_i` (platform frame);
+//! its length is `L0_i + q_i`:
+//!
+//! ```text
+//! F_i(X, q, θ) = |p + R·S_i − U_i| − (L0_i + q_i) = 0,   i = 1…6.
+//! ```
+//!
+//! Parameters: 42 = 6 × (`S_i` (3), `U_i` (3), `L0_i`), named `S1x … U1x … L01`, leg by leg. The
+//! tool frame is the platform frame and the base frame the world frame (both already fixed by the
+//! `U_i` and `S_i`, so separate frame errors would be redundant). With full poses measured in the
+//! base frame all 42 parameters are identifiable.
+//!
+//! Default geometry ([`StewartGeometry::default`]): base joints on a circle of radius 200 mm at
+//! `0° ± 15°, 120° ± 15°, 240° ± 15°`; platform joints on a circle of 100 mm at
+//! `60° ± 45°, 180° ± 45°, 300° ± 45°`, paired so that each leg joins neighbouring groups; home
+//! pose `(0, 0, 300 mm, 0, 0, 0)` with `L0_i` the home leg lengths (so `q = 0` at home); strokes
+//! `±120 mm`; workspace `x, y ∈ [−40, 40] mm`, `z ∈ [260, 340] mm`, `α, β, γ ∈ [−8°, 8°]`.
+use crate::error::{CalibError, KinError};
+use crate::model::closed::{v3, ClosedLoop, ConstraintSystem, Scalar, Task, Workspace};
+use crate::params::{Param, Unit};
+
+/// Geometry of a 6-UPS platform (mm, rad). Deserialisable, so users give their own geometry in
+/// a model file ([`StewartGeometry::from_toml_str`]).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct StewartGeometry {
+    /// Base joints `U_i` (base frame).
+    pub base: [[f64; 3]; 6],
+    /// Platform joints `S_i` (platform frame).
+    pub platform: [[f64; 3]; 6],
+    /// Home platform pose.
+    pub home: [f64; 6],
+    /// Stroke half-width (mm).
+    pub stroke: f64,
+    /// Prescribed workspace.
+    pub workspace: Workspace,
+}
+
+impl Default for StewartGeometry {
+    fn default() -> Self {
+        let pt = |r: f64, deg: f64| [r * deg.to_radians().cos(), r * deg.to_radians().sin(), 0.0];
+        let base_angles = [-15.0, 15.0, 105.0, 135.0, 225.0, 255.0];
+        let plat_angles = [-45.0, 45.0, 75.0, 165.0, 195.0, 285.0];
+        let base = base_angles.map(|a| pt(200.0, a));
+        let platform = plat_angles.map(|a| pt(100.0, a));
+        let a = 8f64.to_radians();
+        StewartGeometry {
+            base,
+            platform,
+            home: [0.0, 0.0, 300.0, 0.0, 0.0, 0.0],
+            stroke: 120.0,
+            workspace: Workspace {
+                min: [-40.0, -40.0, 260.0, -a, -a, -a],
+                max: [40.0, 40.0, 340.0, a, a, a],
+            },
+        }
+    }
+}
+
+impl StewartGeometry {
+    /// Read a geometry from TOML text, e.g.
+    ///
+    /// ```toml
+    /// base = [[200.0, 0.0, 0.0], ...]      # six U_i (mm, base frame)
+    /// platform = [[100.0, 0.0, 0.0], ...]  # six S_i (mm, platform frame)
+    /// home = [0.0, 0.0, 300.0, 0.0, 0.0, 0.0]
+    /// stroke = 120.0
+    /// [workspace]
+    /// min = [-40.0, -40.0, 260.0, -0.14, -0.14, -0.14]
+    /// max = [40.0, 40.0, 340.0, 0.14, 0.14, 0.14]
+    /// ```
+    ///
+    /// Errors: syntax, missing keys, non-finite values, a non-positive stroke, an empty
+    /// workspace, or a home pose where a leg has zero length.
+    pub fn from_toml_str(text: &str) -> Result<Self, CalibError> {
+        let g: StewartGeometry = toml::from_str(text).map_err(|e| CalibError::InvalidOption(format!("Stewart geometry: {e}")))?;
+        let finite = g
+            .base
+            .iter()
+            .chain(g.platform.iter())
+            .flatten()
+            .chain(g.home.iter())
+            .all(|v| v.is_finite());
+        if !finite {
+            return Err(CalibError::InvalidOption("Stewart geometry: non-finite value".into()));
+        }
+        if g.stroke <= 0.0 {
+            return Err(CalibError::InvalidOption(format!(
+                "Stewart geometry: stroke {} must be positive",
+                g.stroke
+            )));
+        }
+        if (0..6).any(|i| g.workspace.min[i] > g.workspace.max[i]) {
+            return Err(CalibError::InvalidOption(
+                "Stewart geometry: workspace min must not exceed max".into(),
+            ));
+        }
+        let s = Stewart::new(g.clone());
+        if s.nominal.chunks(7).any(|c| c[6] <= 1e-9) {
+            return Err(CalibError::InvalidOption(
+                "Stewart geometry: a leg has zero length at the home pose".into(),
+            ));
+        }
+        Ok(g)
+    }
+}
+
+/// The 6-UPS constraint system.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stewart {
+    geometry: StewartGeometry,
+    nominal: Vec<f64>,
+}
+
+impl Stewart {
+    /// A platform of `geometry`; `L0_i` are the leg lengths at the home pose.
+    pub fn new(geometry: StewartGeometry) -> Self {
+        let h = geometry.home;
+        let r = v3::rot_xyz(h[3], h[4], h[5]);
+        let mut nominal = Vec::with_capacity(42);
+        for i in 0..6 {
+            let s = geometry.platform[i];
+            let u = geometry.base[i];
+            let leg = v3::sub(&v3::add(&[h[0], h[1], h[2]], &v3::mul(&r, &s)), &u);
+            nominal.extend_from_slice(&s);
+            nominal.extend_from_slice(&u);
+            nominal.push(v3::norm(&leg));
+        }
+        Stewart { geometry, nominal }
+    }
+
+    /// The calibratable mechanism (42 parameters, tool = platform frame, base = world frame).
+    pub fn mechanism(geometry: StewartGeometry) -> ClosedLoop<Stewart> {
+        ClosedLoop::new(Stewart::new(geometry), [0.0; 3], false)
+    }
+}
+
+fn leg_vector<D: Scalar>(x: &[D; 6], t: &[D]) -> v3::V3<D> {
+    let r = v3::rot_xyz(x[3], x[4], x[5]);
+    v3::sub(
+        &v3::add(&[x[0], x[1], x[2]], &v3::mul(&r, &[t[0], t[1], t[2]])),
+        &[t[3], t[4], t[5]],
+    )
+}
+
+impl ConstraintSystem for Stewart {
+    fn name(&self) -> &str {
+        "stewart"
+    }
+    fn input_names(&self) -> Vec<String> {
+        (1..=6).map(|i| format!("q{i}")).collect()
+    }
+    fn geometry_params(&self) -> Vec<Param> {
+        let mut p = Vec::with_capacity(42);
+        for i in 1..=6 {
+            let g = format!("leg {i}");
+            for n in ["S", "U"] {
+                for a in ["x", "y", "z"] {
+                    p.push(Param::new(format!("{n}{i}{a}"), Unit::Length, g.clone()));
+                }
+            }
+            p.push(Param::new(format!("L0{i}"), Unit::Length, g));
+        }
+        p
+    }
+    fn nominal_geometry(&self) -> Vec<f64> {
+        self.nominal.clone()
+    }
+    fn equations<D: Scalar>(&self, x: &[D; 6], q: &[D], t: &[D]) -> [D; 6] {
+        std::array::from_fn(|i| {
+            let ti = &t[7 * i..7 * i + 7];
+            v3::norm(&leg_vector(x, ti)) - (ti[6] + q[i])
+        })
+    }
+    fn inputs_for_pose(&self, x: &[f64; 6], t: &[f64]) -> Result<Vec<f64>, KinError> {
+        Ok((0..6)
+            .map(|i| {
+                let ti = &t[7 * i..7 * i + 7];
+                v3::norm(&leg_vector(x, ti)) - ti[6]
+            })
+            .collect())
+    }
+    fn task(&self) -> Task {
+        Task::Full
+    }
+    fn home(&self) -> [f64; 6] {
+        self.geometry.home
+    }
+    fn strokes(&self) -> Vec<(f64, f64)> {
+        vec![(-self.geometry.stroke, self.geometry.stroke); 6]
+    }
+    fn workspace(&self) -> Workspace {
+        self.geometry.workspace.clone()
+    }
+}

@@ -1,0 +1,277 @@
+//! Closed-loop engine and its presets: FK∘IK, identification Jacobians vs finite differences,
+//! identifiability of the 5-DOF machine, Stewart recovery, and the error paths.
+use kinecal::identify::{identify, Options};
+use kinecal::measure::Noise;
+use kinecal::model::closed::{ClosedLoop, ConstraintSystem, SolverOptions};
+use kinecal::model::presets::pm5::{self, Parasitic, Pm5, PAPER_REDUNDANT};
+use kinecal::model::presets::stewart::{Stewart, StewartGeometry};
+use kinecal::model::Mechanism;
+use kinecal::se3;
+use kinecal::simulate::{self, ObservationKind};
+use kinecal::KinError;
+use nalgebra::{DMatrix, DVector};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+fn fd_jacobian<M: Mechanism + Clone>(m: &M, q: &[f64], h: &[f64]) -> DMatrix<f64> {
+    let p = m.n_params();
+    let mut out = DMatrix::zeros(6, p);
+    for k in 0..p {
+        let mut e = DVector::zeros(p);
+        e[k] = h[k];
+        let mut plus = m.clone();
+        plus.retract(&e);
+        let mut minus = m.clone();
+        minus.retract(&(-e));
+        let d = se3::log(&(plus.forward(q).unwrap() * minus.forward(q).unwrap().inverse())) / (2.0 * h[k]);
+        out.set_column(k, &d);
+    }
+    out
+}
+
+fn steps<M: Mechanism>(m: &M) -> Vec<f64> {
+    m.params()
+        .iter()
+        .map(|p| if p.unit == kinecal::params::Unit::Angle { 1e-6 } else { 1e-4 })
+        .collect()
+}
+
+fn check_jacobian<C: ConstraintSystem>(m: &ClosedLoop<C>, seed: u64) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    for q in m.random_configurations(&mut rng, 4).unwrap() {
+        let (_, jac) = m.forward_with_jacobian(&q).unwrap();
+        let jac = DMatrix::from_iterator(6, jac.ncols(), jac.iter().copied());
+        let fd = fd_jacobian(m, &q, &steps(m));
+        for c in 0..jac.ncols() {
+            let scale = jac.column(c).amax().max(fd.column(c).amax()).max(1e-3);
+            let dev = (jac.column(c) - fd.column(c)).amax();
+            assert!(
+                dev < 1e-6 * scale.max(1.0),
+                "{} column {c}: deviation {dev:.3e} (scale {scale:.3e})",
+                m.name()
+            );
+        }
+    }
+}
+
+#[test]
+fn pm5_identification_jacobian_matches_finite_differences() {
+    check_jacobian(&Pm5::mechanism(Parasitic::Physical), 1);
+    check_jacobian(&Pm5::mechanism(Parasitic::NominalGeometry), 2);
+}
+
+#[test]
+fn stewart_identification_jacobian_matches_finite_differences() {
+    check_jacobian(&Stewart::mechanism(StewartGeometry::default()), 3);
+}
+
+#[test]
+fn constraint_partials_match_finite_differences() {
+    let m = Pm5::mechanism(Parasitic::Physical);
+    let mut rng = ChaCha8Rng::seed_from_u64(4);
+    let q = m.random_configurations(&mut rng, 1).unwrap().remove(0);
+    let x = m.platform_pose(&q, None).unwrap();
+    let jacs = m.constraint_jacobians(&x, &q).unwrap();
+    let (fx, fq, ft) = (jacs.x, jacs.q, jacs.theta);
+    assert!(matches!(m.residual(&x, &q[..3]), Err(KinError::InputLength { .. })));
+    for j in 0..6 {
+        let h = if j < 3 { 1e-4 } else { 1e-7 };
+        let (mut a, mut b) = (x, x);
+        a[j] += h;
+        b[j] -= h;
+        let (fa, fb) = (m.residual(&a, &q).unwrap(), m.residual(&b, &q).unwrap());
+        for i in 0..6 {
+            assert!((fx[(i, j)] - (fa[i] - fb[i]) / (2.0 * h)).abs() < 1e-5 * fx.column(j).amax().max(1.0));
+        }
+    }
+    for j in 0..5 {
+        let (mut a, mut b) = (q.clone(), q.clone());
+        a[j] += 1e-4;
+        b[j] -= 1e-4;
+        let (fa, fb) = (m.residual(&x, &a).unwrap(), m.residual(&x, &b).unwrap());
+        for i in 0..6 {
+            assert!((fq[(i, j)] - (fa[i] - fb[i]) / 2e-4).abs() < 1e-6);
+        }
+    }
+    for j in 0..35 {
+        let h = if matches!(j, 8 | 16 | 29) { 1e-7 } else { 1e-4 };
+        let mut plus = m.clone();
+        let mut minus = m.clone();
+        let mut e = DVector::zeros(44);
+        e[j] = h;
+        plus.retract(&e);
+        minus.retract(&(-e));
+        let (fa, fb) = (plus.residual(&x, &q).unwrap(), minus.residual(&x, &q).unwrap());
+        for i in 0..6 {
+            let fd = (fa[i] - fb[i]) / (2.0 * h);
+            assert!(
+                (ft[(i, j)] - fd).abs() < 1e-5 * ft.column(j).amax().max(1.0),
+                "F_θ[{i},{j}] {} vs {fd}",
+                ft[(i, j)]
+            );
+        }
+    }
+}
+
+fn round_trip<C: ConstraintSystem>(m: &ClosedLoop<C>, seed: u64, full: bool) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let ws = m.system().workspace();
+    for _ in 0..25 {
+        let x = ws.sample(&mut rng);
+        let target = m.tool_pose_of(&x);
+        let q = m.inverse(&target, None).unwrap();
+        let reached = m.forward(&q).unwrap();
+        let e = se3::pose_error(&reached, &target);
+        assert!(
+            se3::lin(&e).norm() < 1e-8,
+            "{}: position error {:.3e}",
+            m.name(),
+            se3::lin(&e).norm()
+        );
+        let z_err = (se3::rotation_matrix(&reached).column(2) - se3::rotation_matrix(&target).column(2)).norm();
+        assert!(z_err < 1e-10, "tool axis error {z_err:.3e}");
+        if full {
+            assert!(se3::ang(&e).norm() < 1e-10);
+        }
+        // IK∘FK on the inputs too.
+        let q2 = m.inverse(&reached, None).unwrap();
+        for (a, b) in q.iter().zip(&q2) {
+            assert!((a - b).abs() < 1e-8);
+        }
+    }
+}
+
+#[test]
+fn fk_ik_round_trips_over_the_workspace() {
+    round_trip(&Pm5::mechanism(Parasitic::Physical), 5, false);
+    round_trip(&Pm5::mechanism(Parasitic::NominalGeometry), 6, false);
+    round_trip(&Stewart::mechanism(StewartGeometry::default()), 7, true);
+    // With geometric errors too.
+    let mut rng = ChaCha8Rng::seed_from_u64(8);
+    let nominal = Pm5::mechanism(Parasitic::Physical);
+    let d = simulate::random_errors(&nominal, &mut rng, 0.2, 0.02f64.to_radians(), None);
+    round_trip(&simulate::perturbed(&nominal, &d), 9, false);
+}
+
+#[test]
+fn pm5_rank_and_redundant_parameters() {
+    let paper = pm5::identifiability(Parasitic::NominalGeometry, 40, 10, &pm5::paper_priority()).unwrap();
+    assert_eq!(paper.rank, 35);
+    assert_eq!(paper.redundant, PAPER_REDUNDANT.map(String::from).to_vec());
+    let natural = pm5::identifiability(Parasitic::NominalGeometry, 40, 10, &pm5::natural_priority()).unwrap();
+    assert_eq!(
+        natural.redundant,
+        ["db1y", "db2y", "dl4", "dl5", "db3y", "dl8", "dl9", "dty", "dy0"]
+            .map(String::from)
+            .to_vec()
+    );
+    let physical = pm5::identifiability(Parasitic::Physical, 40, 10, &pm5::natural_priority()).unwrap();
+    assert_eq!(physical.rank, 32);
+    assert_eq!(
+        physical.redundant,
+        ["db1y", "db2y", "dl4", "dl5", "db3y", "dl8", "dl9", "dty", "dx0", "dy0", "dz0", "dγ0"]
+            .map(String::from)
+            .to_vec()
+    );
+    assert_eq!(physical.identifiable.len(), 32);
+}
+
+#[test]
+fn stewart_noise_free_recovery_of_all_42_parameters() {
+    let nominal = Stewart::mechanism(StewartGeometry::default());
+    assert_eq!(nominal.n_params(), 42);
+    let mut rng = ChaCha8Rng::seed_from_u64(12);
+    let delta = simulate::random_errors(&nominal, &mut rng, 1.0, 0.0, None);
+    let truth = simulate::perturbed(&nominal, &delta);
+    let qs = nominal.random_configurations(&mut rng, 40).unwrap();
+    let data = simulate::measure(&truth, &qs, ObservationKind::Pose, None, &mut rng).unwrap();
+    let res = identify(&nominal, &data, &Options::default()).unwrap();
+    assert!(res.converged);
+    assert_eq!(res.identifiability.rank, 42);
+    let got = res.model.values();
+    let want = truth.values();
+    for (i, (a, b)) in got.iter().zip(&want).enumerate() {
+        assert!((a - b).abs() < 1e-8, "parameter {i}: {a} vs {b}");
+    }
+}
+
+#[test]
+fn pm5_noise_free_identification_is_exact() {
+    let nominal = Pm5::mechanism(Parasitic::Physical);
+    let mut rng = ChaCha8Rng::seed_from_u64(13);
+    let delta = simulate::random_errors(&nominal, &mut rng, 0.2, 0.02f64.to_radians(), None);
+    let truth = simulate::perturbed(&nominal, &delta);
+    let qs = nominal.random_configurations(&mut rng, 30).unwrap();
+    let data = simulate::measure(&truth, &qs, ObservationKind::Pose, None, &mut rng).unwrap();
+    let ident = pm5::identifiability(Parasitic::Physical, 40, 10, &pm5::natural_priority()).unwrap();
+    let opts = Options {
+        free: Some(ident.identifiable_indices.clone()),
+        noise: Noise::default(),
+        ..Options::default()
+    };
+    let res = identify(&nominal, &data, &opts).unwrap();
+    assert!(res.converged);
+    for q in nominal.random_configurations(&mut rng, 10).unwrap() {
+        let e = se3::pose_error(&res.model.forward(&q).unwrap(), &truth.forward(&q).unwrap());
+        assert!(se3::lin(&e).norm() < 1e-7 && se3::ang(&e).norm() < 1e-9, "held-out error {e:?}");
+    }
+}
+
+#[test]
+fn error_paths_are_typed() {
+    let m = Pm5::mechanism(Parasitic::Physical);
+    // Unreachable target: far above the machine.
+    let far = se3::translation(0.0, 0.0, 2000.0);
+    assert!(matches!(m.inverse(&far, None), Err(KinError::Unreachable(_))));
+    // Input outside the strokes.
+    assert!(matches!(
+        m.forward(&[600.0, 50.0, 50.0, 200.0, 200.0]),
+        Err(KinError::OutOfWorkspace(_))
+    ));
+    // Target whose inputs leave the strokes (reachable geometry, g1 beyond 550 mm).
+    let low = m.tool_pose_of(&[0.0, 120.0, 320.0, 0.0, 0.0, 0.0]);
+    assert!(matches!(m.inverse(&low, None), Err(KinError::OutOfWorkspace(_))));
+    // Platform pose outside the prescribed workspace.
+    assert!(matches!(
+        m.inputs_for(&[80.0, 0.0, 400.0, 0.0, 0.0, 0.0]),
+        Err(KinError::OutOfWorkspace(_))
+    ));
+    // Wrong number of inputs.
+    assert!(matches!(m.forward(&[400.0, 50.0]), Err(KinError::InputLength { .. })));
+    // Forward kinematics that cannot converge: too few Newton iterations from home.
+    let mut rng = ChaCha8Rng::seed_from_u64(14);
+    let q = m.random_configurations(&mut rng, 1).unwrap().remove(0);
+    let starved = m.clone().with_solver(SolverOptions {
+        max_iterations: 1,
+        ..SolverOptions::default()
+    });
+    assert!(matches!(starved.forward(&q), Err(KinError::NoConvergence { .. })));
+    // Inputs within the strokes for which the machine cannot assemble.
+    for q in [[300.0, 160.0, -20.0, 160.0, 280.0], [550.0, -20.0, -20.0, 280.0, 280.0]] {
+        let r = m.forward(&q);
+        assert!(matches!(r, Err(KinError::NoConvergence { .. })), "{r:?}");
+    }
+    let s = Stewart::mechanism(StewartGeometry::default());
+    let r = s.forward(&[120.0, -120.0, 120.0, -120.0, 120.0, -120.0]);
+    assert!(
+        matches!(r, Err(KinError::NoConvergence { .. }) | Err(KinError::Singular { .. })),
+        "{r:?}"
+    );
+}
+
+#[test]
+fn stewart_geometry_from_toml_round_trips_and_rejects_bad_files() {
+    let g = StewartGeometry::default();
+    let text = toml::to_string(&g).unwrap();
+    let back = StewartGeometry::from_toml_str(&text).unwrap();
+    assert_eq!(back, g);
+    let m = Stewart::mechanism(back);
+    let q = m.inverse(&m.tool_pose_of(&[10.0, -5.0, 310.0, 0.02, -0.03, 0.05]), None).unwrap();
+    assert_eq!(q.len(), 6);
+    let bad = text.replace("stroke = 120.0", "stroke = -1.0");
+    assert!(matches!(
+        StewartGeometry::from_toml_str(&bad),
+        Err(kinecal::CalibError::InvalidOption(_))
+    ));
+    assert!(StewartGeometry::from_toml_str("base = 3").is_err());
+}
