@@ -21,12 +21,15 @@ enum Command {
     /// Calibrate the ABB IRB 120 from real laser-tracker data (three tool reflectors), identify
     /// on poses idx < 500 and validate on idx ≥ 500.
     Irb120(cli::irb120::Irb120Args),
+    /// Built-in models: list them, export one as a model file (TOML) to edit.
+    Model(cli::model::ModelArgs),
 }
 
 fn main() -> ExitCode {
     let args = Args::parse();
     let result = match args.command {
         Command::Irb120(a) => cli::irb120::run(a),
+        Command::Model(a) => cli::model::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
