@@ -345,7 +345,7 @@ impl CalibrationReport {
             }
             if !any {
                 h.push_str(
-                    "<table><tr><th class=\"l\">set</th><th>pose</th><th>score (σ)</th><th>position mm</th><th>orientation deg</th></tr>",
+                    "<table><tr><th class=\"l\">set</th><th>pose (row, from 0)</th><th>score (σ)</th><th>position mm</th><th>orientation deg</th></tr>",
                 );
                 any = true;
             }
@@ -379,16 +379,17 @@ impl CalibrationReport {
         }
         if !self.singular_values.is_empty() {
             h.push_str("<div class=\"plots\">");
-            let lg: Vec<f64> = self.singular_values.iter().map(|s| s.max(1e-300).log10()).collect();
+            let smax = self.singular_values.iter().copied().fold(0.0, f64::max).max(f64::MIN_POSITIVE);
+            let lg: Vec<f64> = self.singular_values.iter().map(|s| (s / smax).max(1e-17).log10()).collect();
             h.push_str(&plot::per_pose_chart_with_x(
-                "Singular values of the scaled Jacobian (log10)",
+                "Singular values σ/σmax of the column-scaled Jacobian (log10, floor 1e-17)",
                 "index",
-                "log10 σ",
+                "log10 σ/σmax",
                 &lg,
             )?);
             h.push_str("</div>");
         }
-        h.push_str("<h2>Parameters</h2>\n<p class=\"muted\">Identified change of each error coordinate (local coordinates of the model's error parameters) with its standard deviation σ̂₀·√diag((AᵀA)⁻¹).</p><table><tr><th class=\"l\">parameter</th><th class=\"l\">group</th><th>value</th><th>std. dev.</th><th class=\"l\">unit</th><th class=\"l\">status</th></tr>");
+        h.push_str("<h2>Parameters</h2>\n<p class=\"muted\">Identified change of each error coordinate (local coordinates of the model's error parameters) with its standard deviation σ̂₀·√diag((AᵀA)⁻¹). Redundant parameters move with the minimum-norm solution; their values are not individually meaningful and have no standard deviation.</p><table><tr><th class=\"l\">parameter</th><th class=\"l\">group</th><th>value</th><th>std. dev.</th><th class=\"l\">unit</th><th class=\"l\">status</th></tr>");
         for p in &self.params {
             let status = match p.status {
                 ParamStatus::Identified => "identified",

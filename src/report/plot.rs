@@ -113,7 +113,7 @@ fn decorate(
     frame.text((lx + rx) / 2, by + 32, "middle", 12, x_label, "");
     let cy = (by + ty) / 2;
     frame.text(14, cy, "middle", 12, y_label, &format!(r#" transform="rotate(-90 14 {cy})""#));
-    frame.text(W as i32 / 2, 18, "middle", 14, title, r#" font-weight="bold""#);
+    frame.text(W as i32 / 2, 17, "middle", 13, title, r#" font-weight="bold""#);
     let mut lxp = rx;
     for (name, (r, g, b)) in legend.iter().rev() {
         let w = 14 + 7 * name.chars().count() as i32;
@@ -121,9 +121,9 @@ fn decorate(
         let _ = write!(
             frame.texts,
             r##"<rect x="{lxp}" y="{}" width="10" height="10" fill="#{r:02x}{g:02x}{b:02x}"/>"##,
-            ty + 4
+            ty - 14
         );
-        frame.text(lxp + 14, ty + 13, "start", 11, name, "");
+        frame.text(lxp + 14, ty - 5, "start", 11, name, "");
     }
     Ok(())
 }
@@ -173,7 +173,7 @@ pub fn line_chart(title: &str, x_label: &str, y_label: &str, series: &[Series<'_
         let root = SVGBackend::with_string(&mut svg, (W, H)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| e.to_string())?;
         let mut chart = ChartBuilder::on(&root)
-            .margin_top(28)
+            .margin_top(44)
             .margin_right(14)
             .x_label_area_size(38)
             .y_label_area_size(64)
@@ -223,7 +223,7 @@ pub fn histogram(title: &str, x_label: &str, series: &[Series<'_>], bins: usize)
         let root = SVGBackend::with_string(&mut svg, (W, H)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| e.to_string())?;
         let mut chart = ChartBuilder::on(&root)
-            .margin_top(28)
+            .margin_top(44)
             .margin_right(14)
             .x_label_area_size(38)
             .y_label_area_size(64)
