@@ -9,7 +9,7 @@ use crate::model::Mechanism;
 use crate::params::Unit;
 use crate::se3::{self, Pose};
 use nalgebra::{DVector, Vector3};
-use rand::{Rng, RngExt};
+use rand::{Rng, RngExt, SeedableRng};
 use rand_distr::{Distribution, Normal};
 use serde::Serialize;
 use std::f64::consts::PI;
@@ -230,7 +230,7 @@ fn check_limits(inputs: &[InputSpec], q: &[f64]) -> Result<(), KinError> {
             if *v < lo - 1e-9 || *v > hi + 1e-9 {
                 let (f, u) = if i.unit == Unit::Angle { (180.0 / PI, "deg") } else { (1.0, "mm") };
                 return Err(KinError::OutOfWorkspace(format!(
-                    "{} = {:.3} {u} is outside its limits [{:.3}, {:.3}] {u}",
+                    "{} = {:.3} {u} outside its limits [{:.3}, {:.3}] {u}",
                     i.name,
                     v * f,
                     lo * f,
@@ -242,9 +242,13 @@ fn check_limits(inputs: &[InputSpec], q: &[f64]) -> Result<(), KinError> {
     Ok(())
 }
 
+/// Number of random fall-back starting points of [`compensate`]'s inverse kinematics.
+pub const COMPENSATION_STARTS: usize = 24;
+
 /// Actuator commands that bring the (calibrated) `model`'s tool to each target pose: inverse
 /// kinematics from `seeds[k]` when given (e.g. the nominal commands), else from the previous
-/// solution, else from a fixed set of starting points; revolute inputs are wrapped into their
+/// solution, else from the zero configuration and [`COMPENSATION_STARTS`] fixed pseudo-random
+/// points within the limits (tried in that order until one gives a valid solution); revolute inputs are wrapped into their
 /// limits by whole turns and every solution is checked against the limits and against the
 /// forward kinematics (1e-6 mm, 1e-8 rad). `progress` is called after each target.
 pub fn compensate<M: Mechanism + ?Sized>(
@@ -256,10 +260,11 @@ pub fn compensate<M: Mechanism + ?Sized>(
 ) -> Result<Vec<Vec<f64>>, CompensationError> {
     let n = inputs.len();
     let mut out: Vec<Vec<f64>> = Vec::with_capacity(targets.len());
-    let fixed_starts: Vec<Vec<f64>> = [0.0, 0.4, -0.4, 1.2]
-        .iter()
-        .map(|s| inputs.iter().map(|i| if i.unit == Unit::Angle { *s } else { 0.0 }).collect())
-        .collect();
+    // Deterministic fall-back starting points: the zero configuration, then random points
+    // within the limits (a fixed seed, so results do not change from run to run).
+    let mut fixed_starts: Vec<Vec<f64>> = vec![vec![0.0; n]];
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0x6b696e65);
+    fixed_starts.extend(random_inputs(inputs, COMPENSATION_STARTS, &mut rng));
     for (k, target) in targets.iter().enumerate() {
         let mut starts: Vec<Vec<f64>> = Vec::new();
         if let Some(s) = seeds.and_then(|s| s.get(k)) {
@@ -270,6 +275,8 @@ pub fn compensate<M: Mechanism + ?Sized>(
         }
         starts.extend(fixed_starts.iter().cloned());
         let mut last_err = KinError::Unreachable("no starting point".into());
+        // A solution outside the limits says more than a failed convergence: report it first.
+        let mut limit_err: Option<KinError> = None;
         let mut found = None;
         for s in starts.iter().filter(|s| s.len() == n) {
             match model.inverse(target, Some(s)) {
@@ -282,7 +289,7 @@ pub fn compensate<M: Mechanism + ?Sized>(
                                 found = Some(q);
                                 break;
                             }
-                            Err(e) => last_err = e,
+                            Err(e) => limit_err = Some(e),
                         },
                         Ok(e) => {
                             last_err = KinError::Unreachable(format!(
@@ -300,10 +307,16 @@ pub fn compensate<M: Mechanism + ?Sized>(
         match found {
             Some(q) => out.push(q),
             None => {
-                let source = match last_err {
+                let tried = starts.len();
+                let limit_err = limit_err.map(|e| match e {
+                    KinError::OutOfWorkspace(m) => {
+                        KinError::OutOfWorkspace(format!("no solution within the limits from {tried} starting points (one had {m})"))
+                    }
+                    e => e,
+                });
+                let source = match limit_err.unwrap_or(last_err) {
                     KinError::NoConvergence { residual, .. } => KinError::Unreachable(format!(
-                        "inverse kinematics found no solution from {} starting points (residual {residual:.3e}); the target is probably outside the workspace",
-                        starts.len()
+                        "inverse kinematics found no solution from {tried} starting points (residual {residual:.3e}); the target is probably outside the workspace"
                     )),
                     e => e,
                 };

@@ -3,3 +3,4 @@ mod chain;
 mod identify;
 mod model_file;
 mod se3_props;
+mod workflow;
