@@ -91,7 +91,7 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         ..Options::default()
     };
     let sp = progress::spinner(&format!("identifying {} on {} poses", file.name, data.measurements.len()), a.json);
-    let result = identify(&nominal, &data.measurements, &opts).map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
+    let result = identify(&nominal, &data.measurements, &opts).map_err(|e| data.locate(e))?;
     sp.finish_and_clear();
     let calibrated = file.with_geometry_of(&*result.model).map_err(|e| anyhow::anyhow!(e))?;
     let mut calibrated = calibrated;

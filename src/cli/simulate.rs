@@ -174,9 +174,9 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
         );
         for w in &written {
             println!(
-                "{} poses, {:?} measurements, noise {} mm / {} deg → {}",
+                "{} poses, {} measurements, noise {} mm / {} deg → {}",
                 w.poses,
-                a.measure,
+                format!("{:?}", a.measure).to_lowercase(),
                 a.noise_mm,
                 a.noise_deg,
                 w.path.display()

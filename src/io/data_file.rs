@@ -22,6 +22,7 @@
 use super::model_file::InputSpec;
 use super::table::{read_table, Table};
 use super::IoError;
+use crate::error::CalibError;
 use crate::measure::{frame_from_reflectors, Measurement, Observation};
 use crate::params::Unit;
 use crate::se3::Pose;
@@ -57,6 +58,24 @@ pub struct DataSet {
     pub format: MeasurementFormat,
     /// Whether the file had the input columns.
     pub has_inputs: bool,
+}
+
+impl DataSet {
+    /// An error of a computation on this data set, located: a failure at one pose names the
+    /// file and that pose's line; any other error names the file.
+    pub fn locate(&self, e: CalibError) -> IoError {
+        match e {
+            CalibError::Kinematics { pose, source } if pose < self.lines.len() => IoError::AtLine {
+                path: self.path.clone(),
+                line: self.lines[pose],
+                message: format!("pose {}: {source}", self.ids[pose]),
+            },
+            e => IoError::Invalid {
+                path: self.path.clone(),
+                message: e.to_string(),
+            },
+        }
+    }
 }
 
 /// Whether the input columns must be present.
