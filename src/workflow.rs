@@ -210,17 +210,28 @@ pub struct CompensationError {
     pub source: KinError,
 }
 
-/// Bring revolute inputs into their limits by whole turns where that is possible.
-fn wrap_into_limits(inputs: &[InputSpec], q: &mut [f64]) {
-    for (i, v) in inputs.iter().zip(q.iter_mut()) {
-        if let (Unit::Angle, Some((lo, hi))) = (i.unit, i.limits) {
-            while *v > hi && *v - 2.0 * PI >= lo {
-                *v -= 2.0 * PI;
-            }
-            while *v < lo && *v + 2.0 * PI <= hi {
-                *v += 2.0 * PI;
+/// Add whole turns to each revolute input so that it is as close as possible to `reference`
+/// (the seed, or 0) while inside its limits when the limits allow it.
+fn wrap_near(inputs: &[InputSpec], q: &mut [f64], reference: &[f64]) {
+    for (k, (i, v)) in inputs.iter().zip(q.iter_mut()).enumerate() {
+        if i.unit != Unit::Angle {
+            continue;
+        }
+        let r = reference.get(k).copied().unwrap_or(0.0);
+        let turns = ((r - *v) / (2.0 * PI)).round();
+        let mut best = *v + turns * 2.0 * PI;
+        if let Some((lo, hi)) = i.limits {
+            if best < lo - 1e-9 || best > hi + 1e-9 {
+                // The nearest equivalent angle is outside the limits: take the nearest one inside.
+                let candidates = (-3..=3)
+                    .map(|t| best + t as f64 * 2.0 * PI)
+                    .filter(|c| *c >= lo - 1e-9 && *c <= hi + 1e-9);
+                if let Some(c) = candidates.min_by(|a, b| (a - r).abs().total_cmp(&(b - r).abs())) {
+                    best = c;
+                }
             }
         }
+        *v = best;
     }
 }
 
@@ -248,9 +259,9 @@ pub const COMPENSATION_STARTS: usize = 24;
 /// Actuator commands that bring the (calibrated) `model`'s tool to each target pose: inverse
 /// kinematics from `seeds[k]` when given (e.g. the nominal commands), else from the previous
 /// solution, else from the zero configuration and [`COMPENSATION_STARTS`] fixed pseudo-random
-/// points within the limits (tried in that order until one gives a valid solution); revolute inputs are wrapped into their
-/// limits by whole turns and every solution is checked against the limits and against the
-/// forward kinematics (1e-6 mm, 1e-8 rad). `progress` is called after each target.
+/// points within the limits (tried in that order until one gives a valid solution). Revolute
+/// inputs are moved by whole turns to the equivalent angle nearest the seed (or 0) within their
+/// limits; every solution is checked against the limits and against the forward kinematics (1e-6 mm, 1e-8 rad). `progress` is called after each target.
 pub fn compensate<M: Mechanism + ?Sized>(
     model: &M,
     inputs: &[InputSpec],
@@ -281,7 +292,7 @@ pub fn compensate<M: Mechanism + ?Sized>(
         for s in starts.iter().filter(|s| s.len() == n) {
             match model.inverse(target, Some(s)) {
                 Ok(mut q) => {
-                    wrap_into_limits(inputs, &mut q);
+                    wrap_near(inputs, &mut q, seeds.and_then(|x| x.get(k)).map_or(&[][..], |x| x.as_slice()));
                     let reached = model.forward(&q).map(|t| se3::pose_error(target, &t));
                     match reached {
                         Ok(e) if se3::lin(&e).norm() < 1e-6 && se3::ang(&e).norm() < 1e-8 => match check_limits(inputs, &q) {

@@ -18,6 +18,11 @@ pub struct CompensateArgs {
     /// Commands file to write (CSV): id and one column per input (deg for angles, mm for lengths).
     #[arg(long, short)]
     pub out: PathBuf,
+    /// Nominal model (file or built-in name): when the targets have no input columns, the nominal
+    /// model's inverse kinematics gives the starting points, so the compensated commands stay on
+    /// the same solution branch (elbow, wrist) as the commands the nominal controller would send.
+    #[arg(long)]
+    pub nominal: Option<String>,
     /// Print JSON instead of text.
     #[arg(long)]
     pub json: bool,
@@ -36,17 +41,30 @@ pub fn run(a: CompensateArgs) -> anyhow::Result<()> {
             data.lines[i]
         )
     })?;
-    let seeds: Option<Vec<Vec<f64>>> = data.has_inputs.then(|| data.measurements.iter().map(|m| m.q.clone()).collect());
-    let pb = progress::bar(targets.len(), "compensating", a.json);
-    let commands = compensate(&*model, &inputs, &targets, seeds.as_deref(), &|_| pb.inc(1)).map_err(|e| {
+    let locate = |e: kinecal::workflow::CompensationError, what: &str| {
         anyhow::anyhow!(
-            "{}:{}: target {}: {}",
+            "{}:{}: target {}: {what}{}",
             a.targets.display(),
             data.lines[e.target],
             data.ids[e.target],
             e.source
         )
-    })?;
+    };
+    let mut seeds: Option<Vec<Vec<f64>>> = data.has_inputs.then(|| data.measurements.iter().map(|m| m.q.clone()).collect());
+    if let (None, Some(nominal)) = (&seeds, &a.nominal) {
+        let nominal_file = ModelFile::load_or_builtin(nominal)?;
+        anyhow::ensure!(
+            nominal_file.inputs().iter().map(|i| &i.name).eq(inputs.iter().map(|i| &i.name)),
+            "--nominal {nominal}: its inputs differ from those of {}",
+            a.model
+        );
+        let pb = progress::bar(targets.len(), "nominal IK", a.json);
+        let q0 = compensate(&*nominal_file.build(), &inputs, &targets, None, &|_| pb.inc(1)).map_err(|e| locate(e, "nominal model: "))?;
+        pb.finish_and_clear();
+        seeds = Some(q0);
+    }
+    let pb = progress::bar(targets.len(), "compensating", a.json);
+    let commands = compensate(&*model, &inputs, &targets, seeds.as_deref(), &|_| pb.inc(1)).map_err(|e| locate(e, ""))?;
     pb.finish_and_clear();
     let mut header = vec!["id".to_string()];
     header.extend(input_headers(&inputs));

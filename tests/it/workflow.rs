@@ -166,6 +166,42 @@ fn simulate_identify_validate_compensate_recovers_the_truth() {
     }
     // Compensation did something: commands differ from the nominal ones.
     assert!(moved > 1e-4, "{moved}");
+
+    // Targets without commands: --nominal seeds the calibrated inverse with the nominal one, so
+    // the commands stay on the nominal solution branch (within a fraction of a degree of it).
+    let bare: Vec<Measurement> = targets
+        .iter()
+        .map(|t| Measurement {
+            q: vec![],
+            obs: t.obs.clone(),
+        })
+        .collect();
+    write_data(&d.join("bare.csv"), &inputs, &val.ids, &bare, None).unwrap();
+    assert!(std::fs::read_to_string(d.join("bare.csv"))
+        .unwrap()
+        .starts_with("id,x_mm,y_mm,z_mm,qw,qx,qy,qz\n"));
+    ok(
+        &d,
+        &[
+            "compensate",
+            "cal.toml",
+            "bare.csv",
+            "--nominal",
+            "irb120.toml",
+            "--out",
+            "cmd2.csv",
+        ],
+    );
+    ok(&d, &["compensate", "irb120.toml", "bare.csv", "--out", "nom.csv"]);
+    let (cmd2, nom) = (read_table(&d.join("cmd2.csv")).unwrap(), read_table(&d.join("nom.csv")).unwrap());
+    for ((row, n), t) in cmd2.rows.iter().zip(&nom.rows).zip(&targets) {
+        let q: Vec<f64> = row[1..].iter().map(|v| v.to_radians()).collect();
+        let Observation::Pose(target) = &t.obs else { unreachable!() };
+        let e = se3::pose_error(target, &truth.forward(&q).unwrap());
+        assert!(se3::lin(&e).norm() < 1e-6 && se3::ang(&e).norm() < 1e-9, "target missed by {e}");
+        let gap = row[1..].iter().zip(&n[1..]).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        assert!(gap < 5.0, "compensated command {gap} deg away from the nominal one");
+    }
 }
 
 #[test]
