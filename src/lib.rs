@@ -12,10 +12,12 @@ pub mod io;
 pub mod measure;
 pub mod model;
 pub mod params;
+pub mod report;
 pub mod se3;
 pub mod simulate;
 pub mod study;
 pub mod tracker_calibration;
+pub mod workflow;
 
 pub use error::{CalibError, KinError};
 pub use model::Mechanism;

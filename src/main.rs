@@ -24,6 +24,18 @@ enum Command {
     /// Reproduce a paper's simulation study (`study pm5`: §5.1 of the 5-DOF paper) and print
     /// the paper's figures beside kinecal's.
     Study(cli::study::StudyArgs),
+    /// Built-in models: list them, export one as a model file (TOML) to edit.
+    Model(cli::model::ModelArgs),
+    /// Virtual prototype: random geometric errors and noisy measurements → data CSV + true model.
+    Simulate(cli::simulate::SimulateArgs),
+    /// Rank, redundant parameters and condition number of the identification problem.
+    Identifiability(cli::identifiability::IdentifiabilityArgs),
+    /// Identify the free parameters from measurements → calibrated model (TOML) + report.
+    Identify(cli::identify::IdentifyArgs),
+    /// Position / orientation error statistics of a model against measurements.
+    Validate(cli::validate::ValidateArgs),
+    /// Target poses → actuator commands through the calibrated model's inverse kinematics.
+    Compensate(cli::compensate::CompensateArgs),
 }
 
 fn main() -> ExitCode {
@@ -31,6 +43,12 @@ fn main() -> ExitCode {
     let result = match args.command {
         Command::Irb120(a) => cli::irb120::run(a),
         Command::Study(a) => cli::study::run(a),
+        Command::Model(a) => cli::model::run(a),
+        Command::Simulate(a) => cli::simulate::run(a),
+        Command::Identifiability(a) => cli::identifiability::run(a),
+        Command::Identify(a) => cli::identify::run(a),
+        Command::Validate(a) => cli::validate::run(a),
+        Command::Compensate(a) => cli::compensate::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

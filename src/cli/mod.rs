@@ -1,3 +1,10 @@
 //! One module per subcommand: each parses its arguments, calls the library and prints.
+pub mod compensate;
+pub mod identifiability;
+pub mod identify;
 pub mod irb120;
+pub mod model;
+pub mod progress;
+pub mod simulate;
 pub mod study;
+pub mod validate;

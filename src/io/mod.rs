@@ -1,4 +1,6 @@
 //! Files: numeric CSV tables with line-accurate errors, laser-tracker data sets.
+pub mod data_file;
+pub mod model_file;
 pub mod table;
 pub mod tracker;
 
@@ -116,6 +118,16 @@ pub enum IoError {
         other: PathBuf,
         /// Index expected.
         expected: i64,
+    },
+    /// A content problem at a known line (and, for TOML, key).
+    #[error("{}:{line}: {message}", path.display())]
+    AtLine {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line number.
+        line: usize,
+        /// What is wrong, naming the key or column.
+        message: String,
     },
     /// Any other content problem.
     #[error("{}: {message}", path.display())]

@@ -290,6 +290,10 @@ impl Mechanism for SerialChain {
     fn box_clone(&self) -> Box<dyn Mechanism> {
         Box::new(self.clone())
     }
+
+    fn as_any(&self) -> Option<&dyn std::any::Any> {
+        Some(self)
+    }
 }
 
 #[cfg(test)]

@@ -17,6 +17,7 @@ use crate::params::Param;
 use crate::se3::Pose;
 use nalgebra::{DVector, Matrix6xX};
 
+pub mod builtin;
 pub mod chain;
 pub mod closed;
 pub mod irb120;
@@ -46,6 +47,11 @@ pub trait Mechanism: Send + Sync {
     fn inverse(&self, target: &Pose, seed: Option<&[f64]>) -> Result<Vec<f64>, KinError>;
     /// A boxed copy (lets command-line code hold any mechanism).
     fn box_clone(&self) -> Box<dyn Mechanism>;
+    /// The concrete model, for code that writes a calibrated geometry back to a model file
+    /// ([`crate::io::model_file`]). Mechanisms that a model file can describe return `Some(self)`.
+    fn as_any(&self) -> Option<&dyn std::any::Any> {
+        None
+    }
 }
 
 impl Clone for Box<dyn Mechanism> {
@@ -81,6 +87,9 @@ impl Mechanism for Box<dyn Mechanism> {
     }
     fn box_clone(&self) -> Box<dyn Mechanism> {
         (**self).box_clone()
+    }
+    fn as_any(&self) -> Option<&dyn std::any::Any> {
+        (**self).as_any()
     }
 }
 

@@ -3,5 +3,7 @@ mod chain;
 mod closed;
 mod identify;
 mod irb120;
+mod model_file;
 mod se3_props;
 mod study;
+mod workflow;

@@ -1,0 +1,93 @@
+//! `kinecal compensate MODEL TARGETS`: actuator commands that reach target poses on the
+//! calibrated model.
+use super::progress;
+use clap::Args;
+use kinecal::io::data_file::{input_headers, input_values_for_file, read_data, write_csv, InputColumns};
+use kinecal::io::model_file::ModelFile;
+use kinecal::workflow::{compensate, target_poses};
+use std::path::PathBuf;
+
+/// Arguments of `kinecal compensate`.
+#[derive(Args, Debug)]
+pub struct CompensateArgs {
+    /// Calibrated model file (or a built-in name).
+    pub model: String,
+    /// Target poses (CSV): x_mm,y_mm,z_mm with qw,qx,qy,qz or roll_deg,pitch_deg,yaw_deg; optional
+    /// id; optional input columns (e.g. q1_deg…) with the nominal commands, used as starting points.
+    pub targets: PathBuf,
+    /// Commands file to write (CSV): id and one column per input (deg for angles, mm for lengths).
+    #[arg(long, short)]
+    pub out: PathBuf,
+    /// Nominal model (file or built-in name): when the targets have no input columns, the nominal
+    /// model's inverse kinematics gives the starting points, so the compensated commands stay on
+    /// the same solution branch (elbow, wrist) as the commands the nominal controller would send.
+    #[arg(long)]
+    pub nominal: Option<String>,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Run the command.
+pub fn run(a: CompensateArgs) -> anyhow::Result<()> {
+    let file = ModelFile::load_or_builtin(&a.model)?;
+    let model = file.build();
+    let inputs = file.inputs();
+    let data = read_data(&a.targets, &inputs, InputColumns::Optional)?;
+    let targets = target_poses(&data.measurements).map_err(|i| {
+        anyhow::anyhow!(
+            "{}:{}: a target needs an orientation (qw,qx,qy,qz or roll,pitch,yaw), not only a position",
+            a.targets.display(),
+            data.lines[i]
+        )
+    })?;
+    let locate = |e: kinecal::workflow::CompensationError, what: &str| {
+        anyhow::anyhow!(
+            "{}:{}: target {}: {what}{}",
+            a.targets.display(),
+            data.lines[e.target],
+            data.ids[e.target],
+            e.source
+        )
+    };
+    let mut seeds: Option<Vec<Vec<f64>>> = data.has_inputs.then(|| data.measurements.iter().map(|m| m.q.clone()).collect());
+    if let (None, Some(nominal)) = (&seeds, &a.nominal) {
+        let nominal_file = ModelFile::load_or_builtin(nominal)?;
+        anyhow::ensure!(
+            nominal_file.inputs().iter().map(|i| &i.name).eq(inputs.iter().map(|i| &i.name)),
+            "--nominal {nominal}: its inputs differ from those of {}",
+            a.model
+        );
+        let pb = progress::bar(targets.len(), "nominal IK", a.json);
+        let q0 = compensate(&*nominal_file.build(), &inputs, &targets, None, &|_| pb.inc(1)).map_err(|e| locate(e, "nominal model: "))?;
+        pb.finish_and_clear();
+        seeds = Some(q0);
+    }
+    let pb = progress::bar(targets.len(), "compensating", a.json);
+    let commands = compensate(&*model, &inputs, &targets, seeds.as_deref(), &|_| pb.inc(1)).map_err(|e| locate(e, ""))?;
+    pb.finish_and_clear();
+    let mut header = vec!["id".to_string()];
+    header.extend(input_headers(&inputs));
+    let rows: Vec<Vec<f64>> = commands
+        .iter()
+        .zip(&data.ids)
+        .map(|(q, id)| std::iter::once(*id as f64).chain(input_values_for_file(&inputs, q)).collect())
+        .collect();
+    write_csv(&a.out, &header, &rows)?;
+    if a.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&serde_json::json!({"model": file.name, "targets": a.targets,
+                "commands": a.out, "count": commands.len(), "columns": header}))?
+        );
+    } else {
+        println!(
+            "{} targets → {} commands for {} → {}",
+            targets.len(),
+            commands.len(),
+            file.name,
+            a.out.display()
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,93 @@
+//! `kinecal identifiability MODEL [DATA]`: rank, redundant parameters and conditioning of the
+//! identification problem at the model, on measured poses or on random ones.
+use super::simulate::MeasureKind;
+use clap::Args;
+use kinecal::identifiability::{analyze, DEFAULT_RANK_TOLERANCE};
+use kinecal::identify::linearize;
+use kinecal::io::data_file::{read_data, InputColumns};
+use kinecal::io::model_file::ModelFile;
+use kinecal::measure::{Measurement, Observation};
+use kinecal::workflow::random_inputs;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use std::path::PathBuf;
+
+/// Arguments of `kinecal identifiability`.
+#[derive(Args, Debug)]
+pub struct IdentifiabilityArgs {
+    /// Model file or built-in name; its [calibration] free list is the candidate set, in priority order.
+    pub model: String,
+    /// Data file whose poses (inputs and measurement kind) to analyse; without it, random poses.
+    pub data: Option<PathBuf>,
+    /// Number of random poses when no data file is given.
+    #[arg(long, default_value_t = 100)]
+    pub poses: usize,
+    /// Seed of the random poses.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Measurement kind of the random poses (reflectors = pose).
+    #[arg(long, value_enum, default_value_t = MeasureKind::Pose)]
+    pub measure: MeasureKind,
+    /// Relative singular-value tolerance of the rank decision.
+    #[arg(long, default_value_t = DEFAULT_RANK_TOLERANCE)]
+    pub tolerance: f64,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Run the command.
+pub fn run(a: IdentifiabilityArgs) -> anyhow::Result<()> {
+    let file = ModelFile::load_or_builtin(&a.model)?;
+    let model = file.build();
+    let inputs = file.inputs();
+    let free = file.free_indices()?;
+    let data: Vec<Measurement> = match &a.data {
+        Some(p) => read_data(p, &inputs, InputColumns::Required)?.measurements,
+        None => {
+            let mut rng = ChaCha8Rng::seed_from_u64(a.seed);
+            random_inputs(&inputs, a.poses, &mut rng)
+                .into_iter()
+                .map(|q| {
+                    let t = model.forward(&q)?;
+                    let obs = match a.measure {
+                        MeasureKind::Position => Observation::Position(t.translation.vector),
+                        _ => Observation::Pose(t),
+                    };
+                    Ok(Measurement { q, obs })
+                })
+                .collect::<Result<_, kinecal::KinError>>()?
+        }
+    };
+    let noise = file.noise.unwrap_or_default();
+    let lin = linearize(&*model, &data, &noise)?;
+    let id = analyze(&lin.jacobian, &free, a.tolerance);
+    let params = model.params();
+    let names = |v: &[usize]| v.iter().map(|&i| params[i].name.clone()).collect::<Vec<_>>();
+    if a.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&serde_json::json!({
+                "model": file.name, "poses": data.len(), "free": free.len(), "rank": id.rank,
+                "identifiable": names(&id.identifiable), "redundant": names(&id.redundant),
+                "no_effect": names(&id.no_effect), "pivoted": names(&id.pivoted),
+                "condition": id.condition, "singular_values": id.singular_values,
+            }))?
+        );
+    } else {
+        println!(
+            "{}: {} poses, {} free parameters, rank {}, condition number {:.3e}",
+            file.name,
+            data.len(),
+            free.len(),
+            id.rank,
+            id.condition
+        );
+        println!("redundant ({}): {}", id.redundant.len(), names(&id.redundant).join(" "));
+        if !id.no_effect.is_empty() {
+            println!("no effect ({}): {}", id.no_effect.len(), names(&id.no_effect).join(" "));
+        }
+        println!("identifiable ({}): {}", id.identifiable.len(), names(&id.identifiable).join(" "));
+    }
+    Ok(())
+}

@@ -1,0 +1,155 @@
+//! `kinecal identify MODEL DATA`: identify the free parameters → calibrated model file + report.
+use super::progress;
+use clap::{Args, ValueEnum};
+use kinecal::identify::{identify, Method, Options};
+use kinecal::io::data_file::{read_data, InputColumns};
+use kinecal::io::model_file::ModelFile;
+use kinecal::measure::Noise;
+use kinecal::report::{CalibrationReport, ParamStatus};
+use kinecal::workflow::default_noise;
+use std::path::PathBuf;
+
+/// Identification algorithm.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum MethodArg {
+    /// Iterated Gauss–Newton with Levenberg–Marquardt fallback (converges on nonlinear models).
+    GaussNewton,
+    /// One linearisation, batch least squares.
+    Linear,
+    /// One linearisation, recursive least squares pose by pose.
+    Recursive,
+}
+
+/// Arguments of `kinecal identify`.
+#[derive(Args, Debug)]
+pub struct IdentifyArgs {
+    /// Starting (nominal) model: a model file or a built-in name. Its [calibration] free/fixed
+    /// lists choose what is identified, in priority order.
+    pub model: String,
+    /// Measurement data file (CSV; see docs/workflow.md for the columns).
+    pub data: PathBuf,
+    /// Where to write the calibrated model (TOML, same format and units as the input model).
+    #[arg(long, short)]
+    pub out: PathBuf,
+    /// Independent validation data (CSV), evaluated before and after calibration.
+    #[arg(long)]
+    pub validation: Option<PathBuf>,
+    /// Write the HTML report here.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// Algorithm.
+    #[arg(long, value_enum, default_value_t = MethodArg::GaussNewton)]
+    pub method: MethodArg,
+    /// Position noise σ per axis (mm) used as weight; default: the model file's [noise], else 0.02.
+    #[arg(long)]
+    pub noise_mm: Option<f64>,
+    /// Orientation noise σ per axis (degrees) used as weight; default: the model file's [noise], else 0.02.
+    #[arg(long)]
+    pub noise_deg: Option<f64>,
+    /// Re-estimate the position / orientation noise from the residuals (real data).
+    #[arg(long)]
+    pub reweight: bool,
+    /// Print the report as JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// The noise weights: command line, else model file, else the default.
+pub fn resolve_noise(file: &ModelFile, mm: Option<f64>, deg: Option<f64>) -> anyhow::Result<Noise> {
+    let base = file.noise.unwrap_or_else(default_noise);
+    let n = Noise {
+        position: mm.unwrap_or(base.position),
+        orientation: deg.map(f64::to_radians).unwrap_or(base.orientation),
+    };
+    anyhow::ensure!(
+        n.position > 0.0 && n.orientation > 0.0 && n.position.is_finite() && n.orientation.is_finite(),
+        "--noise-mm / --noise-deg: must be finite and > 0"
+    );
+    Ok(n)
+}
+
+/// Run the command.
+pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
+    let file = ModelFile::load_or_builtin(&a.model)?;
+    let nominal = file.build();
+    let inputs = file.inputs();
+    let free = file.free_indices()?;
+    let data = read_data(&a.data, &inputs, InputColumns::Required)?;
+    let validation = match &a.validation {
+        Some(p) => Some(read_data(p, &inputs, InputColumns::Required)?),
+        None => None,
+    };
+    let opts = Options {
+        method: match a.method {
+            MethodArg::GaussNewton => Method::GaussNewton,
+            MethodArg::Linear => Method::Linear,
+            MethodArg::Recursive => Method::Recursive,
+        },
+        noise: resolve_noise(&file, a.noise_mm, a.noise_deg)?,
+        reweight: a.reweight,
+        free: Some(free.clone()),
+        ..Options::default()
+    };
+    let sp = progress::spinner(&format!("identifying {} on {} poses", file.name, data.measurements.len()), a.json);
+    let result = identify(&nominal, &data.measurements, &opts).map_err(|e| data.locate(e))?;
+    sp.finish_and_clear();
+    let calibrated = file.with_geometry_of(&*result.model).map_err(|e| anyhow::anyhow!(e))?;
+    let mut calibrated = calibrated;
+    calibrated.description = Some(format!("calibrated from '{}' on {}", file.name, a.data.display()));
+    calibrated.noise = Some(result.noise);
+    calibrated.save(&a.out)?;
+    let report = CalibrationReport::new(
+        &nominal,
+        &result,
+        &free,
+        &format!("{:?}", opts.method),
+        &a.data.display().to_string(),
+        &data.measurements,
+        validation
+            .as_ref()
+            .map(|v| (v.path.to_str().unwrap_or("validation"), v.measurements.as_slice())),
+    )?;
+    if let Some(path) = &a.report {
+        let html = report.to_html().map_err(|e| anyhow::anyhow!("report: {e}"))?;
+        std::fs::write(path, html).map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", path.display()))?;
+    }
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    println!(
+        "identified {} of {} free parameters of {} from {} poses ({:?}, {} after {} iterations, σ̂₀ = {:.3})",
+        report.rank,
+        report.free,
+        file.name,
+        data.measurements.len(),
+        opts.method,
+        if report.converged { "converged" } else { "NOT converged" },
+        report.iterations,
+        report.sigma0
+    );
+    println!(
+        "condition number {:.3e}; redundant: {}",
+        report.condition,
+        report.redundant.join(" ")
+    );
+    println!("identification set before: {}", report.identification.before_stats);
+    println!("identification set after:  {}", report.identification.after_stats);
+    if let Some(v) = &report.validation {
+        println!("validation set before:     {}", v.before_stats);
+        println!("validation set after:      {}", v.after_stats);
+    }
+    let flagged: usize = report.identification.outliers.len() + report.validation.as_ref().map_or(0, |v| v.outliers.len());
+    if flagged > 0 {
+        println!("{flagged} poses flagged as outliers (residual > 3σ; see the report)");
+    }
+    println!("{:<10} {:>12} {:>12} unit", "parameter", "value", "std.dev");
+    for p in report.params.iter().filter(|p| p.status == ParamStatus::Identified) {
+        println!("{:<10} {:>12.5} {:>12.5} {}", p.name, p.value, p.std_dev, p.unit);
+    }
+    println!("calibrated model → {}", a.out.display());
+    if let Some(r) = &a.report {
+        println!("report → {}", r.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,44 @@
+//! `kinecal validate MODEL DATA`: error statistics of a model against measurements.
+use clap::Args;
+use kinecal::io::data_file::{read_data, InputColumns};
+use kinecal::io::model_file::ModelFile;
+use kinecal::workflow::{outliers, pose_errors, ErrorStats};
+use std::path::PathBuf;
+
+/// Arguments of `kinecal validate`.
+#[derive(Args, Debug)]
+pub struct ValidateArgs {
+    /// Model file (e.g. the calibrated one) or a built-in name.
+    pub model: String,
+    /// Measurement data file (CSV).
+    pub data: PathBuf,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Run the command.
+pub fn run(a: ValidateArgs) -> anyhow::Result<()> {
+    let file = ModelFile::load_or_builtin(&a.model)?;
+    let model = file.build();
+    let data = read_data(&a.data, &file.inputs(), InputColumns::Required)?;
+    let errors = pose_errors(&*model, &data.measurements).map_err(|e| data.locate(e))?;
+    let stats = ErrorStats::of(&errors);
+    let flagged = outliers(&*model, &data.measurements, 3.0).map_err(|e| data.locate(e))?;
+    if a.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&serde_json::json!({"model": file.name, "data": a.data, "stats": stats,
+                "per_pose": errors, "outliers": flagged}))?
+        );
+    } else {
+        println!("{} on {} ({} poses): {}", file.name, a.data.display(), stats.poses, stats);
+        for o in &flagged {
+            println!(
+                "outlier: pose {} (line {}): {:.4} mm, score {:.1}σ",
+                data.ids[o.pose], data.lines[o.pose], o.position_mm, o.score
+            );
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,539 @@
+//! Data files: measurement sets, targets and actuator commands as CSV with a header line.
+//!
+//! # Columns
+//! Every column name that carries a physical value ends with its unit:
+//!
+//! * **inputs** (one per [`Mechanism::input_names`](crate::Mechanism::input_names), actuators
+//!   first, then sensed passive joints for mechanisms that have them): `<name>_deg` or
+//!   `<name>_rad` for angular inputs, `<name>_mm` or `<name>_m` for linear ones (`q1_deg`,
+//!   `d3_mm`);
+//! * **the measurement**, one of
+//!   - a pose: position `x_mm, y_mm, z_mm` (or `_m`) and a unit quaternion `qw, qx, qy, qz`
+//!     (normalised on reading; a norm off by more than 1e-3 is an error), or roll/pitch/yaw
+//!     `roll_deg, pitch_deg, yaw_deg` (or `_rad`) meaning `R = Rz(yaw)·Ry(pitch)·Rx(roll)`;
+//!   - a position: `x_mm, y_mm, z_mm` alone (the tool-frame origin);
+//!   - three reflector centres `m1x_mm … m3z_mm`, turned into the tool frame by
+//!     [`frame_from_reflectors`] (the model's tool frame must be that reflector frame);
+//! * optionally `id` (a pose number, kept for messages and written back).
+//!
+//! Blank lines and `#` comments are skipped. Any other column, a missing one, a wrong unit
+//! suffix, a short row, a value that is not a finite number is one [`IoError`] naming the file,
+//! the line and the column. Values are converted to mm and rad on reading.
+use super::model_file::InputSpec;
+use super::table::{read_table, Table};
+use super::IoError;
+use crate::error::CalibError;
+use crate::measure::{frame_from_reflectors, Measurement, Observation};
+use crate::params::Unit;
+use crate::se3::Pose;
+use nalgebra::{Quaternion, Translation3, UnitQuaternion, Vector3};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// How the measurement is given in a data file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MeasurementFormat {
+    /// `x, y, z` and `qw, qx, qy, qz`.
+    PoseQuaternion,
+    /// `x, y, z` and `roll, pitch, yaw`.
+    PoseRpy,
+    /// `x, y, z`.
+    Position,
+    /// `m1x … m3z`.
+    Reflectors,
+}
+
+/// A data file read into memory (mm and rad).
+#[derive(Debug, Clone, PartialEq)]
+pub struct DataSet {
+    /// The file.
+    pub path: PathBuf,
+    /// One measurement per row. For targets files without input columns, `q` is empty.
+    pub measurements: Vec<Measurement>,
+    /// 1-based line of each row.
+    pub lines: Vec<usize>,
+    /// Pose ids (the `id` column, or row numbers from 0).
+    pub ids: Vec<i64>,
+    /// How the measurement was given.
+    pub format: MeasurementFormat,
+    /// Whether the file had the input columns.
+    pub has_inputs: bool,
+}
+
+impl DataSet {
+    /// An error of a computation on this data set, located: a failure at one pose names the
+    /// file and that pose's line; any other error names the file.
+    pub fn locate(&self, e: CalibError) -> IoError {
+        match e {
+            CalibError::Kinematics { pose, source } if pose < self.lines.len() => IoError::AtLine {
+                path: self.path.clone(),
+                line: self.lines[pose],
+                message: format!("pose {}: {source}", self.ids[pose]),
+            },
+            e => IoError::Invalid {
+                path: self.path.clone(),
+                message: e.to_string(),
+            },
+        }
+    }
+}
+
+/// Whether the input columns must be present.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum InputColumns {
+    /// Every input column is required (measurement data).
+    Required,
+    /// All input columns or none (targets: when present they seed the inverse kinematics).
+    Optional,
+}
+
+fn length_factor(suffix: &str) -> Option<f64> {
+    match suffix {
+        "mm" => Some(1.0),
+        "m" => Some(1000.0),
+        _ => None,
+    }
+}
+
+fn angle_factor(suffix: &str) -> Option<f64> {
+    match suffix {
+        "deg" => Some(std::f64::consts::PI / 180.0),
+        "rad" => Some(1.0),
+        _ => None,
+    }
+}
+
+/// The column's base name and unit suffix, split at the last `_`.
+fn split_unit(col: &str) -> (&str, Option<&str>) {
+    match col.rsplit_once('_') {
+        Some((b, u)) if length_factor(u).is_some() || angle_factor(u).is_some() => (b, Some(u)),
+        _ => (col, None),
+    }
+}
+
+/// The names (with unit alternatives) a data file for `inputs` may hold, for messages.
+pub fn expected_columns(inputs: &[InputSpec]) -> String {
+    let mut v: Vec<String> = inputs
+        .iter()
+        .map(|i| match i.unit {
+            Unit::Angle => format!("{}_deg|_rad", i.name),
+            _ => format!("{}_mm|_m", i.name),
+        })
+        .collect();
+    v.push("x_mm,y_mm,z_mm (+ qw,qx,qy,qz or roll_deg,pitch_deg,yaw_deg) or m1x_mm..m3z_mm; optional id".into());
+    v.join(", ")
+}
+
+/// A resolved column: where its values go and the factor to mm or rad.
+#[derive(Clone, Copy)]
+enum Slot {
+    Id,
+    Input(usize),
+    Pos(usize),
+    Quat(usize),
+    Rpy(usize),
+    Reflector(usize, usize),
+}
+
+/// Read a measurement data file for a mechanism with `inputs` (see the module docs for columns).
+pub fn read_data(path: &Path, inputs: &[InputSpec], input_columns: InputColumns) -> Result<DataSet, IoError> {
+    let table = read_table(path)?;
+    data_from_table(&table, inputs, input_columns)
+}
+
+/// [`read_data`] on a table already read.
+pub fn data_from_table(table: &Table, inputs: &[InputSpec], input_columns: InputColumns) -> Result<DataSet, IoError> {
+    let path = &table.path;
+    let unknown = |column: &str| IoError::UnknownColumn {
+        path: path.clone(),
+        column: column.to_string(),
+        expected: expected_columns(inputs),
+    };
+    let at_header = |message: String| IoError::AtLine {
+        path: path.clone(),
+        line: 1,
+        message,
+    };
+    let mut slots: Vec<(Slot, f64)> = Vec::with_capacity(table.columns.len());
+    for col in &table.columns {
+        if slots.iter().zip(&table.columns).any(|(_, c)| c == col) {
+            return Err(at_header(format!("column '{col}' appears twice")));
+        }
+        let (base, unit) = split_unit(col);
+        let slot = if col == "id" {
+            (Slot::Id, 1.0)
+        } else if let Some(k) = inputs.iter().position(|i| i.name == base) {
+            let inp = &inputs[k];
+            let (factor, want) = match inp.unit {
+                Unit::Angle => (unit.and_then(angle_factor), "deg or rad"),
+                _ => (unit.and_then(length_factor), "mm or m"),
+            };
+            match factor {
+                Some(f) => (Slot::Input(k), f),
+                None => {
+                    let kind = if inp.unit == Unit::Angle { "angular" } else { "linear" };
+                    let found = unit.map(|u| format!("unit '{u}'")).unwrap_or_else(|| "no unit suffix".into());
+                    return Err(at_header(format!(
+                        "column '{col}': {found} for the {kind} input '{base}' (use {base}_{})",
+                        want.replace(" or ", &format!(" or {base}_"))
+                    )));
+                }
+            }
+        } else if let Some(i) = ["x", "y", "z"].iter().position(|c| *c == base) {
+            match unit.and_then(length_factor) {
+                Some(f) => (Slot::Pos(i), f),
+                None => {
+                    return Err(at_header(format!(
+                        "column '{col}': a position needs a length unit ({base}_mm or {base}_m)"
+                    )))
+                }
+            }
+        } else if let Some(i) = ["qw", "qx", "qy", "qz"].iter().position(|c| *c == col) {
+            (Slot::Quat(i), 1.0)
+        } else if let Some(i) = ["roll", "pitch", "yaw"].iter().position(|c| *c == base) {
+            match unit.and_then(angle_factor) {
+                Some(f) => (Slot::Rpy(i), f),
+                None => {
+                    return Err(at_header(format!(
+                        "column '{col}': an angle needs an angle unit ({base}_deg or {base}_rad)"
+                    )))
+                }
+            }
+        } else if let Some((r, a)) = reflector_column(base) {
+            match unit.and_then(length_factor) {
+                Some(f) => (Slot::Reflector(r, a), f),
+                None => {
+                    return Err(at_header(format!(
+                        "column '{col}': a reflector coordinate needs a length unit ({base}_mm)"
+                    )))
+                }
+            }
+        } else {
+            return Err(unknown(col));
+        };
+        slots.push(slot);
+    }
+    let has = |pred: &dyn Fn(&Slot) -> bool| slots.iter().filter(|(s, _)| pred(s)).count();
+    let n_inputs = has(&|s| matches!(s, Slot::Input(_)));
+    let missing = |column: String| IoError::MissingColumn {
+        path: path.clone(),
+        column,
+        header: table.columns.join(","),
+    };
+    let has_inputs = n_inputs > 0 || input_columns == InputColumns::Required;
+    if has_inputs {
+        for (k, inp) in inputs.iter().enumerate() {
+            if !slots.iter().any(|(s, _)| matches!(s, Slot::Input(j) if *j == k)) {
+                let u = if inp.unit == Unit::Angle { "deg" } else { "mm" };
+                return Err(missing(format!("{}_{u}", inp.name)));
+            }
+        }
+    }
+    let n_pos = has(&|s| matches!(s, Slot::Pos(_)));
+    let n_quat = has(&|s| matches!(s, Slot::Quat(_)));
+    let n_rpy = has(&|s| matches!(s, Slot::Rpy(_)));
+    let n_refl = has(&|s| matches!(s, Slot::Reflector(..)));
+    let format = if n_refl > 0 {
+        if n_pos + n_quat + n_rpy > 0 {
+            return Err(at_header(
+                "give either reflector columns m1x..m3z or x,y,z (+ orientation), not both".into(),
+            ));
+        }
+        for r in 1..=3 {
+            for a in ["x", "y", "z"] {
+                if !table.columns.iter().any(|c| split_unit(c).0 == format!("m{r}{a}")) {
+                    return Err(missing(format!("m{r}{a}_mm")));
+                }
+            }
+        }
+        MeasurementFormat::Reflectors
+    } else {
+        for a in ["x", "y", "z"] {
+            if !table.columns.iter().any(|c| split_unit(c).0 == a) {
+                return Err(missing(format!("{a}_mm")));
+            }
+        }
+        match (n_quat > 0, n_rpy > 0) {
+            (true, true) => {
+                return Err(at_header(
+                    "give the orientation as qw,qx,qy,qz or as roll,pitch,yaw, not both".into(),
+                ))
+            }
+            (true, false) => {
+                for c in ["qw", "qx", "qy", "qz"] {
+                    table.column(c)?;
+                }
+                MeasurementFormat::PoseQuaternion
+            }
+            (false, true) => {
+                for c in ["roll", "pitch", "yaw"] {
+                    if !table.columns.iter().any(|x| split_unit(x).0 == c) {
+                        return Err(missing(format!("{c}_deg")));
+                    }
+                }
+                MeasurementFormat::PoseRpy
+            }
+            (false, false) => MeasurementFormat::Position,
+        }
+    };
+
+    let mut measurements = Vec::with_capacity(table.len());
+    let mut ids = Vec::with_capacity(table.len());
+    for (r, row) in table.rows.iter().enumerate() {
+        let line = table.lines[r];
+        let mut q = vec![0.0; if has_inputs { inputs.len() } else { 0 }];
+        let (mut p, mut quat, mut rpy) = (Vector3::zeros(), [0.0; 4], [0.0; 3]);
+        let mut refl = [Vector3::zeros(); 3];
+        let mut id = r as i64;
+        for ((slot, f), v) in slots.iter().zip(row) {
+            let v = v * f;
+            match *slot {
+                Slot::Id => {
+                    if v.fract() != 0.0 {
+                        return Err(IoError::AtLine {
+                            path: path.clone(),
+                            line,
+                            message: format!("column 'id': '{v}' is not an integer"),
+                        });
+                    }
+                    id = v as i64;
+                }
+                Slot::Input(k) => q[k] = v,
+                Slot::Pos(i) => p[i] = v,
+                Slot::Quat(i) => quat[i] = v,
+                Slot::Rpy(i) => rpy[i] = v,
+                Slot::Reflector(m, a) => refl[m][a] = v,
+            }
+        }
+        let obs = match format {
+            MeasurementFormat::Position => Observation::Position(p),
+            MeasurementFormat::PoseQuaternion => {
+                let qn = Quaternion::new(quat[0], quat[1], quat[2], quat[3]);
+                if (qn.norm() - 1.0).abs() > 1e-3 {
+                    return Err(IoError::AtLine {
+                        path: path.clone(),
+                        line,
+                        message: format!("qw,qx,qy,qz: not a unit quaternion (norm {:.6})", qn.norm()),
+                    });
+                }
+                Observation::Pose(Pose::from_parts(Translation3::from(p), UnitQuaternion::from_quaternion(qn)))
+            }
+            MeasurementFormat::PoseRpy => Observation::Pose(Pose::from_parts(
+                Translation3::from(p),
+                UnitQuaternion::from_euler_angles(rpy[0], rpy[1], rpy[2]),
+            )),
+            MeasurementFormat::Reflectors => {
+                Observation::Pose(frame_from_reflectors(&refl[0], &refl[1], &refl[2]).ok_or_else(|| IoError::AtLine {
+                    path: path.clone(),
+                    line,
+                    message: "m1..m3: the three reflector centres are (nearly) collinear; no frame".into(),
+                })?)
+            }
+        };
+        measurements.push(Measurement { q, obs });
+        ids.push(id);
+    }
+    Ok(DataSet {
+        path: path.clone(),
+        measurements,
+        lines: table.lines.clone(),
+        ids,
+        format,
+        has_inputs,
+    })
+}
+
+fn reflector_column(base: &str) -> Option<(usize, usize)> {
+    let b = base.as_bytes();
+    if b.len() == 3 && b[0] == b'm' && (b'1'..=b'3').contains(&b[1]) {
+        let a = ["x", "y", "z"].iter().position(|c| c.as_bytes()[0] == b[2])?;
+        return Some(((b[1] - b'1') as usize, a));
+    }
+    None
+}
+
+/// Header names of the input columns: angles in degrees, lengths in mm.
+pub fn input_headers(inputs: &[InputSpec]) -> Vec<String> {
+    inputs
+        .iter()
+        .map(|i| match i.unit {
+            Unit::Angle => format!("{}_deg", i.name),
+            _ => format!("{}_mm", i.name),
+        })
+        .collect()
+}
+
+/// Input values converted for [`input_headers`] (rad → deg, mm stays).
+pub fn input_values_for_file(inputs: &[InputSpec], q: &[f64]) -> Vec<f64> {
+    inputs
+        .iter()
+        .zip(q)
+        .map(|(i, v)| if i.unit == Unit::Angle { v.to_degrees() } else { *v })
+        .collect()
+}
+
+/// Write a data file: `id`, the inputs (deg / mm) when `q` is not empty, and the observation
+/// (positions in mm, orientations as a quaternion). Reflector data is written as the three
+/// reflector centres `reflectors[k]` of each row when given.
+pub fn write_data(
+    path: &Path,
+    inputs: &[InputSpec],
+    ids: &[i64],
+    measurements: &[Measurement],
+    reflectors: Option<&[[Vector3<f64>; 3]]>,
+) -> Result<(), IoError> {
+    let mut header = vec!["id".to_string()];
+    let with_inputs = measurements.first().is_some_and(|m| !m.q.is_empty());
+    if with_inputs {
+        header.extend(input_headers(inputs));
+    }
+    let pose = matches!(measurements.first().map(|m| &m.obs), Some(Observation::Pose(_)));
+    if reflectors.is_some() {
+        for r in 1..=3 {
+            for a in ["x", "y", "z"] {
+                header.push(format!("m{r}{a}_mm"));
+            }
+        }
+    } else {
+        header.extend(["x_mm", "y_mm", "z_mm"].map(String::from));
+        if pose {
+            header.extend(["qw", "qx", "qy", "qz"].map(String::from));
+        }
+    }
+    let mut rows = Vec::with_capacity(measurements.len());
+    for (k, m) in measurements.iter().enumerate() {
+        let mut row = vec![ids.get(k).copied().unwrap_or(k as i64) as f64];
+        if with_inputs {
+            row.extend(input_values_for_file(inputs, &m.q));
+        }
+        match (reflectors, &m.obs) {
+            (Some(r), _) => row.extend(r[k].iter().flat_map(|v| [v.x, v.y, v.z])),
+            (None, Observation::Pose(t)) => {
+                let v = t.translation.vector;
+                let q = t.rotation.quaternion();
+                row.extend([v.x, v.y, v.z, q.w, q.i, q.j, q.k]);
+            }
+            (None, Observation::Position(v)) => row.extend([v.x, v.y, v.z]),
+            (None, Observation::Points(_)) => {
+                return Err(IoError::Invalid {
+                    path: path.to_path_buf(),
+                    message: "point-set observations are written as three-reflector columns: pass the reflector centres".into(),
+                })
+            }
+        }
+        rows.push(row);
+    }
+    write_csv(path, &header, &rows)
+}
+
+/// Write a numeric CSV with a header; values in full precision (integers without decimals).
+pub fn write_csv(path: &Path, header: &[String], rows: &[Vec<f64>]) -> Result<(), IoError> {
+    let mut out = header.join(",");
+    out.push('\n');
+    for row in rows {
+        let fields: Vec<String> = row
+            .iter()
+            .map(|v| {
+                if v.fract() == 0.0 && v.abs() < 1e15 {
+                    format!("{}", *v as i64)
+                } else {
+                    format!("{v}")
+                }
+            })
+            .collect();
+        let _ = writeln!(out, "{}", fields.join(","));
+    }
+    std::fs::write(path, out).map_err(|source| IoError::Write {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::io::table::parse_table;
+
+    fn inputs() -> Vec<InputSpec> {
+        vec![
+            InputSpec {
+                name: "q1".into(),
+                unit: Unit::Angle,
+                limits: None,
+            },
+            InputSpec {
+                name: "d2".into(),
+                unit: Unit::Length,
+                limits: None,
+            },
+        ]
+    }
+
+    fn read(text: &str) -> Result<DataSet, String> {
+        let t = parse_table(Path::new("d.csv"), text).map_err(|e| e.to_string())?;
+        data_from_table(&t, &inputs(), InputColumns::Required).map_err(|e| e.to_string())
+    }
+
+    #[test]
+    fn reads_every_format_in_internal_units() {
+        let d = read("q1_deg,d2_m,x_m,y_mm,z_mm\n90,0.5,1,2,3\n").unwrap();
+        assert_eq!(d.format, MeasurementFormat::Position);
+        assert!((d.measurements[0].q[0] - std::f64::consts::FRAC_PI_2).abs() < 1e-15);
+        assert_eq!(d.measurements[0].q[1], 500.0);
+        assert_eq!(d.measurements[0].obs, Observation::Position(Vector3::new(1000.0, 2.0, 3.0)));
+        let d = read("id,q1_rad,d2_mm,x_mm,y_mm,z_mm,roll_deg,pitch_deg,yaw_deg\n7,0,0,0,0,0,0,0,90\n").unwrap();
+        assert_eq!(d.ids, vec![7]);
+        let Observation::Pose(t) = &d.measurements[0].obs else { panic!() };
+        assert!((t.rotation.angle() - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+        let d = read("q1_rad,d2_mm,x_mm,y_mm,z_mm,qw,qx,qy,qz\n0,0,0,0,0,1,0,0,0\n").unwrap();
+        assert_eq!(d.format, MeasurementFormat::PoseQuaternion);
+        let d =
+            read("q1_rad,d2_mm,m1x_mm,m1y_mm,m1z_mm,m2x_mm,m2y_mm,m2z_mm,m3x_mm,m3y_mm,m3z_mm\n0,0,0,60,0,40,-30,0,-40,-30,0\n").unwrap();
+        let Observation::Pose(t) = &d.measurements[0].obs else { panic!() };
+        assert!(t.rotation.angle() < 1e-12 && t.translation.vector.norm() < 1e-12);
+    }
+
+    #[test]
+    fn errors_name_file_line_and_column() {
+        assert_eq!(
+            read("q1_mm,d2_mm,x_mm,y_mm,z_mm\n").unwrap_err(),
+            "d.csv:1: column 'q1_mm': unit 'mm' for the angular input 'q1' (use q1_deg or q1_rad)"
+        );
+        assert_eq!(
+            read("q1,d2_mm,x_mm,y_mm,z_mm\n").unwrap_err(),
+            "d.csv:1: column 'q1': no unit suffix for the angular input 'q1' (use q1_deg or q1_rad)"
+        );
+        assert!(read("q1_deg,d2_mm,x_mm,y_mm,z_mm,w\n")
+            .unwrap_err()
+            .starts_with("d.csv:1: unknown column 'w'"));
+        assert!(read("q1_deg,x_mm,y_mm,z_mm\n")
+            .unwrap_err()
+            .starts_with("d.csv:1: missing column 'd2_mm'"));
+        assert!(read("q1_deg,d2_mm,x_mm,y_mm\n")
+            .unwrap_err()
+            .starts_with("d.csv:1: missing column 'z_mm'"));
+        assert_eq!(
+            read("q1_deg,d2_mm,x_mm,y_mm,z_mm,qw,qx,qy,qz\n0,0,0,0,0,2,0,0,0\n").unwrap_err(),
+            "d.csv:2: qw,qx,qy,qz: not a unit quaternion (norm 2.000000)"
+        );
+    }
+
+    #[test]
+    fn write_then_read_round_trips() {
+        let dir = std::env::temp_dir().join(format!("kinecal-data-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("w.csv");
+        let t = crate::se3::pose_from_parts(Vector3::new(1.5, -2.0, 3.25), Vector3::new(0.1, -0.2, 0.3));
+        let m = vec![Measurement {
+            q: vec![0.25, 12.5],
+            obs: Observation::Pose(t),
+        }];
+        write_data(&path, &inputs(), &[3], &m, None).unwrap();
+        let d = read_data(&path, &inputs(), InputColumns::Required).unwrap();
+        assert_eq!(d.ids, vec![3]);
+        assert!((d.measurements[0].q[0] - 0.25).abs() < 1e-15);
+        let Observation::Pose(b) = &d.measurements[0].obs else { panic!() };
+        assert!((b.to_homogeneous() - t.to_homogeneous()).abs().max() < 1e-14);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

@@ -1,0 +1,748 @@
+//! Model files: a mechanism's nominal (or calibrated) geometry in TOML.
+//!
+//! ```toml
+//! name = "irb120"
+//! description = "ABB IRB 120, nominal"
+//!
+//! [units]
+//! length = "mm"      # "mm" or "m": every length in this file
+//! angle = "deg"      # "deg" or "rad": every angle in this file (rpy, rotvec, limits, noise)
+//!
+//! [mechanism]
+//! kind = "serial"    # the mechanism kind; decides what else [mechanism] holds
+//!
+//! [[mechanism.joints]]
+//! name = "q1"
+//! type = "revolute"  # or "prismatic"
+//! axis = [0.0, 0.0, 1.0]
+//! limits = [-165.0, 165.0]
+//! position = [0.0, 0.0, 0.0]
+//! rpy = [0.0, 0.0, 0.0]
+//!
+//! [mechanism.tool]
+//! position = [0.0, 0.0, 0.0]
+//! rpy = [0.0, 0.0, 0.0]
+//!
+//! [calibration]
+//! free = ["*"]       # parameter names or globs ('*', '?'), in priority order
+//! fixed = ["0-1.*"]  # removed from the free set
+//!
+//! [noise]            # optional: measurement standard deviations (identification weights)
+//! position = 0.02    # length unit
+//! orientation = 0.02 # angle unit
+//! ```
+//!
+//! # Conventions
+//! * A pose is `position` plus *one* rotation: `rpy = [roll, pitch, yaw]` meaning
+//!   `R = Rz(yaw)·Ry(pitch)·Rx(roll)` (fixed axes x, then y, then z), or `rotvec = [x, y, z]`
+//!   (axis × angle). Neither means no rotation.
+//! * `kind = "serial"`: a local-POE chain ([`SerialChain`]). Joint `j`'s `position`/`rpy` is its
+//!   initial pose `T_{j-1,j}(0)`: the joint frame relative to the previous joint frame at zero
+//!   joint values (for the first joint: relative to the world/base frame). `axis` is the joint axis
+//!   in that frame, through its origin. `tool` is `T_{n,T}(0)`. Parameter names are
+//!   `"<dyad>.<vx|vy|vz|wx|wy|wz>"` with dyads `0-1`, `1-2`, …, `n-T`.
+//! * Limits of revolute joints are in the angle unit, of prismatic joints in the length unit.
+//!
+//! Every problem (a misspelt key, a wrong unit, a bad value) is one [`IoError`] line naming the
+//! file and the line. After loading, all values are in millimetres and radians.
+//!
+//! # Adding a mechanism kind
+//! Add a variant to [`MechanismSpec`], a `Raw…` struct with `#[serde(deny_unknown_fields)]` and a
+//! `kind` field, an arm in `load_str`'s dispatch, and the arms of the `MechanismSpec` methods.
+//! Nothing else (data files, CLI, report) depends on the kind.
+use super::IoError;
+use crate::measure::Noise;
+use crate::model::chain::{ChainJoint, JointKind, SerialChain};
+use crate::model::Mechanism;
+use crate::params::{Param, Unit};
+use crate::se3::Pose;
+use nalgebra::{Translation3, UnitQuaternion, Vector3};
+use serde::Deserialize;
+use std::fmt::Write as _;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+use toml::Spanned;
+
+/// Length unit of a file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LengthUnit {
+    /// Millimetres.
+    Mm,
+    /// Metres.
+    M,
+}
+
+/// Angle unit of a file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AngleUnit {
+    /// Degrees.
+    Deg,
+    /// Radians.
+    Rad,
+}
+
+impl LengthUnit {
+    /// Millimetres per file unit.
+    pub fn to_mm(self) -> f64 {
+        match self {
+            LengthUnit::Mm => 1.0,
+            LengthUnit::M => 1000.0,
+        }
+    }
+    /// The unit's symbol.
+    pub fn symbol(self) -> &'static str {
+        match self {
+            LengthUnit::Mm => "mm",
+            LengthUnit::M => "m",
+        }
+    }
+    /// Parse `"mm"` or `"m"`.
+    pub fn parse(s: &str) -> Option<Self> {
+        match s {
+            "mm" => Some(LengthUnit::Mm),
+            "m" => Some(LengthUnit::M),
+            _ => None,
+        }
+    }
+}
+
+impl AngleUnit {
+    /// Radians per file unit.
+    pub fn to_rad(self) -> f64 {
+        match self {
+            AngleUnit::Deg => std::f64::consts::PI / 180.0,
+            AngleUnit::Rad => 1.0,
+        }
+    }
+    /// The unit's symbol.
+    pub fn symbol(self) -> &'static str {
+        match self {
+            AngleUnit::Deg => "deg",
+            AngleUnit::Rad => "rad",
+        }
+    }
+    /// Parse `"deg"` or `"rad"`.
+    pub fn parse(s: &str) -> Option<Self> {
+        match s {
+            "deg" => Some(AngleUnit::Deg),
+            "rad" => Some(AngleUnit::Rad),
+            _ => None,
+        }
+    }
+}
+
+/// The units a file is written in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Units {
+    /// Length unit.
+    pub length: LengthUnit,
+    /// Angle unit.
+    pub angle: AngleUnit,
+}
+
+impl Default for Units {
+    /// Millimetres and degrees.
+    fn default() -> Self {
+        Units {
+            length: LengthUnit::Mm,
+            angle: AngleUnit::Deg,
+        }
+    }
+}
+
+impl Units {
+    /// Internal value (mm or rad) per file unit for a quantity of kind `unit`.
+    pub fn factor(&self, unit: Unit) -> f64 {
+        match unit {
+            Unit::Length => self.length.to_mm(),
+            Unit::Angle => self.angle.to_rad(),
+            Unit::Dimensionless => 1.0,
+        }
+    }
+}
+
+/// One input (actuator or sensed joint) of a mechanism: its name, unit kind and limits.
+#[derive(Debug, Clone, PartialEq)]
+pub struct InputSpec {
+    /// Name, as in [`Mechanism::input_names`].
+    pub name: String,
+    /// [`Unit::Angle`] (rad) for revolute, [`Unit::Length`] (mm) for prismatic inputs.
+    pub unit: Unit,
+    /// Limits (rad or mm), if any.
+    pub limits: Option<(f64, f64)>,
+}
+
+/// The kind-specific part of a model file (values in mm and rad).
+#[derive(Debug, Clone, PartialEq)]
+pub enum MechanismSpec {
+    /// `kind = "serial"`: a local-POE serial chain.
+    Serial(SerialChain),
+}
+
+impl MechanismSpec {
+    /// The kind's name as written in files.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            MechanismSpec::Serial(_) => "serial",
+        }
+    }
+
+    /// The mechanism, ready to compute with.
+    pub fn build(&self) -> Box<dyn Mechanism> {
+        match self {
+            MechanismSpec::Serial(c) => Box::new(c.clone()),
+        }
+    }
+
+    /// The inputs with their units and limits.
+    pub fn inputs(&self) -> Vec<InputSpec> {
+        match self {
+            MechanismSpec::Serial(c) => c
+                .joints()
+                .iter()
+                .map(|j| InputSpec {
+                    name: j.name.clone(),
+                    unit: match j.kind {
+                        JointKind::Revolute => Unit::Angle,
+                        JointKind::Prismatic => Unit::Length,
+                    },
+                    limits: j.limits,
+                })
+                .collect(),
+        }
+    }
+
+    /// The same kind with the geometry of `model` (e.g. a calibrated copy of [`Self::build`]'s
+    /// mechanism). Fails when `model` is not of this kind.
+    pub fn with_geometry_of(&self, model: &dyn Mechanism) -> Result<MechanismSpec, String> {
+        let any = model.as_any();
+        match self {
+            MechanismSpec::Serial(_) => any
+                .and_then(|a| a.downcast_ref::<SerialChain>())
+                .map(|c| MechanismSpec::Serial(c.clone()))
+                .ok_or_else(|| format!("model '{}' is not a serial chain", model.name())),
+        }
+    }
+
+    fn write(&self, units: &Units, out: &mut String) -> Result<(), String> {
+        let (l, a) = (units.length.to_mm(), units.angle.to_rad());
+        match self {
+            MechanismSpec::Serial(c) => {
+                out.push_str("[mechanism]\nkind = \"serial\"\n");
+                out.push_str("# Joint j: position/rpy = T_{j-1,j}(0), the joint frame in the previous joint frame at zero\n");
+                out.push_str("# joint values; axis = joint axis in that frame through its origin.\n");
+                for (j, joint) in c.joints().iter().enumerate() {
+                    let t = joint.twist;
+                    let (kind, axis, rest) = match joint.kind {
+                        JointKind::Revolute => ("revolute", [t[3], t[4], t[5]], [t[0], t[1], t[2]]),
+                        JointKind::Prismatic => ("prismatic", [t[0], t[1], t[2]], [t[3], t[4], t[5]]),
+                    };
+                    if rest.iter().any(|v| v.abs() > 1e-12) {
+                        return Err(format!(
+                            "joint '{}': a joint twist with an offset cannot be written; put the offset in the joint's position",
+                            joint.name
+                        ));
+                    }
+                    let _ = write!(
+                        out,
+                        "\n[[mechanism.joints]]\nname = \"{}\"\ntype = \"{kind}\"\naxis = {}\n",
+                        joint.name,
+                        fmt3(axis)
+                    );
+                    if let Some((lo, hi)) = joint.limits {
+                        let f = if joint.kind == JointKind::Revolute { a } else { l };
+                        let _ = writeln!(out, "limits = [{}, {}]", num(lo / f), num(hi / f));
+                    }
+                    write_pose(&c.initial_poses()[j], units, out);
+                }
+                out.push_str("\n[mechanism.tool]\n");
+                write_pose(c.tool(), units, out);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A parsed model file (all values in mm and rad).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelFile {
+    /// Model name.
+    pub name: String,
+    /// Free text.
+    pub description: Option<String>,
+    /// Units used when the file was read, and used again when it is written.
+    pub units: Units,
+    /// The mechanism's geometry.
+    pub mechanism: MechanismSpec,
+    /// Free parameter patterns, in priority order (default `["*"]`).
+    pub free: Vec<String>,
+    /// Fixed parameter patterns.
+    pub fixed: Vec<String>,
+    /// Measurement noise, if given.
+    pub noise: Option<Noise>,
+}
+
+/// True when `name` matches the glob `pattern` (`*`: any run of characters, `?`: one character).
+pub fn glob_match(pattern: &str, name: &str) -> bool {
+    let (p, n): (Vec<char>, Vec<char>) = (pattern.chars().collect(), name.chars().collect());
+    let (mut pi, mut ni, mut star, mut mark) = (0, 0, None, 0);
+    while ni < n.len() {
+        if pi < p.len() && (p[pi] == '?' || p[pi] == n[ni]) {
+            pi += 1;
+            ni += 1;
+        } else if pi < p.len() && p[pi] == '*' {
+            star = Some(pi);
+            mark = ni;
+            pi += 1;
+        } else if let Some(s) = star {
+            pi = s + 1;
+            mark += 1;
+            ni = mark;
+        } else {
+            return false;
+        }
+    }
+    p[pi..].iter().all(|&c| c == '*')
+}
+
+/// Indices of the parameters selected by `free` patterns minus those matching `fixed`, in the
+/// order of the patterns (priority order), each parameter once. Returns the first pattern that
+/// matches no parameter as an error.
+pub fn select_params(params: &[Param], free: &[String], fixed: &[String]) -> Result<Vec<usize>, String> {
+    for pat in free.iter().chain(fixed) {
+        if !params.iter().any(|p| glob_match(pat, &p.name)) {
+            return Err(pat.clone());
+        }
+    }
+    let mut out = Vec::new();
+    for pat in free {
+        for (i, p) in params.iter().enumerate() {
+            if glob_match(pat, &p.name) && !fixed.iter().any(|f| glob_match(f, &p.name)) && !out.contains(&i) {
+                out.push(i);
+            }
+        }
+    }
+    Ok(out)
+}
+
+impl ModelFile {
+    /// A model file for `mechanism` with every parameter free, in mm and degrees.
+    pub fn new(name: impl Into<String>, mechanism: MechanismSpec) -> Self {
+        ModelFile {
+            name: name.into(),
+            description: None,
+            units: Units::default(),
+            mechanism,
+            free: vec!["*".into()],
+            fixed: Vec::new(),
+            noise: None,
+        }
+    }
+
+    /// The mechanism, ready to compute with.
+    pub fn build(&self) -> Box<dyn Mechanism> {
+        self.mechanism.build()
+    }
+
+    /// Inputs with units and limits.
+    pub fn inputs(&self) -> Vec<InputSpec> {
+        self.mechanism.inputs()
+    }
+
+    /// Indices of the free parameters in priority order.
+    pub fn free_indices(&self) -> Result<Vec<usize>, IoError> {
+        select_params(&self.build().params(), &self.free, &self.fixed).map_err(|pat| IoError::Invalid {
+            path: PathBuf::from(format!("model '{}'", self.name)),
+            message: format!("calibration pattern '{pat}' matches no parameter"),
+        })
+    }
+
+    /// A copy with the geometry of `model` (a calibrated mechanism of the same kind).
+    pub fn with_geometry_of(&self, model: &dyn Mechanism) -> Result<ModelFile, String> {
+        Ok(ModelFile {
+            mechanism: self.mechanism.with_geometry_of(model)?,
+            ..self.clone()
+        })
+    }
+
+    /// The file's text, in [`ModelFile::units`].
+    pub fn to_toml(&self) -> Result<String, String> {
+        let mut out = String::new();
+        out.push_str("# kinecal model file. Poses: position + rpy = [roll, pitch, yaw] with R = Rz(yaw)·Ry(pitch)·Rx(roll)\n");
+        out.push_str("# (or rotvec = axis·angle instead of rpy).\n");
+        let _ = writeln!(out, "name = {}", quote(&self.name));
+        if let Some(d) = &self.description {
+            let _ = writeln!(out, "description = {}", quote(d));
+        }
+        let _ = write!(
+            out,
+            "\n[units]\nlength = \"{}\"  # \"mm\" or \"m\"\nangle = \"{}\"  # \"deg\" or \"rad\"\n\n",
+            self.units.length.symbol(),
+            self.units.angle.symbol()
+        );
+        self.mechanism.write(&self.units, &mut out)?;
+        out.push_str("\n[calibration]\n# Parameter names or globs ('*', '?'); free in priority order, fixed removed from them.\n");
+        let list = |v: &[String]| v.iter().map(|s| quote(s)).collect::<Vec<_>>().join(", ");
+        let _ = writeln!(out, "free = [{}]\nfixed = [{}]", list(&self.free), list(&self.fixed));
+        if let Some(n) = &self.noise {
+            let _ = write!(
+                out,
+                "\n[noise]  # measurement standard deviations, per axis\nposition = {}  # {}\norientation = {}  # {}\n",
+                num(n.position / self.units.length.to_mm()),
+                self.units.length.symbol(),
+                num(n.orientation / self.units.angle.to_rad()),
+                self.units.angle.symbol()
+            );
+        }
+        Ok(out)
+    }
+
+    /// Write the file.
+    pub fn save(&self, path: &Path) -> Result<(), IoError> {
+        let text = self.to_toml().map_err(|message| IoError::Invalid {
+            path: path.to_path_buf(),
+            message,
+        })?;
+        std::fs::write(path, text).map_err(|source| IoError::Write {
+            path: path.to_path_buf(),
+            source,
+        })
+    }
+
+    /// A model file path, or the name of a built-in model ([`crate::model::builtin`]) when no
+    /// file of that name exists.
+    pub fn load_or_builtin(arg: &str) -> Result<ModelFile, IoError> {
+        let path = Path::new(arg);
+        if path.exists() {
+            return Self::load(path);
+        }
+        crate::model::builtin::model_file(arg).ok_or_else(|| IoError::Invalid {
+            path: path.to_path_buf(),
+            message: format!(
+                "no such file, and not a built-in model (built-in: {})",
+                crate::model::builtin::list().iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", ")
+            ),
+        })
+    }
+
+    /// Read and check a model file.
+    pub fn load(path: &Path) -> Result<ModelFile, IoError> {
+        let text = std::fs::read_to_string(path).map_err(|source| IoError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::load_str(path, &text)
+    }
+
+    /// [`ModelFile::load`] on text in memory (`path` is only used in messages).
+    pub fn load_str(path: &Path, text: &str) -> Result<ModelFile, IoError> {
+        let ctx = Ctx { path, text };
+        let probe: Probe = toml::from_str(text).map_err(|e| ctx.toml_error(&e))?;
+        let kind = probe.mechanism.and_then(|m| m.kind).ok_or_else(|| IoError::Invalid {
+            path: path.to_path_buf(),
+            message: "missing key 'mechanism.kind' (one of: \"serial\")".into(),
+        })?;
+        let file = match kind.get_ref().as_str() {
+            "serial" => {
+                let raw: RawFile<RawSerial> = toml::from_str(text).map_err(|e| ctx.toml_error(&e))?;
+                let units = ctx.units(&raw.units)?;
+                let mech = ctx.serial(&raw.name, &raw.mechanism, &units)?;
+                ctx.finish(raw, units, mech)?
+            }
+            other => {
+                return Err(ctx.at(
+                    &kind.span(),
+                    format!("mechanism.kind: unknown mechanism kind '{other}' (one of: \"serial\")"),
+                ))
+            }
+        };
+        Ok(file)
+    }
+}
+
+fn quote(s: &str) -> String {
+    format!("\"{}\"", s.replace('\\', "\\\\").replace('"', "\\\""))
+}
+
+/// The shortest decimal within 2e-15 (relative) of `v`: unit conversions do not leave
+/// `119.99999999999999` where the user wrote `120`, and `-0.0` is written `0.0`.
+fn num(v: f64) -> String {
+    if v == 0.0 {
+        return "0.0".into();
+    }
+    for prec in 0..17 {
+        let s = format!("{v:.prec$e}");
+        if let Ok(p) = s.parse::<f64>() {
+            if (p - v).abs() <= 2e-15 * v.abs() {
+                return format!("{p:?}");
+            }
+        }
+    }
+    format!("{v:?}")
+}
+
+fn fmt3(v: [f64; 3]) -> String {
+    format!("[{}, {}, {}]", num(v[0]), num(v[1]), num(v[2]))
+}
+
+fn write_pose(p: &Pose, units: &Units, out: &mut String) {
+    let t = p.translation.vector / units.length.to_mm();
+    let (r, pi, y) = p.rotation.euler_angles();
+    let f = units.angle.to_rad();
+    let _ = writeln!(out, "position = {}", fmt3([t.x, t.y, t.z]));
+    let _ = writeln!(out, "rpy = {}", fmt3([r / f, pi / f, y / f]));
+}
+
+#[derive(Deserialize)]
+struct Probe {
+    mechanism: Option<ProbeMechanism>,
+}
+
+#[derive(Deserialize)]
+struct ProbeMechanism {
+    kind: Option<Spanned<String>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawFile<M> {
+    name: String,
+    description: Option<String>,
+    units: RawUnits,
+    mechanism: M,
+    calibration: Option<RawCalibration>,
+    noise: Option<Spanned<RawNoise>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawUnits {
+    length: Spanned<String>,
+    angle: Spanned<String>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawCalibration {
+    free: Option<Vec<Spanned<String>>>,
+    fixed: Option<Vec<Spanned<String>>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawNoise {
+    position: f64,
+    orientation: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPose {
+    position: Option<[f64; 3]>,
+    rpy: Option<[f64; 3]>,
+    rotvec: Option<[f64; 3]>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawJoint {
+    name: String,
+    #[serde(rename = "type")]
+    kind: JointKind,
+    axis: [f64; 3],
+    limits: Option<[f64; 2]>,
+    position: Option<[f64; 3]>,
+    rpy: Option<[f64; 3]>,
+    rotvec: Option<[f64; 3]>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawSerial {
+    #[allow(dead_code)]
+    kind: String,
+    joints: Vec<Spanned<RawJoint>>,
+    tool: Option<Spanned<RawPose>>,
+}
+
+struct Ctx<'a> {
+    path: &'a Path,
+    text: &'a str,
+}
+
+impl Ctx<'_> {
+    fn line_of(&self, offset: usize) -> usize {
+        self.text[..offset.min(self.text.len())].matches('\n').count() + 1
+    }
+
+    fn at(&self, span: &Range<usize>, message: String) -> IoError {
+        IoError::AtLine {
+            path: self.path.to_path_buf(),
+            line: self.line_of(span.start),
+            message,
+        }
+    }
+
+    fn toml_error(&self, e: &toml::de::Error) -> IoError {
+        let message = e.message().trim().replace('\n', "; ");
+        match e.span() {
+            Some(s) => self.at(&s, message),
+            None => IoError::Invalid {
+                path: self.path.to_path_buf(),
+                message,
+            },
+        }
+    }
+
+    fn units(&self, raw: &RawUnits) -> Result<Units, IoError> {
+        let length = LengthUnit::parse(raw.length.get_ref()).ok_or_else(|| {
+            self.at(
+                &raw.length.span(),
+                format!("units.length: unknown length unit '{}' (use \"mm\" or \"m\")", raw.length.get_ref()),
+            )
+        })?;
+        let angle = AngleUnit::parse(raw.angle.get_ref()).ok_or_else(|| {
+            self.at(
+                &raw.angle.span(),
+                format!("units.angle: unknown angle unit '{}' (use \"deg\" or \"rad\")", raw.angle.get_ref()),
+            )
+        })?;
+        Ok(Units { length, angle })
+    }
+
+    fn pose(
+        &self,
+        span: &Range<usize>,
+        what: &str,
+        position: Option<[f64; 3]>,
+        rpy: Option<[f64; 3]>,
+        rotvec: Option<[f64; 3]>,
+        units: &Units,
+    ) -> Result<Pose, IoError> {
+        let all = position.iter().chain(rpy.iter()).chain(rotvec.iter()).flatten();
+        if all.clone().any(|v| !v.is_finite()) {
+            return Err(self.at(span, format!("{what}: non-finite value in position/rpy/rotvec")));
+        }
+        let p = Vector3::from(position.unwrap_or([0.0; 3])) * units.length.to_mm();
+        let f = units.angle.to_rad();
+        let rot = match (rpy, rotvec) {
+            (Some(_), Some(_)) => return Err(self.at(span, format!("{what}: give either 'rpy' or 'rotvec', not both"))),
+            (Some(r), None) => UnitQuaternion::from_euler_angles(r[0] * f, r[1] * f, r[2] * f),
+            (None, Some(v)) => crate::se3::so3_exp(&(Vector3::from(v) * f)),
+            (None, None) => UnitQuaternion::identity(),
+        };
+        Ok(Pose::from_parts(Translation3::from(p), rot))
+    }
+
+    fn serial(&self, name: &str, raw: &RawSerial, units: &Units) -> Result<MechanismSpec, IoError> {
+        if raw.joints.is_empty() {
+            return Err(IoError::Invalid {
+                path: self.path.to_path_buf(),
+                message: "mechanism.joints: a serial chain needs at least one joint".into(),
+            });
+        }
+        let mut joints = Vec::new();
+        let mut initial = Vec::new();
+        for (j, sj) in raw.joints.iter().enumerate() {
+            let span = sj.span();
+            let rj = sj.get_ref();
+            let what = format!("mechanism.joints[{j}] ('{}')", rj.name);
+            if rj.name.is_empty() || joints.iter().any(|x: &ChainJoint| x.name == rj.name) {
+                return Err(self.at(&span, format!("{what}: joint names must be non-empty and unique")));
+            }
+            let axis = Vector3::from(rj.axis);
+            if !axis.iter().all(|v| v.is_finite()) || axis.norm() < 1e-9 {
+                return Err(self.at(&span, format!("{what}.axis: must be a finite non-zero vector")));
+            }
+            let mut joint = match rj.kind {
+                JointKind::Revolute => ChainJoint::revolute(rj.name.clone(), axis),
+                JointKind::Prismatic => ChainJoint::prismatic(rj.name.clone(), axis),
+            };
+            if let Some([lo, hi]) = rj.limits {
+                if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+                    return Err(self.at(
+                        &span,
+                        format!("{what}.limits: need two finite values with min < max, got [{lo}, {hi}]"),
+                    ));
+                }
+                let f = match rj.kind {
+                    JointKind::Revolute => units.angle.to_rad(),
+                    JointKind::Prismatic => units.length.to_mm(),
+                };
+                joint.limits = Some((lo * f, hi * f));
+            }
+            joints.push(joint);
+            initial.push(self.pose(&span, &what, rj.position, rj.rpy, rj.rotvec, units)?);
+        }
+        let tool = match &raw.tool {
+            Some(t) => {
+                let r = t.get_ref();
+                self.pose(&t.span(), "mechanism.tool", r.position, r.rpy, r.rotvec, units)?
+            }
+            None => Pose::identity(),
+        };
+        Ok(MechanismSpec::Serial(SerialChain::new(name, joints, initial, tool)))
+    }
+
+    fn finish<M>(&self, raw: RawFile<M>, units: Units, mechanism: MechanismSpec) -> Result<ModelFile, IoError> {
+        let params = mechanism.build().params();
+        let (free, fixed) = match &raw.calibration {
+            Some(c) => (
+                c.free.clone().unwrap_or_else(|| vec![Spanned::new(0..0, "*".to_string())]),
+                c.fixed.clone().unwrap_or_default(),
+            ),
+            None => (vec![Spanned::new(0..0, "*".to_string())], Vec::new()),
+        };
+        for (key, list) in [("free", &free), ("fixed", &fixed)] {
+            for pat in list {
+                if !params.iter().any(|p| glob_match(pat.get_ref(), &p.name)) {
+                    let examples: Vec<&str> = params.iter().take(3).map(|p| p.name.as_str()).collect();
+                    return Err(self.at(
+                        &pat.span(),
+                        format!(
+                            "calibration.{key}: '{}' matches no parameter (names look like {}, …)",
+                            pat.get_ref(),
+                            examples.join(", ")
+                        ),
+                    ));
+                }
+            }
+        }
+        let noise = match &raw.noise {
+            Some(n) => {
+                let r = n.get_ref();
+                if !(r.position > 0.0 && r.orientation > 0.0 && r.position.is_finite() && r.orientation.is_finite()) {
+                    return Err(self.at(&n.span(), "noise: position and orientation must be finite and > 0".into()));
+                }
+                Some(Noise {
+                    position: r.position * units.length.to_mm(),
+                    orientation: r.orientation * units.angle.to_rad(),
+                })
+            }
+            None => None,
+        };
+        Ok(ModelFile {
+            name: raw.name,
+            description: raw.description,
+            units,
+            mechanism,
+            free: free.into_iter().map(|s| s.into_inner()).collect(),
+            fixed: fixed.into_iter().map(|s| s.into_inner()).collect(),
+            noise,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn glob() {
+        assert!(glob_match("0-1.*", "0-1.vx"));
+        assert!(!glob_match("0-1.*", "1-2.vx"));
+        assert!(glob_match("*.w?", "3-4.wz"));
+        assert!(glob_match("*", "anything"));
+        assert!(!glob_match("*.wx", "3-4.wz"));
+    }
+}

@@ -1,0 +1,438 @@
+//! The calibration report: everything an identification produced, as data ([`CalibrationReport`],
+//! serialisable to JSON) and as one self-contained HTML file with inline SVG plots
+//! ([`CalibrationReport::to_html`]).
+pub mod plot;
+
+use crate::error::CalibError;
+use crate::identify::Identification;
+use crate::measure::{Measurement, Noise};
+use crate::model::Mechanism;
+use crate::params::Unit;
+use crate::workflow::{outliers, pose_errors, ErrorStats, Outlier, PoseErrors};
+use plot::Series;
+use serde::Serialize;
+use std::fmt::Write as _;
+
+/// Errors of one data set before and after calibration.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SetErrors {
+    /// Data file (for display).
+    pub source: String,
+    /// Per-pose errors of the starting (nominal) model.
+    pub before: PoseErrors,
+    /// Per-pose errors of the calibrated model.
+    pub after: PoseErrors,
+    /// Statistics of `before`.
+    pub before_stats: ErrorStats,
+    /// Statistics of `after`.
+    pub after_stats: ErrorStats,
+    /// Poses whose residual after calibration exceeds 3σ.
+    pub outliers: Vec<Outlier>,
+}
+
+impl SetErrors {
+    /// Errors of `nominal` and `calibrated` on `data`, with outliers beyond `3σ` flagged.
+    pub fn compute<A: Mechanism + ?Sized, B: Mechanism + ?Sized>(
+        source: impl Into<String>,
+        nominal: &A,
+        calibrated: &B,
+        data: &[Measurement],
+    ) -> Result<SetErrors, CalibError> {
+        let before = pose_errors(nominal, data)?;
+        let after = pose_errors(calibrated, data)?;
+        Ok(SetErrors {
+            source: source.into(),
+            before_stats: ErrorStats::of(&before),
+            after_stats: ErrorStats::of(&after),
+            before,
+            after,
+            outliers: outliers(calibrated, data, 3.0)?,
+        })
+    }
+}
+
+/// Status of a parameter after identification.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ParamStatus {
+    /// In the identifiable subset.
+    Identified,
+    /// Free, but a combination of parameters before it in priority order.
+    Redundant,
+    /// Free, but without any effect on the measurements.
+    NoEffect,
+    /// Not free (fixed in the model file).
+    Fixed,
+}
+
+/// One parameter row of the report.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ParamRow {
+    /// Parameter name.
+    pub name: String,
+    /// Report group.
+    pub group: String,
+    /// Display unit (`mm`, `deg` or empty).
+    pub unit: String,
+    /// Identified change, in the display unit.
+    pub value: f64,
+    /// Its standard deviation, in the display unit (0 when not identified).
+    pub std_dev: f64,
+    /// Status.
+    pub status: ParamStatus,
+}
+
+/// Everything an identification produced.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CalibrationReport {
+    /// Model name.
+    pub model: String,
+    /// Identification method.
+    pub method: String,
+    /// Whether the solver converged.
+    pub converged: bool,
+    /// Solver iterations.
+    pub iterations: usize,
+    /// A-posteriori standard deviation of unit weight.
+    pub sigma0: f64,
+    /// Noise used as weights: position (mm), orientation (deg).
+    pub noise_mm_deg: (f64, f64),
+    /// Number of free (candidate) parameters.
+    pub free: usize,
+    /// Numerical rank = number of identified parameters.
+    pub rank: usize,
+    /// Condition number of the column-scaled Jacobian on the identified parameters.
+    pub condition: f64,
+    /// Singular values of the column-scaled Jacobian on the free parameters.
+    pub singular_values: Vec<f64>,
+    /// Names of redundant parameters.
+    pub redundant: Vec<String>,
+    /// Names of free parameters with no effect.
+    pub no_effect: Vec<String>,
+    /// Every parameter.
+    pub params: Vec<ParamRow>,
+    /// Identification set.
+    pub identification: SetErrors,
+    /// Validation set, if one was given.
+    pub validation: Option<SetErrors>,
+}
+
+impl CalibrationReport {
+    /// Assemble the report of `result`, identified from `nominal` with the free parameters
+    /// `free`; `validation` is an optional independent data set.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new<M: Mechanism + Clone>(
+        nominal: &M,
+        result: &Identification<M>,
+        free: &[usize],
+        method: &str,
+        data_source: &str,
+        data: &[Measurement],
+        validation: Option<(&str, &[Measurement])>,
+    ) -> Result<CalibrationReport, CalibError> {
+        let params = nominal.params();
+        let id = &result.identifiability;
+        let rows = params
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                let (f, unit) = match p.unit {
+                    Unit::Length => (1.0, "mm"),
+                    Unit::Angle => (180.0 / std::f64::consts::PI, "deg"),
+                    Unit::Dimensionless => (1.0, ""),
+                };
+                let status = if id.identifiable.contains(&i) {
+                    ParamStatus::Identified
+                } else if id.redundant.contains(&i) {
+                    ParamStatus::Redundant
+                } else if id.no_effect.contains(&i) {
+                    ParamStatus::NoEffect
+                } else if free.contains(&i) {
+                    ParamStatus::Redundant
+                } else {
+                    ParamStatus::Fixed
+                };
+                ParamRow {
+                    name: p.name.clone(),
+                    group: p.group.clone(),
+                    unit: unit.into(),
+                    value: result.delta[i] * f,
+                    std_dev: result.std_dev[i] * f,
+                    status,
+                }
+            })
+            .collect();
+        let names = |v: &[usize]| v.iter().map(|&i| params[i].name.clone()).collect::<Vec<_>>();
+        let Noise { position, orientation } = result.noise;
+        Ok(CalibrationReport {
+            model: nominal.name().to_string(),
+            method: method.to_string(),
+            converged: result.converged,
+            iterations: result.iterations.len(),
+            sigma0: result.sigma0,
+            noise_mm_deg: (position, orientation.to_degrees()),
+            free: free.len(),
+            rank: id.rank,
+            condition: id.condition,
+            singular_values: id.singular_values.clone(),
+            redundant: names(&id.redundant),
+            no_effect: names(&id.no_effect),
+            params: rows,
+            identification: SetErrors::compute(data_source, nominal, &result.model, data)?,
+            validation: match validation {
+                Some((src, v)) => Some(SetErrors::compute(src, nominal, &result.model, v)?),
+                None => None,
+            },
+        })
+    }
+
+    /// The report as one self-contained HTML page (inline CSS and SVG, no external resources).
+    pub fn to_html(&self) -> Result<String, String> {
+        let mut h = String::new();
+        h.push_str("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">");
+        let _ = write!(h, "<title>kinecal calibration report: {}</title>", esc(&self.model));
+        h.push_str(
+            "<style>body{font-family:sans-serif;margin:24px;max-width:1180px;color:#222}\
+             h1{font-size:22px}h2{font-size:18px;border-bottom:1px solid #ccc;padding-bottom:4px;margin-top:28px}\
+             table{border-collapse:collapse;font-size:13px;margin:8px 0}td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}\
+             th{background:#f0f0f0}td.l,th.l{text-align:left}.plots{display:flex;flex-wrap:wrap;gap:8px}\
+             .plots svg{border:1px solid #ddd}.muted{color:#888}.warn{color:#b00}</style></head><body>\n",
+        );
+        let _ = write!(h, "<h1>Calibration report: {}</h1>\n<h2>Summary</h2>\n<table>", esc(&self.model));
+        let kv = |h: &mut String, k: &str, v: String| {
+            let _ = write!(h, "<tr><th class=\"l\">{k}</th><td class=\"l\">{v}</td></tr>");
+        };
+        kv(&mut h, "identification data", esc(&self.identification.source));
+        if let Some(v) = &self.validation {
+            kv(&mut h, "validation data", esc(&v.source));
+        }
+        kv(&mut h, "poses (identification)", self.identification.before_stats.poses.to_string());
+        kv(
+            &mut h,
+            "method",
+            format!(
+                "{} — {} after {} iterations",
+                esc(&self.method),
+                if self.converged {
+                    "converged"
+                } else {
+                    "<span class=\"warn\">NOT converged</span>"
+                },
+                self.iterations
+            ),
+        );
+        kv(
+            &mut h,
+            "weights (noise σ)",
+            format!("{} mm, {} deg", sig(self.noise_mm_deg.0), sig(self.noise_mm_deg.1)),
+        );
+        kv(&mut h, "σ̂₀ (a-posteriori, 1 = noise model right)", sig(self.sigma0));
+        kv(
+            &mut h,
+            "identified / free parameters",
+            format!("{} of {} (rank of the identification Jacobian)", self.rank, self.free),
+        );
+        kv(&mut h, "condition number (column-scaled)", format!("{:.3e}", self.condition));
+        h.push_str("</table>\n<h2>Errors before and after calibration</h2>\n<table><tr><th class=\"l\">set</th><th class=\"l\">model</th><th>poses</th><th>mean mm</th><th>RMS mm</th><th>max mm</th><th>mean deg</th><th>max deg</th></tr>");
+        let mut sets = vec![("identification", &self.identification)];
+        if let Some(v) = &self.validation {
+            sets.push(("validation", v));
+        }
+        for (name, s) in &sets {
+            for (which, st) in [("nominal", &s.before_stats), ("calibrated", &s.after_stats)] {
+                let o = |v: Option<f64>| v.map(sig).unwrap_or_else(|| "—".into());
+                let _ = write!(
+                    h,
+                    "<tr><td class=\"l\">{name}</td><td class=\"l\">{which}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+                    st.poses,
+                    sig(st.position_mean_mm),
+                    sig(st.position_rms_mm),
+                    sig(st.position_max_mm),
+                    o(st.orientation_mean_deg),
+                    o(st.orientation_max_deg)
+                );
+            }
+        }
+        h.push_str("</table>\n");
+        let before = (200, 80, 60);
+        let after = (30, 90, 200);
+        for (name, s) in &sets {
+            let _ = write!(h, "<h2>Per-pose errors, {name} set</h2>\n<div class=\"plots\">");
+            let (pb, pa) = (&s.before.position, &s.after.position);
+            h.push_str(&plot::per_pose_chart(
+                &format!("Position error, {name} (mm)"),
+                "mm",
+                &[
+                    Series {
+                        name: "nominal",
+                        color: before,
+                        values: pb,
+                    },
+                    Series {
+                        name: "calibrated",
+                        color: after,
+                        values: pa,
+                    },
+                ],
+            )?);
+            h.push_str(&plot::per_pose_chart(
+                &format!("Position error after calibration, {name} (mm)"),
+                "mm",
+                &[Series {
+                    name: "calibrated",
+                    color: after,
+                    values: pa,
+                }],
+            )?);
+            let ob: Vec<f64> = s.before.orientation.iter().flatten().map(|v| v.to_degrees()).collect();
+            let oa: Vec<f64> = s.after.orientation.iter().flatten().map(|v| v.to_degrees()).collect();
+            if !ob.is_empty() {
+                h.push_str(&plot::per_pose_chart(
+                    &format!("Orientation error, {name} (deg)"),
+                    "deg",
+                    &[
+                        Series {
+                            name: "nominal",
+                            color: before,
+                            values: &ob,
+                        },
+                        Series {
+                            name: "calibrated",
+                            color: after,
+                            values: &oa,
+                        },
+                    ],
+                )?);
+                h.push_str(&plot::per_pose_chart(
+                    &format!("Orientation error after calibration, {name} (deg)"),
+                    "deg",
+                    &[Series {
+                        name: "calibrated",
+                        color: after,
+                        values: &oa,
+                    }],
+                )?);
+            }
+            h.push_str(&plot::histogram(
+                &format!("Histogram of position errors after calibration, {name}"),
+                "position error (mm)",
+                &[Series {
+                    name: "calibrated",
+                    color: after,
+                    values: pa,
+                }],
+                20,
+            )?);
+            if !oa.is_empty() {
+                h.push_str(&plot::histogram(
+                    &format!("Histogram of orientation errors after calibration, {name}"),
+                    "orientation error (deg)",
+                    &[Series {
+                        name: "calibrated",
+                        color: after,
+                        values: &oa,
+                    }],
+                    20,
+                )?);
+            }
+            h.push_str("</div>\n");
+        }
+        h.push_str("<h2>Outliers (a residual component beyond 3σ after calibration)</h2>\n");
+        let mut any = false;
+        for (name, s) in &sets {
+            if s.outliers.is_empty() {
+                continue;
+            }
+            if !any {
+                h.push_str(
+                    "<table><tr><th class=\"l\">set</th><th>pose (row, from 0)</th><th>score (σ)</th><th>position mm</th><th>orientation deg</th></tr>",
+                );
+                any = true;
+            }
+            for o in &s.outliers {
+                let _ = write!(
+                    h,
+                    "<tr><td class=\"l\">{name}</td><td>{}</td><td>{:.2}</td><td>{}</td><td>{}</td></tr>",
+                    o.pose,
+                    o.score,
+                    sig(o.position_mm),
+                    o.orientation_deg.map(sig).unwrap_or_else(|| "—".into())
+                );
+            }
+        }
+        h.push_str(if any { "</table>\n" } else { "<p>None.</p>\n" });
+        h.push_str("<h2>Identifiability</h2>\n");
+        let _ = write!(
+            h,
+            "<p>Rank {} of {} free parameters; condition number {:.3e}.</p><p><b>Redundant</b> (combinations of parameters earlier in priority order, not identified): {}</p>",
+            self.rank,
+            self.free,
+            self.condition,
+            if self.redundant.is_empty() { "none".into() } else { esc(&self.redundant.join(", ")) }
+        );
+        if !self.no_effect.is_empty() {
+            let _ = write!(
+                h,
+                "<p><b>Without effect</b> on these measurements: {}</p>",
+                esc(&self.no_effect.join(", "))
+            );
+        }
+        if !self.singular_values.is_empty() {
+            h.push_str("<div class=\"plots\">");
+            let smax = self.singular_values.iter().copied().fold(0.0, f64::max).max(f64::MIN_POSITIVE);
+            let lg: Vec<f64> = self.singular_values.iter().map(|s| (s / smax).max(1e-17).log10()).collect();
+            h.push_str(&plot::per_pose_chart_with_x(
+                "Singular values σ/σmax of the column-scaled Jacobian (log10, floor 1e-17)",
+                "index",
+                "log10 σ/σmax",
+                &lg,
+            )?);
+            h.push_str("</div>");
+        }
+        h.push_str("<h2>Parameters</h2>\n<p class=\"muted\">Identified change of each error coordinate (local coordinates of the model's error parameters) with its standard deviation σ̂₀·√diag((AᵀA)⁻¹). Redundant parameters move with the minimum-norm solution; their values are not individually meaningful and have no standard deviation.</p><table><tr><th class=\"l\">parameter</th><th class=\"l\">group</th><th>value</th><th>std. dev.</th><th class=\"l\">unit</th><th class=\"l\">status</th></tr>");
+        for p in &self.params {
+            let status = match p.status {
+                ParamStatus::Identified => "identified",
+                ParamStatus::Redundant => "redundant",
+                ParamStatus::NoEffect => "no effect",
+                ParamStatus::Fixed => "fixed",
+            };
+            let cls = if p.status == ParamStatus::Identified {
+                ""
+            } else {
+                " class=\"muted\""
+            };
+            let _ = write!(
+                h,
+                "<tr{cls}><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{}</td><td>{}</td><td class=\"l\">{}</td><td class=\"l\">{status}</td></tr>",
+                esc(&p.name),
+                esc(&p.group),
+                sig(p.value),
+                if p.status == ParamStatus::Identified { sig(p.std_dev) } else { "—".into() },
+                p.unit
+            );
+        }
+        h.push_str("</table>\n<p class=\"muted\">Generated by kinecal.</p></body></html>\n");
+        Ok(h)
+    }
+}
+
+fn esc(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+/// A number with 4 significant digits (scientific notation outside 1e-3..1e5).
+fn sig(v: f64) -> String {
+    let a = v.abs();
+    if v == 0.0 {
+        "0".into()
+    } else if !(1e-3..1e5).contains(&a) {
+        format!("{v:.3e}")
+    } else {
+        let d = (3 - a.log10().floor() as i32).max(0) as usize;
+        format!("{v:.d$}")
+    }
+}
