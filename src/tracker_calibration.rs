@@ -33,6 +33,7 @@ use crate::measure::{self, register_points, Measurement, Noise, Observation};
 use crate::model::chain::SerialChain;
 use crate::model::Mechanism;
 use crate::se3::{self, Pose};
+use crate::workflow::{self, ErrorStats};
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 use serde::Serialize;
 use std::time::Instant;
@@ -58,46 +59,9 @@ pub enum Scheme {
     Full,
 }
 
-/// Error statistics of a set of poses (mm and degrees).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct ErrorStats {
-    /// Number of poses.
-    pub poses: usize,
-    /// Mean position error (mm).
-    pub position_mean: f64,
-    /// RMS position error (mm).
-    pub position_rms: f64,
-    /// Maximum position error (mm).
-    pub position_max: f64,
-    /// Mean orientation error (deg), for full-pose measurements.
-    pub orientation_mean: Option<f64>,
-    /// Maximum orientation error (deg), for full-pose measurements.
-    pub orientation_max: Option<f64>,
-}
-
-/// Statistics of the errors of `model` on `data`.
+/// Statistics of the errors of `model` on `data` (see [`workflow::ErrorStats`]).
 pub fn error_stats<M: Mechanism + ?Sized>(model: &M, data: &[Measurement]) -> Result<ErrorStats, CalibError> {
-    let mut pos = Vec::with_capacity(data.len());
-    let mut rot = Vec::new();
-    for (i, m) in data.iter().enumerate() {
-        let t = model.forward(&m.q).map_err(|source| CalibError::Kinematics { pose: i, source })?;
-        let (p, r) = measure::errors(&m.obs, &t);
-        pos.push(p);
-        if let Some(r) = r {
-            rot.push(r.to_degrees());
-        }
-    }
-    let n = pos.len().max(1) as f64;
-    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
-    let max = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
-    Ok(ErrorStats {
-        poses: pos.len(),
-        position_mean: mean(&pos),
-        position_rms: (pos.iter().map(|p| p * p).sum::<f64>() / n).sqrt(),
-        position_max: max(&pos),
-        orientation_mean: (!rot.is_empty()).then(|| mean(&rot)),
-        orientation_max: (!rot.is_empty()).then(|| max(&rot)),
-    })
+    Ok(ErrorStats::of(&workflow::pose_errors(model, data)?))
 }
 
 /// Result of [`register`]: the first guess of the base and tool frames.

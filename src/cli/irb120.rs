@@ -3,7 +3,8 @@ use clap::Args;
 use kinecal::io::tracker;
 use kinecal::measure::{self, Noise};
 use kinecal::model::irb120;
-use kinecal::tracker_calibration::{self, CalibrateOptions, ErrorStats, Scheme, SchemeResult, ToolMeasurement};
+use kinecal::tracker_calibration::{self, CalibrateOptions, Scheme, SchemeResult, ToolMeasurement};
+use kinecal::workflow::ErrorStats;
 use kinecal::Mechanism;
 use serde::Serialize;
 use std::path::PathBuf;
@@ -64,11 +65,14 @@ struct Unexplained {
 }
 
 fn fmt_stats(s: &ErrorStats) -> String {
-    let rot = match (s.orientation_mean, s.orientation_max) {
+    let rot = match (s.orientation_mean_deg, s.orientation_max_deg) {
         (Some(a), Some(b)) => format!("{a:>7.3} {b:>7.3}"),
         _ => format!("{:>7} {:>7}", "-", "-"),
     };
-    format!("{:>7.3} {:>7.3} {:>7.3}  {rot}", s.position_mean, s.position_rms, s.position_max)
+    format!(
+        "{:>7.3} {:>7.3} {:>7.3}  {rot}",
+        s.position_mean_mm, s.position_rms_mm, s.position_max_mm
+    )
 }
 
 /// Standard deviation (mm) of the three inter-reflector distances over all poses, pooled: the
@@ -188,7 +192,7 @@ pub fn run(args: Irb120Args) -> anyhow::Result<()> {
         .collect();
     let noise = reflector_distance_std(&data);
     let unexplained = Unexplained {
-        residual_over_tracker_noise: runs[1].result.validation.position_rms / noise,
+        residual_over_tracker_noise: runs[1].result.validation.position_rms_mm / noise,
         by_q1,
     };
 

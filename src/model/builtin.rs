@@ -1,9 +1,7 @@
 //! Built-in models: nominal geometries a user can export as model files
 //! (`kinecal model list`, `kinecal model export NAME`), edit and load back.
 use crate::io::model_file::{MechanismSpec, ModelFile};
-use crate::model::chain::{ChainJoint, SerialChain};
-use crate::se3::{self, Pose};
-use nalgebra::Vector3;
+use crate::model::chain::SerialChain;
 
 /// Names and one-line descriptions of the built-in models.
 pub fn list() -> Vec<(&'static str, &'static str)> {
@@ -25,32 +23,9 @@ pub fn model_file(name: &str) -> Option<ModelFile> {
     Some(file)
 }
 
-/// The nominal ABB IRB 120 as a local-POE chain: joint axes z, y, y, x, y, x with frames at the
-/// joint centres and axes parallel to the base frame at zero joint values (upper arm vertical,
-/// forearm horizontal along x); d1 = 290, a2 = 270, a3 = 70, d4 = 302, d6 = 72 mm; the tool frame
-/// is the flange (identity after joint 6). Limits from the product specification (deg):
-/// ±165, ±110, −110…+70, ±160, ±120, ±400. At zero joint values the flange is at (374, 0, 630) mm.
+/// The nominal ABB IRB 120 (see [`crate::model::irb120`]).
 pub fn irb120() -> SerialChain {
-    let deg = std::f64::consts::PI / 180.0;
-    // (name, axis, position in the previous joint frame (mm), limits (deg))
-    type JointRow = (&'static str, Vector3<f64>, [f64; 3], (f64, f64));
-    let spec: [JointRow; 6] = [
-        ("q1", Vector3::z(), [0.0, 0.0, 0.0], (-165.0, 165.0)),
-        ("q2", Vector3::y(), [0.0, 0.0, 290.0], (-110.0, 110.0)),
-        ("q3", Vector3::y(), [0.0, 0.0, 270.0], (-110.0, 70.0)),
-        ("q4", Vector3::x(), [0.0, 0.0, 70.0], (-160.0, 160.0)),
-        ("q5", Vector3::y(), [302.0, 0.0, 0.0], (-120.0, 120.0)),
-        ("q6", Vector3::x(), [72.0, 0.0, 0.0], (-400.0, 400.0)),
-    ];
-    let mut joints = Vec::new();
-    let mut initial = Vec::new();
-    for (name, axis, p, (lo, hi)) in spec {
-        let mut j = ChainJoint::revolute(name, axis);
-        j.limits = Some((lo * deg, hi * deg));
-        joints.push(j);
-        initial.push(se3::translation(p[0], p[1], p[2]));
-    }
-    SerialChain::new("irb120", joints, initial, Pose::identity())
+    crate::model::irb120::nominal()
 }
 
 #[cfg(test)]
@@ -58,6 +33,7 @@ mod tests {
     use super::*;
     use crate::model::Mechanism;
     use approx::assert_relative_eq;
+    use nalgebra::Vector3;
 
     #[test]
     fn irb120_home_flange() {

@@ -18,16 +18,30 @@ use super::chain::{ChainJoint, SerialChain};
 use crate::se3::{self, Pose};
 use nalgebra::Vector3;
 
-/// Nominal IRB 120 with the tool frame at the flange and the base frame at the robot base.
+/// Joint limits from the product specification (deg): ±165, ±110, −110…+70, ±160, ±120, ±400.
+pub const JOINT_LIMITS_DEG: [(f64, f64); 6] = [
+    (-165.0, 165.0),
+    (-110.0, 110.0),
+    (-110.0, 70.0),
+    (-160.0, 160.0),
+    (-120.0, 120.0),
+    (-400.0, 400.0),
+];
+
+/// Nominal IRB 120 with the tool frame at the flange and the base frame at the robot base, with
+/// the joint limits of [`JOINT_LIMITS_DEG`].
 pub fn nominal() -> SerialChain {
-    let joints = vec![
-        ChainJoint::revolute("q1", Vector3::z()),
-        ChainJoint::revolute("q2", Vector3::y()),
-        ChainJoint::revolute("q3", Vector3::y()),
-        ChainJoint::revolute("q4", Vector3::x()),
-        ChainJoint::revolute("q5", Vector3::y()),
-        ChainJoint::revolute("q6", Vector3::x()),
-    ];
+    let axes = [Vector3::z(), Vector3::y(), Vector3::y(), Vector3::x(), Vector3::y(), Vector3::x()];
+    let joints = axes
+        .iter()
+        .zip(JOINT_LIMITS_DEG)
+        .enumerate()
+        .map(|(k, (axis, (lo, hi)))| {
+            let mut j = ChainJoint::revolute(format!("q{}", k + 1), *axis);
+            j.limits = Some((lo.to_radians(), hi.to_radians()));
+            j
+        })
+        .collect();
     let initial = vec![
         Pose::identity(),
         se3::translation(0.0, 0.0, 290.0),

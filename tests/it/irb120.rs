@@ -71,19 +71,19 @@ fn noise_free_synthetic_tracker_data_is_recovered_exactly() {
     };
     // Frames only cannot absorb the geometric errors…
     let frames = &get("(i)  base + tool only", "frame")["validation"];
-    assert!(frames["position_rms"].as_f64().unwrap() > 0.1);
+    assert!(frames["position_rms_mm"].as_f64().unwrap() > 0.1);
     // …full calibration recovers the truth to numerical precision, whatever the fitted residual.
     for fit in ["frame", "3 points", "frame, σ from residuals"] {
         let full = &get("(ii) full geometric", "frame");
         let full = if fit == "frame" { full } else { get("full geometric", fit) };
         let val = &full["validation"];
-        assert!(val["position_max"].as_f64().unwrap() < 1e-6, "{fit}: {val}");
-        assert!(val["orientation_max"].as_f64().unwrap() < 1e-6, "{fit}: {val}");
+        assert!(val["position_max_mm"].as_f64().unwrap() < 1e-6, "{fit}: {val}");
+        assert!(val["orientation_max_deg"].as_f64().unwrap() < 1e-6, "{fit}: {val}");
         assert_eq!(full["identified"], 30);
     }
     let pos = &get("reflector 1: full geometric", "position");
     assert_eq!(pos["identified"], 27);
-    assert!(pos["validation"]["position_max"].as_f64().unwrap() < 1e-6);
+    assert!(pos["validation"]["position_max_mm"].as_f64().unwrap() < 1e-6);
 }
 
 /// Run the command on a folder and return (success, stderr).
