@@ -45,14 +45,14 @@ enum DataCommand {
 }
 
 fn summary(d: &DataSet, json: bool) -> anyhow::Result<()> {
-    let format = format!("{:?}", d.format);
+    let format = d.format.describe();
     if json {
         println!(
             "{}",
             serde_json::to_string_pretty(&serde_json::json!({"path": d.path, "poses": d.measurements.len(), "format": format}))?
         );
     } else {
-        println!("{}: {} poses, measurement {format}", d.path.display(), d.measurements.len());
+        println!("{}: {} poses, measured: {format}", d.path.display(), d.measurements.len());
     }
     Ok(())
 }

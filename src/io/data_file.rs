@@ -43,6 +43,18 @@ pub enum MeasurementFormat {
     Reflectors,
 }
 
+impl MeasurementFormat {
+    /// A short description, e.g. `"pose (x,y,z + quaternion)"`.
+    pub fn describe(self) -> &'static str {
+        match self {
+            MeasurementFormat::PoseQuaternion => "pose (x,y,z + quaternion)",
+            MeasurementFormat::PoseRpy => "pose (x,y,z + roll,pitch,yaw)",
+            MeasurementFormat::Position => "position (x,y,z)",
+            MeasurementFormat::Reflectors => "three reflector centres (m1..m3)",
+        }
+    }
+}
+
 /// A data file read into memory (mm and rad).
 #[derive(Debug, Clone, PartialEq)]
 pub struct DataSet {
