@@ -112,11 +112,13 @@ fn simulate_identify_validate_compensate_recovers_the_truth() {
     assert!(after < 1e-6 && after_deg < 1e-6, "after calibration: {after} mm, {after_deg} deg");
     let html = std::fs::read_to_string(d.join("r.html")).unwrap();
     assert!(html.contains("<svg") && html.contains("Per-pose errors, validation set") && html.contains("Redundant"));
-    assert!(
-        !html.contains("http://")
-            || html
-                .matches("http://")
-                .all(|_| html.contains("xmlns=\"http://www.w3.org/2000/svg\""))
+    // Self-contained: no external resources (only the SVG namespace URI).
+    let outside = html.replace("http://www.w3.org/2000/svg", "");
+    assert!(!outside.contains("http://") && !outside.contains("https://") && !html.contains("<link") && !html.contains("src="));
+    assert_eq!(
+        html.matches("<svg").count(),
+        2 * 6 + 1,
+        "6 plots per data set and the singular values"
     );
 
     // The calibrated model file has the truth's kinematics (not its parameters: 12 are redundant).
