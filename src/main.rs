@@ -26,6 +26,8 @@ enum Command {
     Study(cli::study::StudyArgs),
     /// Built-in models: list them, export one as a model file (TOML) to edit.
     Model(cli::model::ModelArgs),
+    /// Data files: check one against a model, join an inputs file and a measurement file.
+    Data(cli::data::DataArgs),
     /// Virtual prototype: random geometric errors and noisy measurements → data CSV + true model.
     Simulate(cli::simulate::SimulateArgs),
     /// Rank, redundant parameters and condition number of the identification problem.
@@ -44,6 +46,7 @@ fn main() -> ExitCode {
         Command::Irb120(a) => cli::irb120::run(a),
         Command::Study(a) => cli::study::run(a),
         Command::Model(a) => cli::model::run(a),
+        Command::Data(a) => cli::data::run(a),
         Command::Simulate(a) => cli::simulate::run(a),
         Command::Identifiability(a) => cli::identifiability::run(a),
         Command::Identify(a) => cli::identify::run(a),

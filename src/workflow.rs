@@ -385,6 +385,30 @@ mod tests {
     }
 
     #[test]
+    fn revolute_values_wrap_to_the_turn_nearest_the_seed_within_limits() {
+        let d = PI / 180.0;
+        let inp = |lo: f64, hi: f64| InputSpec {
+            name: "q".into(),
+            unit: Unit::Angle,
+            limits: Some((lo * d, hi * d)),
+        };
+        let inputs = [inp(-400.0, 400.0), inp(-110.0, 70.0), inp(-400.0, 400.0)];
+        let mut q = [350.0 * d, 300.0 * d, -10.0 * d];
+        wrap_near(&inputs, &mut q, &[0.0, 0.0, 355.0 * d]);
+        let deg: Vec<f64> = q.iter().map(|v| (v / d * 1e9).round() / 1e9).collect();
+        assert_eq!(deg, vec![-10.0, -60.0, 350.0]);
+        // Prismatic inputs are never wrapped.
+        let lin = [InputSpec {
+            name: "d".into(),
+            unit: Unit::Length,
+            limits: Some((0.0, 1.0)),
+        }];
+        let mut x = [7.0];
+        wrap_near(&lin, &mut x, &[]);
+        assert_eq!(x, [7.0]);
+    }
+
+    #[test]
     fn stats_and_outliers() {
         let e = PoseErrors {
             position: vec![1.0, 3.0],

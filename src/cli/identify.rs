@@ -93,8 +93,7 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
     let sp = progress::spinner(&format!("identifying {} on {} poses", file.name, data.measurements.len()), a.json);
     let result = identify(&nominal, &data.measurements, &opts).map_err(|e| data.locate(e))?;
     sp.finish_and_clear();
-    let calibrated = file.with_geometry_of(&*result.model).map_err(|e| anyhow::anyhow!(e))?;
-    let mut calibrated = calibrated;
+    let mut calibrated = file.with_geometry_of(&*result.model).map_err(|e| anyhow::anyhow!(e))?;
     calibrated.description = Some(format!("calibrated from '{}' on {}", file.name, a.data.display()));
     calibrated.noise = Some(result.noise);
     calibrated.save(&a.out)?;

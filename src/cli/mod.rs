@@ -1,5 +1,6 @@
 //! One module per subcommand: each parses its arguments, calls the library and prints.
 pub mod compensate;
+pub mod data;
 pub mod identifiability;
 pub mod identify;
 pub mod irb120;

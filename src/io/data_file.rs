@@ -43,6 +43,18 @@ pub enum MeasurementFormat {
     Reflectors,
 }
 
+impl MeasurementFormat {
+    /// A short description, e.g. `"pose (x,y,z + quaternion)"`.
+    pub fn describe(self) -> &'static str {
+        match self {
+            MeasurementFormat::PoseQuaternion => "pose (x,y,z + quaternion)",
+            MeasurementFormat::PoseRpy => "pose (x,y,z + roll,pitch,yaw)",
+            MeasurementFormat::Position => "position (x,y,z)",
+            MeasurementFormat::Reflectors => "three reflector centres (m1..m3)",
+        }
+    }
+}
+
 /// A data file read into memory (mm and rad).
 #[derive(Debug, Clone, PartialEq)]
 pub struct DataSet {
@@ -135,6 +147,162 @@ enum Slot {
     Reflector(usize, usize),
 }
 
+/// What a column holds and its factor to mm / rad; errors name the file (line 1) and column.
+fn classify(path: &Path, col: &str, inputs: &[InputSpec]) -> Result<(Slot, f64), IoError> {
+    let at_header = |message: String| IoError::AtLine {
+        path: path.to_path_buf(),
+        line: 1,
+        message,
+    };
+    let (base, unit) = split_unit(col);
+    let slot = if col == "id" {
+        (Slot::Id, 1.0)
+    } else if let Some(k) = inputs.iter().position(|i| i.name == base) {
+        let inp = &inputs[k];
+        let (factor, want) = match inp.unit {
+            Unit::Angle => (unit.and_then(angle_factor), "deg or rad"),
+            _ => (unit.and_then(length_factor), "mm or m"),
+        };
+        match factor {
+            Some(f) => (Slot::Input(k), f),
+            None => {
+                let kind = if inp.unit == Unit::Angle { "angular" } else { "linear" };
+                let found = unit.map(|u| format!("unit '{u}'")).unwrap_or_else(|| "no unit suffix".into());
+                return Err(at_header(format!(
+                    "column '{col}': {found} for the {kind} input '{base}' (use {base}_{})",
+                    want.replace(" or ", &format!(" or {base}_"))
+                )));
+            }
+        }
+    } else if let Some(i) = ["x", "y", "z"].iter().position(|c| *c == base) {
+        match unit.and_then(length_factor) {
+            Some(f) => (Slot::Pos(i), f),
+            None => {
+                return Err(at_header(format!(
+                    "column '{col}': a position needs a length unit ({base}_mm or {base}_m)"
+                )))
+            }
+        }
+    } else if let Some(i) = ["qw", "qx", "qy", "qz"].iter().position(|c| *c == col) {
+        (Slot::Quat(i), 1.0)
+    } else if let Some(i) = ["roll", "pitch", "yaw"].iter().position(|c| *c == base) {
+        match unit.and_then(angle_factor) {
+            Some(f) => (Slot::Rpy(i), f),
+            None => {
+                return Err(at_header(format!(
+                    "column '{col}': an angle needs an angle unit ({base}_deg or {base}_rad)"
+                )))
+            }
+        }
+    } else if let Some((r, a)) = reflector_column(base) {
+        match unit.and_then(length_factor) {
+            Some(f) => (Slot::Reflector(r, a), f),
+            None => {
+                return Err(at_header(format!(
+                    "column '{col}': a reflector coordinate needs a length unit ({base}_mm)"
+                )))
+            }
+        }
+    } else {
+        return Err(IoError::UnknownColumn {
+            path: path.to_path_buf(),
+            column: col.to_string(),
+            expected: expected_columns(inputs),
+        });
+    };
+    Ok(slot)
+}
+
+/// Join an inputs file (`id` and the input columns, e.g. a controller log) and a measurement
+/// file (`id` and the measurement columns, e.g. a tracker export) row by row into one data set.
+///
+/// Both files must have the same number of rows ([`IoError::RowCountMismatch`]); when both have
+/// an `id` column the ids must agree row by row ([`IoError::IndexMismatch`]). A column in the
+/// wrong file is an [`IoError::UnknownColumn`] of that file.
+pub fn join_files(inputs_path: &Path, measurements_path: &Path, inputs: &[InputSpec]) -> Result<DataSet, IoError> {
+    let a = read_table(inputs_path)?;
+    let b = read_table(measurements_path)?;
+    let input_names: Vec<String> = input_headers(inputs).iter().map(|h| format!("{h}|_rad|_m")).collect();
+    for col in &a.columns {
+        match classify(&a.path, col, inputs)? {
+            (Slot::Id, _) | (Slot::Input(_), _) => {}
+            _ => {
+                return Err(IoError::UnknownColumn {
+                    path: a.path.clone(),
+                    column: col.clone(),
+                    expected: format!("id and the inputs only: {}", input_headers(inputs).join(",")),
+                })
+            }
+        }
+    }
+    for (k, inp) in inputs.iter().enumerate() {
+        if !a
+            .columns
+            .iter()
+            .any(|c| matches!(classify(&a.path, c, inputs), Ok((Slot::Input(j), _)) if j == k))
+        {
+            let u = if inp.unit == Unit::Angle { "deg" } else { "mm" };
+            return Err(IoError::MissingColumn {
+                path: a.path.clone(),
+                column: format!("{}_{u}", inp.name),
+                header: a.columns.join(","),
+            });
+        }
+    }
+    for col in &b.columns {
+        if let (Slot::Input(_), _) = classify(&b.path, col, inputs)? {
+            return Err(IoError::UnknownColumn {
+                path: b.path.clone(),
+                column: col.clone(),
+                expected: format!(
+                    "id and the measurement columns only (the inputs {} belong in {})",
+                    input_names.join(","),
+                    a.path.display()
+                ),
+            });
+        }
+    }
+    if a.len() != b.len() {
+        return Err(IoError::RowCountMismatch {
+            path: b.path.clone(),
+            found: b.len(),
+            other: a.path.clone(),
+            expected: a.len(),
+        });
+    }
+    let (ia, ib) = (a.columns.iter().position(|c| c == "id"), b.columns.iter().position(|c| c == "id"));
+    if let (Some(ia), Some(ib)) = (ia, ib) {
+        for r in 0..a.len() {
+            if a.rows[r][ia] != b.rows[r][ib] {
+                return Err(IoError::IndexMismatch {
+                    path: b.path.clone(),
+                    line: b.lines[r],
+                    found: b.rows[r][ib] as i64,
+                    other: a.path.clone(),
+                    expected: a.rows[r][ia] as i64,
+                });
+            }
+        }
+    }
+    // Merged table: the inputs file's columns, then the measurement file's without its id.
+    let keep_b: Vec<usize> = (0..b.columns.len()).filter(|&c| ia.is_none() || Some(c) != ib).collect();
+    let mut columns = a.columns.clone();
+    columns.extend(keep_b.iter().map(|&c| b.columns[c].clone()));
+    let rows = a
+        .rows
+        .iter()
+        .zip(&b.rows)
+        .map(|(ra, rb)| ra.iter().copied().chain(keep_b.iter().map(|&c| rb[c])).collect())
+        .collect();
+    let merged = Table {
+        path: b.path.clone(),
+        columns,
+        rows,
+        lines: b.lines.clone(),
+    };
+    data_from_table(&merged, inputs, InputColumns::Required)
+}
+
 /// Read a measurement data file for a mechanism with `inputs` (see the module docs for columns).
 pub fn read_data(path: &Path, inputs: &[InputSpec], input_columns: InputColumns) -> Result<DataSet, IoError> {
     let table = read_table(path)?;
@@ -144,74 +312,17 @@ pub fn read_data(path: &Path, inputs: &[InputSpec], input_columns: InputColumns)
 /// [`read_data`] on a table already read.
 pub fn data_from_table(table: &Table, inputs: &[InputSpec], input_columns: InputColumns) -> Result<DataSet, IoError> {
     let path = &table.path;
-    let unknown = |column: &str| IoError::UnknownColumn {
-        path: path.clone(),
-        column: column.to_string(),
-        expected: expected_columns(inputs),
-    };
     let at_header = |message: String| IoError::AtLine {
         path: path.clone(),
         line: 1,
         message,
     };
     let mut slots: Vec<(Slot, f64)> = Vec::with_capacity(table.columns.len());
-    for col in &table.columns {
-        if slots.iter().zip(&table.columns).any(|(_, c)| c == col) {
+    for (k, col) in table.columns.iter().enumerate() {
+        if table.columns[..k].contains(col) {
             return Err(at_header(format!("column '{col}' appears twice")));
         }
-        let (base, unit) = split_unit(col);
-        let slot = if col == "id" {
-            (Slot::Id, 1.0)
-        } else if let Some(k) = inputs.iter().position(|i| i.name == base) {
-            let inp = &inputs[k];
-            let (factor, want) = match inp.unit {
-                Unit::Angle => (unit.and_then(angle_factor), "deg or rad"),
-                _ => (unit.and_then(length_factor), "mm or m"),
-            };
-            match factor {
-                Some(f) => (Slot::Input(k), f),
-                None => {
-                    let kind = if inp.unit == Unit::Angle { "angular" } else { "linear" };
-                    let found = unit.map(|u| format!("unit '{u}'")).unwrap_or_else(|| "no unit suffix".into());
-                    return Err(at_header(format!(
-                        "column '{col}': {found} for the {kind} input '{base}' (use {base}_{})",
-                        want.replace(" or ", &format!(" or {base}_"))
-                    )));
-                }
-            }
-        } else if let Some(i) = ["x", "y", "z"].iter().position(|c| *c == base) {
-            match unit.and_then(length_factor) {
-                Some(f) => (Slot::Pos(i), f),
-                None => {
-                    return Err(at_header(format!(
-                        "column '{col}': a position needs a length unit ({base}_mm or {base}_m)"
-                    )))
-                }
-            }
-        } else if let Some(i) = ["qw", "qx", "qy", "qz"].iter().position(|c| *c == col) {
-            (Slot::Quat(i), 1.0)
-        } else if let Some(i) = ["roll", "pitch", "yaw"].iter().position(|c| *c == base) {
-            match unit.and_then(angle_factor) {
-                Some(f) => (Slot::Rpy(i), f),
-                None => {
-                    return Err(at_header(format!(
-                        "column '{col}': an angle needs an angle unit ({base}_deg or {base}_rad)"
-                    )))
-                }
-            }
-        } else if let Some((r, a)) = reflector_column(base) {
-            match unit.and_then(length_factor) {
-                Some(f) => (Slot::Reflector(r, a), f),
-                None => {
-                    return Err(at_header(format!(
-                        "column '{col}': a reflector coordinate needs a length unit ({base}_mm)"
-                    )))
-                }
-            }
-        } else {
-            return Err(unknown(col));
-        };
-        slots.push(slot);
+        slots.push(classify(path, col, inputs)?);
     }
     let has = |pred: &dyn Fn(&Slot) -> bool| slots.iter().filter(|(s, _)| pred(s)).count();
     let n_inputs = has(&|s| matches!(s, Slot::Input(_)));
@@ -516,6 +627,33 @@ mod tests {
             read("q1_deg,d2_mm,x_mm,y_mm,z_mm,qw,qx,qy,qz\n0,0,0,0,0,2,0,0,0\n").unwrap_err(),
             "d.csv:2: qw,qx,qy,qz: not a unit quaternion (norm 2.000000)"
         );
+    }
+
+    #[test]
+    fn joins_an_inputs_file_and_a_measurement_file() {
+        let dir = std::env::temp_dir().join(format!("kinecal-join-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let (j, m) = (dir.join("j.csv"), dir.join("m.csv"));
+        std::fs::write(&j, "id,q1_deg,d2_mm\n5,90,1\n6,0,2\n").unwrap();
+        std::fs::write(&m, "id,x_mm,y_mm,z_mm\n5,1,2,3\n6,4,5,6\n").unwrap();
+        let d = join_files(&j, &m, &inputs()).unwrap();
+        assert_eq!(d.ids, vec![5, 6]);
+        assert_eq!(d.measurements[1].q, vec![0.0, 2.0]);
+        assert_eq!(d.measurements[1].obs, Observation::Position(Vector3::new(4.0, 5.0, 6.0)));
+        let msg = |e: IoError| e.to_string().replace(&format!("{}/", dir.display()), "");
+        std::fs::write(&m, "id,x_mm,y_mm,z_mm\n5,1,2,3\n").unwrap();
+        assert_eq!(
+            msg(join_files(&j, &m, &inputs()).unwrap_err()),
+            "m.csv: 1 rows but j.csv has 2; every file must have one row per pose"
+        );
+        std::fs::write(&m, "id,x_mm,y_mm,z_mm\n5,1,2,3\n7,4,5,6\n").unwrap();
+        assert_eq!(
+            msg(join_files(&j, &m, &inputs()).unwrap_err()),
+            "m.csv:3: pose index 7 where j.csv has 6"
+        );
+        std::fs::write(&m, "id,q1_deg,x_mm,y_mm,z_mm\n5,1,1,2,3\n6,1,4,5,6\n").unwrap();
+        assert!(msg(join_files(&j, &m, &inputs()).unwrap_err()).starts_with("m.csv:1: unknown column 'q1_deg'"));
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

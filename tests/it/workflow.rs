@@ -112,11 +112,13 @@ fn simulate_identify_validate_compensate_recovers_the_truth() {
     assert!(after < 1e-6 && after_deg < 1e-6, "after calibration: {after} mm, {after_deg} deg");
     let html = std::fs::read_to_string(d.join("r.html")).unwrap();
     assert!(html.contains("<svg") && html.contains("Per-pose errors, validation set") && html.contains("Redundant"));
-    assert!(
-        !html.contains("http://")
-            || html
-                .matches("http://")
-                .all(|_| html.contains("xmlns=\"http://www.w3.org/2000/svg\""))
+    // Self-contained: no external resources (only the SVG namespace URI).
+    let outside = html.replace("http://www.w3.org/2000/svg", "");
+    assert!(!outside.contains("http://") && !outside.contains("https://") && !html.contains("<link") && !html.contains("src="));
+    assert_eq!(
+        html.matches("<svg").count(),
+        2 * 6 + 1,
+        "6 plots per data set and the singular values"
     );
 
     // The calibrated model file has the truth's kinematics (not its parameters: 12 are redundant).
@@ -340,6 +342,32 @@ fn row_length_and_row_count_mismatches_are_one_line() {
     write(&d, "few.csv", &text.lines().take(4).collect::<Vec<_>>().join("\n"));
     let e = fails(&d, &["identify", "irb120.toml", "few.csv", "--out", "c.toml"]);
     assert!(e.starts_with("few.csv: too few measurements: 18 residual rows from 3 poses"), "{e}");
+    // An inputs file and a measurement file with different row counts.
+    let text = std::fs::read_to_string(d.join("ident.csv")).unwrap();
+    let (mut joints, mut meas) = (String::new(), String::new());
+    for l in text.lines() {
+        let f: Vec<&str> = l.split(',').collect();
+        joints.push_str(&(f[..7].join(",") + "\n"));
+        meas.push_str(&(std::iter::once(f[0]).chain(f[7..].iter().copied()).collect::<Vec<_>>().join(",") + "\n"));
+    }
+    write(&d, "joints.csv", &joints);
+    write(&d, "tracker.csv", &meas);
+    let j = json(
+        &d,
+        &["data", "join", "irb120.toml", "joints.csv", "tracker.csv", "--out", "joined.csv"],
+    );
+    assert_eq!(j["poses"], 10);
+    let v = json(&d, &["validate", "truth.toml", "joined.csv"]);
+    assert!(
+        v["stats"]["position_max_mm"].as_f64().unwrap() < 1e-9,
+        "joined data must be the simulated data"
+    );
+    write(&d, "tracker9.csv", &meas.lines().take(10).collect::<Vec<_>>().join("\n"));
+    let e = fails(&d, &["data", "join", "irb120.toml", "joints.csv", "tracker9.csv", "--out", "j.csv"]);
+    assert_eq!(
+        e,
+        "tracker9.csv: 9 rows but joints.csv has 10; every file must have one row per pose"
+    );
     // A missing column.
     write(
         &d,
