@@ -277,6 +277,15 @@ pub struct SchemeResult {
     /// The calibrated model.
     #[serde(skip)]
     pub model: SerialChain,
+    /// The starting model: nominal geometry with the registered base and tool frames.
+    #[serde(skip)]
+    pub start: SerialChain,
+    /// The free parameters, in priority order.
+    #[serde(skip)]
+    pub free_params: Vec<usize>,
+    /// The full identification result (history, identifiability, uncertainties).
+    #[serde(skip)]
+    pub result: identify::Identification<SerialChain>,
 }
 
 /// Options of [`calibrate`].
@@ -356,6 +365,9 @@ pub fn calibrate(
         noise: res.noise,
         identification: error_stats(&res.model, train)?,
         validation: error_stats(&res.model, test)?,
-        model: res.model,
+        model: res.model.clone(),
+        start,
+        free_params: free,
+        result: res,
     })
 }

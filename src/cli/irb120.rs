@@ -27,6 +27,11 @@ pub struct Irb120Args {
     /// Orientation noise σ (degrees per axis): the weight of orientation rows of the frame fits.
     #[arg(long, default_value_t = 0.03)]
     pub sigma_orientation: f64,
+    /// Write an HTML report of the full geometric calibration (row (ii)) to this file: per-pose
+    /// errors before (registered nominal geometry) and after, histograms, parameters with
+    /// standard deviations, identifiability, outliers.
+    #[arg(long, value_name = "FILE.html")]
+    pub report: Option<PathBuf>,
 }
 
 /// One calibration run of the table.
@@ -196,6 +201,21 @@ pub fn run(args: Irb120Args) -> anyhow::Result<()> {
         by_q1,
     };
 
+    if let Some(path) = &args.report {
+        let r = &runs[1].result;
+        let report = kinecal::report::CalibrationReport::new(
+            &r.start,
+            &r.result,
+            &r.free_params,
+            "GaussNewton, frame residual",
+            &format!("{} (idx < {split})", args.data.display()),
+            &train,
+            Some((&format!("{} (idx ≥ {split})", args.data.display()), &test)),
+        )?;
+        let html = report.to_html().map_err(|e| anyhow::anyhow!("report: {e}"))?;
+        std::fs::write(path, html).map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", path.display()))?;
+        eprintln!("report → {}", path.display());
+    }
     let summary = DataSummary {
         folder: args.data.display().to_string(),
         poses: data.len(),
