@@ -18,6 +18,7 @@ use crate::se3::Pose;
 use nalgebra::{DVector, Matrix6xX};
 
 pub mod chain;
+pub mod presets;
 
 /// A calibratable mechanism.
 pub trait Mechanism: Send + Sync {

@@ -2,3 +2,4 @@
 mod chain;
 mod identify;
 mod se3_props;
+mod t3r1;
