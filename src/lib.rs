@@ -14,6 +14,7 @@ pub mod model;
 pub mod params;
 pub mod se3;
 pub mod simulate;
+pub mod t3r1;
 
 pub use error::{CalibError, KinError};
 pub use model::Mechanism;

@@ -21,12 +21,18 @@ enum Command {
     /// Calibrate the ABB IRB 120 from real laser-tracker data (three tool reflectors), identify
     /// on poses idx < 500 and validate on idx ≥ 500.
     Irb120(cli::irb120::Irb120Args),
+    /// The §6 simulation study of the 3T1R 4-DOF manipulator (Zhang et al. 2020): ranks,
+    /// identification of the B1/B3 pair with the closure-computed lower angles, idle-pair
+    /// cross-validation and §7 compensation, noise-free and noisy, paper vs kinecal.
+    #[command(name = "t3r1-study")]
+    StudyT3r1(cli::study_t3r1::StudyT3r1Args),
 }
 
 fn main() -> ExitCode {
     let args = Args::parse();
     let result = match args.command {
         Command::Irb120(a) => cli::irb120::run(a),
+        Command::StudyT3r1(a) => cli::study_t3r1::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -406,6 +406,38 @@ impl BranchedChain {
     }
 }
 
+/// Which 30 error coordinates a chain carries.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum ErrorModel {
+    /// kinecal: the five dyads of the module docs; the parallelogram links `T_{i2,i3}(0)`,
+    /// `T_{i3,i4}(0)` carry their own errors (length, phase, mounting of the distal bar).
+    LinkDyads,
+    /// The links fixed at `Trans(l)` between the coupled revolutes and a full `T(0)` before every
+    /// joint instead: `T_B, T_12, [Trans(l_u)], T_23, [Trans(l_d)], T_34, T_4P`. A link-length
+    /// error cannot be represented (each parallelogram keeps 3 identifiable coordinates instead of
+    /// 4); used only to compare ranks with the figures.
+    FixedLinks,
+}
+
+impl BranchedChain {
+    /// The 6 × 30 spatial identification Jacobian of `model` at `q` (for
+    /// [`ErrorModel::LinkDyads`] the same as [`Mechanism::forward_with_jacobian`]).
+    pub fn identification_jacobian(&self, q: &[f64], model: ErrorModel) -> Result<(Pose, Matrix6xX<f64>), KinError> {
+        match model {
+            ErrorModel::LinkDyads => self.forward_with_jacobian(q),
+            ErrorModel::FixedLinks => {
+                check_inputs(q, 4)?;
+                let (g, j42) = self.serial.forward_with_jacobian(&Self::expand(q))?;
+                let mut j = Matrix6xX::zeros(30);
+                for (k, d) in [0usize, 1, 3, 5, 6].iter().enumerate() {
+                    j.fixed_view_mut::<6, 6>(0, 6 * k).copy_from(&j42.fixed_view::<6, 6>(0, 6 * d));
+                }
+                Ok((g, j))
+            }
+        }
+    }
+}
+
 const COMPONENTS: [&str; 6] = ["vx", "vy", "vz", "wx", "wy", "wz"];
 
 impl Mechanism for BranchedChain {
