@@ -36,13 +36,28 @@
 //! information form, equal to batch least squares on that subset to round-off) and updates `T(0) ← T(0)·exp(δt)` (eq. (33)),
 //! re-linearising (and re-solving the closure) until `‖X‖` is below a tolerance.
 //!
-//! # Ranks (20 poses, 60 coordinates)
+//! # Ranks (20 poses, 60 coordinates; [`ranks`])
 //!
-//! [`ranks`]: one parallelogram chain with every coordinate measured has rank 18 of 30 (a
-//! parallelogram is a circular translation: per chain `6 + 2 (slider) + 3·… ` — see the report),
-//! the pair with `q_i3` as data 36, the pair with `q_i3` from the model's closure 34 (each lower
-//! parallelogram's angle offset is absorbed by the closure), and the paper's literal
-//! `A = [J_1, J_2]` (one 6-row block per pose) 34.
+//! | | kinecal ([`ErrorModel::LinkDyads`]) | fixed links ([`ErrorModel::FixedLinks`]) | printed chains |
+//! |---|---|---|---|
+//! | one chain, every `q` measured (/30) | 20 | 18 | 20 |
+//! | pair, `q_i3` measured (/60) | 40 | 36 | – |
+//! | pair, `q_i3` from the model's closure (/60) | 38 | 34 | – |
+//! | literal `A = [J_1, J_2]`, eq. (21) (/60) | 32 | 28 | 34 |
+//!
+//! * A chain with pose measurements identifies `6 + 2p + 4r'` coordinates, where a parallelogram,
+//!   like a revolute, contributes 4: its pivot direction (2) and the link's component
+//!   perpendicular to the pivot (length and phase, 2). kinecal's dyads carry the link
+//!   (`T_{i2,i3}(0)`, `T_{i3,i4}(0)`), so one chain gives `6 + 2 + 3·4 = 20`. With the links fixed
+//!   at `Trans(l)` between the coupled revolutes and the errors on a `T(0)` before every joint, a
+//!   parallelogram keeps only 3 (no length error can be represented): `6 + 2 + 3 + 3 + 4 = 18`,
+//!   the figure.
+//! * The two chains of a pair share no coordinate: 40 (36) with `q_i3` measured.
+//! * With `q_i3` from the closure of the model, a change of a lower-parallelogram phase (`13-14.vz`,
+//!   `23-24.vz`; fixed links: `13-14.wy`, `23-24.wy`) is absorbed by the recomputed angle: 38 (34).
+//! * The paper's 34 (`4r + 2p + 6` with `r = 6`, `p = 2`) is the rank of its literal
+//!   `A = [J_1, J_2]` with the printed (frozen) chains, one 6-row block per pose. That matrix
+//!   models the sum of both chains' errors, not the two measured equations; kinecal does not use it.
 use crate::error::{CalibError, KinError};
 use crate::identifiability::{self, Identifiability};
 use crate::identify::Linearization;
@@ -369,7 +384,7 @@ impl Default for PairOptions {
         PairOptions {
             noise: Noise::default(),
             lower: LowerAngles::Closure,
-            max_iterations: 30,
+            max_iterations: 40,
             x_tolerance: 1e-9,
             rank_tolerance: identifiability::DEFAULT_RANK_TOLERANCE,
         }
@@ -401,7 +416,9 @@ pub struct PairIdentification {
 }
 
 /// Identify a pair from `data`: identifiable subset, RLS per linearisation, `T(0) ← T(0)·exp(δt)`,
-/// iterated until `‖X‖ < x_tolerance` (or the cost stops decreasing at round-off level).
+/// iterated until `‖X‖ < x_tolerance` (or, at round-off level, neither the cost nor `‖X‖`
+/// decreases twice in a row). With noise the iteration converges linearly (the residual is not
+/// zero), noise-free quadratically.
 pub fn identify_pair(initial: &ChainPair, data: &[PairMeasurement], opts: &PairOptions) -> Result<PairIdentification, CalibError> {
     if !(opts.noise.position > 0.0 && opts.noise.orientation > 0.0) {
         return Err(CalibError::InvalidOption("noise standard deviations must be positive".into()));
@@ -441,7 +458,9 @@ pub fn identify_pair(initial: &ChainPair, data: &[PairMeasurement], opts: &PairO
             converged = true;
             break;
         }
-        if cost >= cost0 * (1.0 - 1e-12) {
+        // Round-off level: neither the cost nor ‖X‖ decreases any more.
+        let prev_x = history.len().checked_sub(2).map(|i| history[i].x_norm).unwrap_or(f64::INFINITY);
+        if cost >= cost0 * (1.0 - 1e-12) && x_norm >= prev_x {
             stalls += 1;
             if stalls >= 2 {
                 converged = true;
@@ -871,7 +890,7 @@ fn run_case(
     seed: u64,
 ) -> Result<StudyCase, CalibError> {
     use rand::SeedableRng;
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let opts = PairOptions {
         noise: noise
             .map(|n| Noise {
@@ -884,10 +903,10 @@ fn run_case(
     let mut results = Vec::new();
     for idle in [false, true] {
         let ids = ChainPair::ids(idle);
-        // The same noise draws for both pairs' shared quantities would need one draw per physical
-        // sensor; each pair gets its own draws (independent encoders, same tracker noise level).
-        let id_data = measurements(ident, ids, noise.as_ref(), &mut rng);
-        let va_data = measurements(valid, ids, None, &mut rng);
+        // One noisy measurement per pose for both pairs: the same generator state draws the same
+        // tracker noise and the same encoder noise of every physical sensor (4 upper, 2 platform).
+        let id_data = measurements(ident, ids, noise.as_ref(), &mut rng.clone());
+        let va_data = measurements(valid, ids, None, &mut rng.clone());
         let start = ChainPair::nominal(nominal, idle);
         let result = identify_pair(&start, &id_data, &opts)?;
         results.push((start, result, id_data, va_data));

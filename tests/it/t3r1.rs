@@ -400,3 +400,66 @@ fn study_command_meets_the_claims() {
     assert!(f(&v["lower_angles"]["closure_max_error_deg"]) < 1e-9);
     assert!(f(&v["noisy"]["converged"][1]["max_position_mm"]) < 1.0);
 }
+
+#[test]
+fn documented_workspace_is_reachable_and_well_conditioned() {
+    let m = T3r1::default();
+    let w = Workspace::default();
+    let n = 4;
+    let f = |t: usize| -1.0 + 2.0 * t as f64 / n as f64;
+    for i in 0..=n {
+        for j in 0..=n {
+            for k in 0..=n {
+                for l in 0..=n {
+                    let t = PlatformPose {
+                        x: w.center.x + f(i) * w.half.x,
+                        y: w.center.y + f(j) * w.half.y,
+                        z: w.center.z + f(k) * w.half.z,
+                        yaw: f(l) * w.half.yaw,
+                    };
+                    let c = m.inverse(&t).unwrap();
+                    for q in [c.upper[0], c.upper[2]] {
+                        assert!((30.6f64.to_radians()..61.5f64.to_radians()).contains(&q));
+                    }
+                    for q in [c.lower[0], std::f64::consts::PI - c.lower[1]] {
+                        assert!((51.5f64.to_radians()..67.4f64.to_radians()).contains(&q));
+                    }
+                    let mut jac = m.actuator_jacobian(&c.sliders).unwrap();
+                    jac.row_mut(3).scale_mut(m.geometry.a / 2.0);
+                    let sv = jac.singular_values();
+                    assert!(sv.max() / sv.min() < 2.5);
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn one_chain_with_measured_lower_angle_calibrates_with_the_core_identify() {
+    use kinecal::identify::{identify, Options};
+    use kinecal::measure::{Measurement, Observation};
+    let m = T3r1::default();
+    let actual = ActualMachine::new(&m, &PresetErrors::default());
+    let data: Vec<Measurement> = poses(20, 12)
+        .iter()
+        .map(|t| {
+            let (cfg, pose) = actual.forward(&m.inverse(t).unwrap().sliders).unwrap();
+            Measurement {
+                q: cfg.chain_inputs(ChainId::B1).to_vec(),
+                obs: Observation::Pose(pose),
+            }
+        })
+        .collect();
+    let r = identify(&m.chain(ChainId::B1), &data, &Options::default()).unwrap();
+    assert_eq!(r.identifiability.rank, 20);
+    for d in &data {
+        let e = se3::pose_error(
+            &r.model.forward(&d.q).unwrap(),
+            &match &d.obs {
+                Observation::Pose(p) => *p,
+                Observation::Position(_) => unreachable!(),
+            },
+        );
+        assert!(e.norm() < 1e-8, "{e}");
+    }
+}
