@@ -978,6 +978,12 @@ fn run_case(
 pub fn run_study(config: &StudyConfig) -> Result<StudyReport, CalibError> {
     use crate::model::presets::t3r1::ActualMachine;
     use rand::SeedableRng;
+    if config.identification_poses < 4 || config.validation_poses == 0 {
+        return Err(CalibError::InvalidOption(format!(
+            "the study needs at least 4 identification poses (12 rows each for up to 40 coordinates) and 1 validation pose, got {} and {}",
+            config.identification_poses, config.validation_poses
+        )));
+    }
     let nominal = T3r1::default();
     let actual = ActualMachine::new(&nominal, &config.errors);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(config.seed);

@@ -150,7 +150,7 @@ pub fn run(args: StudyT3r1Args) -> anyhow::Result<()> {
     let redc = (nf.nominal[1].max_position_mm / nf.converged[1].max_position_mm)
         .min(nf.nominal[1].max_orientation_deg / nf.converged[1].max_orientation_deg);
     println!("\n== paper vs kinecal ==");
-    println!("  paper §6 / Fig. 4: both errors reduced >= 10x in one iteration (Table 2 values not reproducible: its chains do not close)");
+    println!("  paper §6 / Fig. 4: both errors reduced >= 10x in one iteration (Table 2 lists T(0) of the printed chains, which do not close as a mechanism: not compared)");
     println!(
         "  kinecal, noise-free: {red1:.3e}x after one iteration (claim >= 10x: {}), {redc:.3e}x after convergence (claim >= 1000x: {})",
         if red1 >= 10.0 { "met" } else { "NOT met" },

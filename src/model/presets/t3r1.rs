@@ -356,7 +356,9 @@ impl BranchedChain {
         let nominal = [Vector3::y(), Vector3::x(), Vector3::y(), Vector3::z()];
         for j in 0..4 {
             let dir = if j == 0 { se3::lin(&s[j]) } else { se3::ang(&s[j]) };
-            let rc = UnitQuaternion::rotation_between(&nominal[j], &dir).unwrap_or_else(UnitQuaternion::identity);
+            // Anti-parallel directions: a half turn about a perpendicular basis axis.
+            let rc = UnitQuaternion::rotation_between(&nominal[j], &dir)
+                .unwrap_or_else(|| UnitQuaternion::from_axis_angle(&nalgebra::Unit::new_normalize(nominal[(j + 1) % 4]), PI));
             let rc = Pose::from_parts(Translation3::identity(), rc);
             d[j] *= rc;
             d[j + 1] = rc.inverse() * d[j + 1];
