@@ -111,6 +111,9 @@ pub enum LowerAngles {
     Closure,
     /// Measured (sensors on `q_i3`): plain data.
     Measured,
+    /// From the closure of the current model, but treated as data (no parameter derivative): an
+    /// ablation showing why the derivative is needed (the iteration creeps).
+    ClosureAsData,
 }
 
 /// Two branched chains, one per side, identified together.
@@ -272,6 +275,7 @@ pub fn linearize_pair_of(
                     let (q, d) = pair.closure_with_jacobian_of(&m.reading, ChainPair::seed(), model).map_err(kin)?;
                     (q, Some(d))
                 }
+                LowerAngles::ClosureAsData => (pair.closure(&m.reading, ChainPair::seed()).map_err(kin)?, None),
                 LowerAngles::Measured => (
                     m.lower
                         .ok_or_else(|| CalibError::InvalidOption(format!("pose {i}: lower angles not measured")))?,
@@ -788,6 +792,19 @@ pub struct CrossValidation {
     pub agreement_orientation_deg: f64,
 }
 
+/// One variant of the lower-angle source in the noise-free ablation.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Ablation {
+    /// What was done.
+    pub variant: String,
+    /// Iterations run.
+    pub iterations: usize,
+    /// Validation errors at the end.
+    pub validation: ErrorStats,
+    /// `‖X‖` of the last iteration.
+    pub last_x_norm: f64,
+}
+
 /// One case (noise-free or noisy) of the study.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct StudyCase {
@@ -809,6 +826,8 @@ pub struct StudyCase {
     pub cross_validation: CrossValidation,
     /// §7 compensation on the validation targets.
     pub compensation: CompensationStats,
+    /// Other sources of the lower angles (noise-free case only; empty otherwise).
+    pub ablations: Vec<Ablation>,
 }
 
 /// Checks of the lower-angle estimate on the actual machine (true model, true readings).
@@ -960,7 +979,45 @@ fn run_case(
         comp.program_change_mm = comp.program_change_mm.max(dprog);
         debug_assert!(s.sliders.iter().all(|v| v.is_finite()));
     }
+    let mut ablations = Vec::new();
+    if noise.is_none() {
+        let mut nominal_closure = id_data.clone();
+        for (i, m) in nominal_closure.iter_mut().enumerate() {
+            m.lower = Some(
+                start
+                    .closure(&m.reading, ChainPair::seed())
+                    .map_err(|source| CalibError::Kinematics { pose: i, source })?,
+            );
+        }
+        let variants = [
+            (
+                "q_i3 measured (sensor on the lower parallelogram)",
+                LowerAngles::Measured,
+                id_data.clone(),
+            ),
+            (
+                "q_i3 from the nominal model's closure, as data",
+                LowerAngles::Measured,
+                nominal_closure,
+            ),
+            (
+                "q_i3 from the current closure, as data (no derivative)",
+                LowerAngles::ClosureAsData,
+                id_data.clone(),
+            ),
+        ];
+        for (name, lower, data) in variants {
+            let r = identify_pair(start, &data, &PairOptions { lower, ..opts.clone() })?;
+            ablations.push(Ablation {
+                variant: name.to_string(),
+                iterations: r.history.len(),
+                validation: pair_errors(&r.pair, va_data)?,
+                last_x_norm: r.history.last().map(|h| h.x_norm).unwrap_or(0.0),
+            });
+        }
+    }
     Ok(StudyCase {
+        ablations,
         noise,
         identified: main.identifiability.identifiable.len(),
         nominal: nominal_err,

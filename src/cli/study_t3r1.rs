@@ -64,6 +64,22 @@ fn print_case(name: &str, c: &StudyCase) {
         "  pairs agree to {:.3e} mm and {:.3e} deg on the validation poses",
         c.cross_validation.agreement_position_mm, c.cross_validation.agreement_orientation_deg
     );
+    if !c.ablations.is_empty() {
+        println!("where q_i3 comes from (same data; validation max after the iterations):");
+        for a in &c.ablations {
+            println!(
+                "  {:<60} {:>2} iterations  {:>10.3e} mm {:>10.3e} deg  last ||X|| {:.2e}",
+                a.variant, a.iterations, a.validation.max_position_mm, a.validation.max_orientation_deg, a.last_x_norm
+            );
+        }
+        println!(
+            "  {:<60} {:>2} iterations  {:>10.3e} mm {:>10.3e} deg",
+            "q_i3 from the current closure with its derivative (kinecal)",
+            c.x_norms.len(),
+            c.converged[1].max_position_mm,
+            c.converged[1].max_orientation_deg
+        );
+    }
     let k = &c.compensation;
     println!("compensation (§7, validation targets, calibrated IK -> sliders; T_cp = nominal FK of those sliders):");
     println!(

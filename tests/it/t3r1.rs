@@ -399,6 +399,11 @@ fn study_command_meets_the_claims() {
     assert!(f(&nf["compensation"]["after_position_mm"]) < 1e-8);
     assert!(f(&v["lower_angles"]["closure_max_error_deg"]) < 1e-9);
     assert!(f(&v["noisy"]["converged"][1]["max_position_mm"]) < 1.0);
+    // Without the closure derivative, or with the nominal closure, the calibration does not get there.
+    let ab = nf["ablations"].as_array().unwrap();
+    assert!(f(&ab[0]["validation"]["max_position_mm"]) < 1e-8);
+    assert!(f(&ab[1]["validation"]["max_position_mm"]) > 1e-2);
+    assert!(f(&ab[2]["validation"]["max_position_mm"]) > 1e-2);
 }
 
 #[test]
