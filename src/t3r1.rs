@@ -861,7 +861,6 @@ pub struct StudyReport {
 
 struct SimPose {
     target: PlatformPose,
-    sliders: [f64; 4],
     truth: Configuration,
     pose: Pose,
 }
@@ -977,7 +976,6 @@ fn run_case(
         comp.tilt_deg = comp.tilt_deg.max(crate::model::presets::t3r1::tilt(&reached).to_degrees());
         let dprog = nalgebra::Vector3::new(t_cp.x - s.target.x, t_cp.y - s.target.y, t_cp.z - s.target.z).norm();
         comp.program_change_mm = comp.program_change_mm.max(dprog);
-        debug_assert!(s.sliders.iter().all(|v| v.is_finite()));
     }
     let mut ablations = Vec::new();
     if noise.is_none() {
@@ -1057,12 +1055,7 @@ pub fn run_study(config: &StudyConfig) -> Result<StudyReport, CalibError> {
         let sv = j.singular_values();
         worst_cond = worst_cond.max(sv.max() / sv.min());
         let (truth, pose) = actual.forward(&cmd.sliders).map_err(kin)?;
-        sims.push(SimPose {
-            target,
-            sliders: cmd.sliders,
-            truth,
-            pose,
-        });
+        sims.push(SimPose { target, truth, pose });
     }
     let valid = sims.split_off(config.identification_poses);
     let ident = sims;

@@ -156,7 +156,7 @@ fn chain_jacobian_matches_finite_differences() {
 }
 
 #[test]
-fn printed_chain_tool_offsets() {
+fn dyad_names_follow_the_paper() {
     let c = BranchedChain::nominal(&Geometry::default(), ChainId::B4);
     assert_eq!(c.dyad_names()[4], "2'4-P");
     assert_eq!(c.params().len(), 30);
@@ -167,7 +167,6 @@ mod method {
     use kinecal::identify::rls_solve;
     use kinecal::measure::Noise;
     use kinecal::model::presets::t3r1::{ActualMachine, ChainId, PresetErrors, T3r1};
-    use kinecal::model::Mechanism;
     use kinecal::se3;
     use kinecal::t3r1::{
         identify_pair, linearize_pair, lower_angles_eq25, rls_sqrt, ChainPair, LowerAngles, PairMeasurement, PairOptions, PairReading,
@@ -349,8 +348,6 @@ mod method {
         let e1 = kinecal::t3r1::pair_errors(&r.first, &valid).unwrap();
         assert!(e0.max_position_mm / e1.max_position_mm > 10.0);
         assert!(e0.max_orientation_deg / e1.max_orientation_deg > 10.0);
-        // And it identifies the chain model, not just the data: the actual chain predicts the same.
-        let _ = a.chain(ChainId::B1).n_params();
     }
 
     #[test]
