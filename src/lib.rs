@@ -16,6 +16,7 @@ pub mod report;
 pub mod se3;
 pub mod simulate;
 pub mod study;
+pub mod t3r1;
 pub mod tracker_calibration;
 pub mod workflow;
 

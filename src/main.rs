@@ -21,9 +21,9 @@ enum Command {
     /// Calibrate the ABB IRB 120 from real laser-tracker data (three tool reflectors), identify
     /// on poses idx < 500 and validate on idx ≥ 500.
     Irb120(cli::irb120::Irb120Args),
-    /// Reproduce a paper's simulation study (`study pm5`: §5.1 of the 5-DOF paper) and print
+    /// Reproduce a seed paper's simulation study (`study pm5`: §5.1 of the 5-DOF paper; `study t3r1`: §6 of the 3T1R paper) and print
     /// the paper's figures beside kinecal's.
-    Study(cli::study::StudyArgs),
+    Study(cli::study::StudyCommand),
     /// Built-in models: list them, export one as a model file (TOML) to edit.
     Model(cli::model::ModelArgs),
     /// Data files: check one against a model, join an inputs file and a measurement file.

@@ -8,4 +8,5 @@ pub mod model;
 pub mod progress;
 pub mod simulate;
 pub mod study;
+pub mod study_t3r1;
 pub mod validate;

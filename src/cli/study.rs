@@ -1,14 +1,34 @@
-//! `kinecal study pm5`: the simulation study of §5.1 of the 5-DOF paper, paper vs kinecal.
-use clap::{Args, ValueEnum};
+//! `kinecal study pm5 | t3r1`: the seed papers' simulation studies, paper vs kinecal.
+use clap::{Args, Subcommand, ValueEnum};
 use kinecal::model::presets::pm5::Parasitic;
 use kinecal::study::{pm5_study, Compensation, ErrorStats, Pm5Study, StudyOptions, SubLoopChoice};
 use std::time::Instant;
 
+/// Arguments of `kinecal study`.
+#[derive(Args, Debug)]
+pub struct StudyCommand {
+    #[command(subcommand)]
+    which: Study,
+}
+
 /// Which study.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+#[derive(Subcommand, Debug)]
 pub enum Study {
-    /// The 5-DOF PUU-2PR(RPRR)S machine, §5.1 of 001_8dc75bc45f73c552.
-    Pm5,
+    /// §5.1 of the 5-DOF paper: the PUU-2PR(RPRR)S machine, random errors, 30 identification and
+    /// 20 verification configurations, noise-free and noisy, exact and first-order compensation,
+    /// Monte-Carlo.
+    Pm5(StudyArgs),
+    /// §6 of the 3T1R paper: ranks, identification of the B1/B3 pair with the closure-computed
+    /// lower angles, idle-pair cross-validation and §7 compensation, noise-free and noisy.
+    T3r1(super::study_t3r1::StudyT3r1Args),
+}
+
+/// Run `kinecal study …`.
+pub fn run(cmd: StudyCommand) -> anyhow::Result<()> {
+    match cmd.which {
+        Study::Pm5(a) => run_pm5(a),
+        Study::T3r1(a) => super::study_t3r1::run(a),
+    }
 }
 
 /// Parasitic-constraint model.
@@ -29,11 +49,9 @@ pub enum SubLoopArg {
     L4l5,
 }
 
-/// Arguments of `kinecal study`.
+/// Arguments of `kinecal study pm5`.
 #[derive(Args, Debug)]
 pub struct StudyArgs {
-    /// The study to run.
-    pub study: Study,
     /// Seed of the single trial (Monte-Carlo draw k uses seed + 1 + k).
     #[arg(long, default_value_t = 2024)]
     pub seed: u64,
@@ -176,10 +194,10 @@ fn print(study: &Pm5Study, secs: f64) {
     println!("time {secs:.2} s");
 }
 
-/// Run the command.
-pub fn run(args: StudyArgs) -> anyhow::Result<()> {
-    match args.study {
-        Study::Pm5 => {
+/// Run `kinecal study pm5`.
+fn run_pm5(args: StudyArgs) -> anyhow::Result<()> {
+    {
+        {
             let opts = StudyOptions {
                 seed: args.seed,
                 draws: args.draws,

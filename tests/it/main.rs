@@ -6,4 +6,5 @@ mod irb120;
 mod model_file;
 mod se3_props;
 mod study;
+mod t3r1;
 mod workflow;
