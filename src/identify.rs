@@ -361,51 +361,44 @@ pub fn identify<M: Mechanism + Clone>(initial: &M, data: &[Measurement], opts: &
     })
 }
 
-/// Recursive least squares over the pose blocks of a linearisation, restricted to `cols`.
+/// Recursive least squares in square-root information form, pose block after pose block, on the
+/// columns `cols` (scaled to unit norm): `[R d; A_i b_i] = Q·[R' d'; 0 e]`, then `R·x = d`.
 ///
-/// The recursion is started from the batch solution of the first poses whose rows reach full
-/// column rank (so it equals batch least squares exactly, not approximately through a large
-/// initial covariance), then updated pose by pose with the Woodbury identity:
-/// `K = P·Aᵢᵀ(I + Aᵢ·P·Aᵢᵀ)⁻¹`, `x ← x + K(bᵢ − Aᵢx)`, `P ← P − K·Aᵢ·P`.
+/// Equal to batch least squares to round-off: each pose only updates the triangular factor of
+/// the information matrix by orthogonal transformations, never inverts it. (A covariance-form
+/// recursion `P ← P − K·A·P` started from an ill-conditioned first block of poses keeps its error
+/// through every update; the 3T1R machine showed 1e-4 relative.)
 pub fn rls_solve(lin: &Linearization, cols: &[usize]) -> Result<DVector<f64>, CalibError> {
     let (scaled, norms) = identifiability::scale_columns(&lin.jacobian, cols);
     let k = cols.len();
     let rows = scaled.nrows();
     let mut ends: Vec<usize> = lin.offsets.iter().skip(1).copied().collect();
     ends.push(rows);
-    // Find the first block end where the stacked rows have full column rank.
-    let mut start = None;
+    let mut r = DMatrix::<f64>::zeros(k, k + 1);
+    let mut start = 0;
     for &e in &ends {
-        if e < k {
-            continue;
-        }
-        let head = scaled.rows(0, e).into_owned();
-        let n = head.transpose() * &head;
-        if let Some(ch) = n.clone().cholesky() {
-            let rc = identifiability::singular_values(&head);
-            if rc.last().copied().unwrap_or(0.0) > 1e-10 * rc[0] {
-                let p = ch.inverse();
-                let x = &p * (head.transpose() * lin.residual.rows(0, e));
-                start = Some((e, p, x));
-                break;
-            }
-        }
+        let m = e - start;
+        let mut stack = DMatrix::zeros(k + m, k + 1);
+        stack.view_mut((0, 0), (k, k + 1)).copy_from(&r);
+        stack.view_mut((k, 0), (m, k)).copy_from(&scaled.rows(start, m));
+        stack.view_mut((k, k), (m, 1)).copy_from(&lin.residual.rows(start, m));
+        let f = stack.qr().r();
+        r.fill(0.0);
+        let n = f.nrows().min(k);
+        r.view_mut((0, 0), (n, k + 1)).copy_from(&f.view((0, 0), (n, k + 1)));
+        start = e;
     }
-    let (e0, mut p, mut x) =
-        start.ok_or_else(|| CalibError::Numerical("recursive least squares: the data never reach full rank".into()))?;
-    let mut row = e0;
-    for &e in ends.iter().filter(|&&e| e > e0) {
-        let a = scaled.rows(row, e - row).into_owned();
-        let b = lin.residual.rows(row, e - row).into_owned();
-        let s = DMatrix::identity(e - row, e - row) + &a * &p * a.transpose();
-        let s_inv = s
-            .try_inverse()
-            .ok_or_else(|| CalibError::Numerical("recursive least squares: singular innovation".into()))?;
-        let gain = &p * a.transpose() * s_inv;
-        x += &gain * (b - &a * &x);
-        p -= &gain * &a * &p;
-        row = e;
+    let tri = r.view((0, 0), (k, k)).into_owned();
+    let d = r.column(k).into_owned();
+    let dmax = (0..k).map(|i| tri[(i, i)].abs()).fold(0.0, f64::max);
+    if (0..k).any(|i| tri[(i, i)].abs() <= 1e-13 * dmax) {
+        return Err(CalibError::Numerical(
+            "recursive least squares: the data never reach full rank".into(),
+        ));
     }
+    let x = tri
+        .solve_upper_triangular(&d)
+        .ok_or_else(|| CalibError::Numerical("recursive least squares: singular information matrix".into()))?;
     let mut delta = DVector::zeros(lin.jacobian.ncols());
     for (i, &c) in cols.iter().enumerate() {
         delta[c] = x[i] / norms[i];
