@@ -21,12 +21,16 @@ enum Command {
     /// Calibrate the ABB IRB 120 from real laser-tracker data (three tool reflectors), identify
     /// on poses idx < 500 and validate on idx ≥ 500.
     Irb120(cli::irb120::Irb120Args),
+    /// Choose measurement configurations that maximise an observability index (greedy, SFFS or
+    /// exchange over a large candidate set) and write them as CSV.
+    Plan(cli::plan::PlanArgs),
 }
 
 fn main() -> ExitCode {
     let args = Args::parse();
     let result = match args.command {
         Command::Irb120(a) => cli::irb120::run(a),
+        Command::Plan(a) => cli::plan::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -392,3 +392,46 @@ fn plan_csv_has_one_row_per_configuration() {
     assert_relative_eq!(first[2], c.q[0].to_degrees(), max_relative = 1e-8);
     assert_relative_eq!(first[8], c.target.translation.vector.x, epsilon = 1e-5);
 }
+
+#[test]
+fn plan_command_writes_the_chosen_configurations() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("plan.csv");
+    let res = assert_cmd::Command::cargo_bin("kinecal")
+        .unwrap()
+        .args([
+            "plan",
+            "--candidates",
+            "1500",
+            "-n",
+            "8",
+            "--method",
+            "sffs",
+            "--criterion",
+            "o2",
+            "-o",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
+    let stdout = String::from_utf8_lossy(&res.stdout);
+    assert!(stdout.contains("O_T"), "{stdout}");
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert_eq!(text.lines().filter(|l| !l.starts_with('#')).count(), 9);
+    let table = kinecal::io::table::parse_table(&out, &text).unwrap();
+    assert_eq!(table.len(), 8);
+    assert!(table.values("q6_deg").unwrap().iter().all(|v| v.abs() <= 170.0));
+
+    let bad = assert_cmd::Command::cargo_bin("kinecal")
+        .unwrap()
+        .args(["plan", "--candidates", "100", "--observe", "angles"])
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        err.contains("--observe must be pose or position") && err.lines().count() == 1,
+        "{err}"
+    );
+}
