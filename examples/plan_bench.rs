@@ -42,15 +42,29 @@ struct Args {
     shortlist: usize,
 }
 
+/// CPU time (user + system) of this process so far, in seconds (Linux; 0 elsewhere). With the
+/// machine shared, wall time depends on the load; CPU time / threads is the unloaded wall time.
+fn cpu_seconds() -> f64 {
+    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
+        return 0.0;
+    };
+    // Fields after the command name (which is in parentheses): utime is field 14, stime 15.
+    let Some(rest) = stat.rsplit(')').next() else { return 0.0 };
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks: f64 = f.get(11).and_then(|v| v.parse().ok()).unwrap_or(0.0) + f.get(12).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
+    ticks / 100.0
+}
+
 /// Jacobian blocks and selection for any mechanism and candidate set; prints timings and indices.
 fn bench<M: Mechanism + ?Sized>(mech: &M, candidates: &[Candidate], kind: ObservationKind, args: &Args) -> anyhow::Result<()> {
     let noise = Noise::default();
-    let t = Instant::now();
+    let (t, c0) = (Instant::now(), cpu_seconds());
     let cols = design::identifiable_columns(mech, candidates, kind, &noise, None, 200, 1e-8)?;
     let blocks = CandidateJacobians::build(mech, candidates, kind, &noise, &cols, None)?;
     println!(
-        "jacobians: {:.2} s  ({} candidates × {}×{} blocks, {} MB)",
+        "jacobians: {:.2} s wall, {:.2} s CPU  ({} candidates × {}×{} blocks, {} MB)",
         t.elapsed().as_secs_f64(),
+        cpu_seconds() - c0,
         blocks.len(),
         blocks.rows_per_candidate(),
         blocks.n_columns(),
@@ -63,7 +77,7 @@ fn bench<M: Mechanism + ?Sized>(mech: &M, candidates: &[Candidate], kind: Observ
             shortlist: args.shortlist,
             ..Default::default()
         };
-        let t = Instant::now();
+        let (t, c0) = (Instant::now(), cpu_seconds());
         let mut moves = 0usize;
         let verbose = std::env::var("PLAN_BENCH_VERBOSE").is_ok();
         let sel = design::select(&blocks, method, &opts, &mut |s| {
@@ -74,9 +88,10 @@ fn bench<M: Mechanism + ?Sized>(mech: &M, candidates: &[Candidate], kind: Observ
         })?;
         let ix = &sel.indices;
         println!(
-            "selection {:>8?}: {:6.2} s  {moves:3} moves  {} = {:.6e}  (O1 {:.4e}  O2 {:.4e}  O_T {:.2}  O3 {:.4e}  O4 {:.4e}  O5 {:.4e}  logdet {:.3})",
+            "selection {:>8?}: {:6.2} s wall, {:6.2} s CPU  {moves:3} moves  {} = {:.6e}  (O1 {:.4e}  O2 {:.4e}  O_T {:.2}  O3 {:.4e}  O4 {:.4e}  O5 {:.4e}  logdet {:.3})",
             method,
             t.elapsed().as_secs_f64(),
+            cpu_seconds() - c0,
             sel.criterion,
             sel.value(),
             ix.o1,
@@ -93,11 +108,12 @@ fn bench<M: Mechanism + ?Sized>(mech: &M, candidates: &[Candidate], kind: Observ
 
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
-    println!("threads: {}", rayon::current_num_threads());
+    let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
+    println!("threads: {}, load average: {}", rayon::current_num_threads(), load.trim());
     let mut rng = ChaCha8Rng::seed_from_u64(args.seed);
     let chain = random_serial_chain(&mut rng, args.joints, 0);
     let lim = 170f64.to_radians();
-    let t = Instant::now();
+    let (t, c0) = (Instant::now(), cpu_seconds());
     let (cands, rep) = design::candidates_in_input_box(
         &chain,
         &vec![-lim; args.joints],
@@ -110,8 +126,9 @@ fn main() -> anyhow::Result<()> {
         None,
     )?;
     println!(
-        "candidates: {:.2} s  ({} sampled, {} kept) on {}",
+        "candidates: {:.2} s wall, {:.2} s CPU  ({} sampled, {} kept) on {}",
         t.elapsed().as_secs_f64(),
+        cpu_seconds() - c0,
         rep.sampled,
         rep.kept,
         chain.name()

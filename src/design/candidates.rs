@@ -1,7 +1,7 @@
 //! Candidate measurement configurations: a sample of a mechanism's workspace (or joint space),
 //! filtered by reachability, input limits and distance from singularity.
 //!
-//! Sampling is a pure function of the sample index ([`Sampling::point`]), so generation runs in
+//! Sampling is a pure function of the sample index ([`Sampling::points`]), so generation runs in
 //! parallel (rayon) and gives the same candidates, in the same order, on any number of threads.
 use crate::error::CalibError;
 use crate::model::Mechanism;

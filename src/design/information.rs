@@ -49,6 +49,7 @@ pub struct InformationState<'a> {
     log_det: f64,
     leverage: Vec<f64>,
     since_refresh: usize,
+    full_rank: bool,
     /// Low-rank updates between exact refreshes.
     pub refresh_every: usize,
 }
@@ -84,8 +85,10 @@ impl<'a> InformationState<'a> {
             log_det: 0.0,
             leverage: vec![0.0; n * r * r],
             since_refresh: 0,
+            full_rank: false,
             refresh_every: DEFAULT_REFRESH_EVERY,
         };
+        s.full_rank = !s.rank_deficient();
         s.refresh()?;
         Ok(s)
     }
@@ -214,6 +217,11 @@ impl<'a> InformationState<'a> {
         ObservabilityIndices::from_information(&m, rows)
     }
 
+    /// Whether `M` is rank-deficient (see [`ObservabilityIndices::from_information`]).
+    pub fn rank_deficient(&self) -> bool {
+        self.rows() < self.blocks.n_columns() || self.indices().o3 == 0.0
+    }
+
     /// Residual rows of the set.
     pub fn rows(&self) -> usize {
         self.selected.len() * self.blocks.rows_per_candidate()
@@ -247,7 +255,12 @@ impl<'a> InformationState<'a> {
     /// the set and the mask are already changed.
     fn update(&mut self, j: usize, sign: f64) -> Result<(), CalibError> {
         self.since_refresh += 1;
-        if self.since_refresh >= self.refresh_every {
+        // Crossing between rank-deficient and full rank changes the leverage blocks from order
+        // 1/ε to order 1 (or back): recompute instead of cancelling digits.
+        let full = !self.rank_deficient();
+        let crossed = full != self.full_rank;
+        self.full_rank = full;
+        if crossed || self.since_refresh >= self.refresh_every {
             return self.refresh();
         }
         let r = self.blocks.rows_per_candidate();
@@ -339,29 +352,108 @@ pub(crate) fn inverse_factor(m: &DMatrix<f64>, ridge: f64) -> Result<(Vec<f64>, 
     Ok((row_major(&linv.transpose()), log_det))
 }
 
-/// `log det(I + A_i P A_iᵀ)` for one block `a` (`R × k`) with `P = F Fᵀ`, `f` upper triangular
-/// row-major; `w` is scratch of length `R·k`.
-pub(crate) fn gain_with_factor<const R: usize>(a: &[f64], k: usize, f: &[f64], w: &mut [f64]) -> f64 {
-    let mut g = [0.0f64; 36];
+/// `g = (A F)(A F)ᵀ = A P Aᵀ` for one block `a` (`R × k`) with `P = F Fᵀ`, `f` upper triangular
+/// row-major; `w` is scratch of length `R·k`, `g` receives `R × R` values.
+pub(crate) fn exact_one<const R: usize>(a: &[f64], k: usize, f: &[f64], w: &mut [f64], g: &mut [f64]) {
+    #[cfg(target_arch = "x86_64")]
+    if wide_simd() {
+        // SAFETY: the CPU supports AVX2 (checked at run time).
+        return unsafe { exact_one_avx2::<R>(a, k, f, w, g) };
+    }
+    exact_one_body::<R>(a, k, f, w, g)
+}
+
+/// Whether the CPU has AVX2 (4-wide f64 vectors); the kernels below are compiled twice and the
+/// wide version is chosen at run time. Both perform the same floating-point operations in the
+/// same order (no fused multiply–add, no reassociation), so results are identical.
+#[cfg(target_arch = "x86_64")]
+fn wide_simd() -> bool {
+    std::is_x86_feature_detected!("avx2")
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn exact_one_avx2<const R: usize>(a: &[f64], k: usize, f: &[f64], w: &mut [f64], g: &mut [f64]) {
+    exact_one_body::<R>(a, k, f, w, g)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn low_rank_one_avx2<const R: usize>(a: &[f64], k: usize, u: &[f64], g: &mut [f64], sign: f64) {
+    low_rank_one_body::<R>(a, k, u, g, sign)
+}
+
+#[inline(always)]
+#[allow(clippy::needless_range_loop)] // fixed-size R×R kernels read best with indices
+fn exact_one_body<const R: usize>(a: &[f64], k: usize, f: &[f64], w: &mut [f64], g: &mut [f64]) {
     w.iter_mut().for_each(|v| *v = 0.0);
-    for r in 0..R {
-        let row = &a[r * k..(r + 1) * k];
-        let wr = &mut w[r * k..(r + 1) * k];
-        for (c, &x) in row.iter().enumerate() {
-            let fr = &f[c * k + c..(c + 1) * k];
-            for (wv, fv) in wr[c..].iter_mut().zip(fr) {
+    // W = A F, F upper triangular: row c of F has entries c..k.
+    for c in 0..k {
+        let fr = &f[c * k + c..(c + 1) * k];
+        for r in 0..R {
+            let x = a[r * k + c];
+            for (wv, fv) in w[r * k + c..(r + 1) * k].iter_mut().zip(fr) {
                 *wv += x * fv;
+            }
+        }
+    }
+    // G = W Wᵀ with independent accumulators (each entry still summed in column order).
+    let mut acc = [[0.0f64; R]; R];
+    for j in 0..k {
+        let mut col = [0.0f64; R];
+        for r in 0..R {
+            col[r] = w[r * k + j];
+        }
+        for p in 0..R {
+            for q in p..R {
+                acc[p][q] += col[p] * col[q];
             }
         }
     }
     for p in 0..R {
         for q in p..R {
-            let d: f64 = w[p * k..(p + 1) * k].iter().zip(&w[q * k..(q + 1) * k]).map(|(x, y)| x * y).sum();
-            g[p * R + q] = d;
-            g[q * R + p] = d;
+            g[p * R + q] = acc[p][q];
+            g[q * R + p] = acc[p][q];
         }
     }
-    log_det_identity_plus::<R>(&g[..R * R], 1.0)
+}
+
+/// `g += sign·(A U)(A U)ᵀ` for one block `a` (`R × k`); `u` is `k × R`, row-major.
+#[allow(clippy::needless_range_loop)] // fixed-size R×R kernels read best with indices
+pub(crate) fn low_rank_one<const R: usize>(a: &[f64], k: usize, u: &[f64], g: &mut [f64], sign: f64) {
+    #[cfg(target_arch = "x86_64")]
+    if wide_simd() {
+        // SAFETY: the CPU supports AVX2 (checked at run time).
+        return unsafe { low_rank_one_avx2::<R>(a, k, u, g, sign) };
+    }
+    low_rank_one_body::<R>(a, k, u, g, sign)
+}
+
+#[inline(always)]
+#[allow(clippy::needless_range_loop)] // fixed-size R×R kernels read best with indices
+fn low_rank_one_body<const R: usize>(a: &[f64], k: usize, u: &[f64], g: &mut [f64], sign: f64) {
+    let mut w = [[0.0f64; R]; R];
+    for (r, wr) in w.iter_mut().enumerate() {
+        let row = &a[r * k..(r + 1) * k];
+        for (&x, ur) in row.iter().zip(u.chunks_exact(R)) {
+            let ur: &[f64; R] = ur.try_into().expect("chunks of R");
+            for b in 0..R {
+                wr[b] += x * ur[b];
+            }
+        }
+    }
+    for p in 0..R {
+        for q in p..R {
+            let mut d = 0.0;
+            for b in 0..R {
+                d += w[p][b] * w[q][b];
+            }
+            g[p * R + q] += sign * d;
+            if q != p {
+                g[q * R + p] += sign * d;
+            }
+        }
+    }
 }
 
 /// The better of two (candidate, value) pairs: larger value, then lower index.
@@ -383,7 +475,7 @@ pub(crate) fn better(a: (usize, f64), b: (usize, f64)) -> (usize, f64) {
 #[allow(clippy::needless_range_loop)] // index form mirrors the Cholesky recurrences
 pub(crate) fn log_det_identity_plus<const R: usize>(g: &[f64], sign: f64) -> f64 {
     let mut l = [[0.0f64; R]; R];
-    let mut ld = 0.0;
+    let mut det = 1.0;
     for j in 0..R {
         let mut d = 1.0 + sign * g[j * R + j];
         for t in 0..j {
@@ -394,7 +486,7 @@ pub(crate) fn log_det_identity_plus<const R: usize>(g: &[f64], sign: f64) -> f64
         }
         let dj = d.sqrt();
         l[j][j] = dj;
-        ld += d.ln();
+        det *= d;
         for i in j + 1..R {
             let mut s = sign * g[i * R + j];
             for t in 0..j {
@@ -403,40 +495,18 @@ pub(crate) fn log_det_identity_plus<const R: usize>(g: &[f64], sign: f64) -> f64
             l[i][j] = s / dj;
         }
     }
-    ld
+    // One logarithm of the product of the pivots (each pivot is ≥ 1 for additions and the
+    // product stays far inside the f64 range for R ≤ 6).
+    det.ln()
 }
 
 /// `G_i += sign·(A_i U)(A_i U)ᵀ` for every candidate; `u` is `k × R`, row-major.
-#[allow(clippy::needless_range_loop)] // fixed-size R×R kernels read best with indices
 fn low_rank_update<const R: usize>(data: &[f64], k: usize, leverage: &mut [f64], u: &[f64], sign: f64) {
     leverage
         .par_chunks_mut(R * R)
         .zip(data.par_chunks(R * k))
         .with_min_len(MIN_CHUNK)
-        .for_each(|(g, a)| {
-            let mut w = [[0.0f64; R]; R];
-            for (r, wr) in w.iter_mut().enumerate() {
-                let row = &a[r * k..(r + 1) * k];
-                for (&x, ur) in row.iter().zip(u.chunks_exact(R)) {
-                    let ur: &[f64; R] = ur.try_into().expect("chunks of R");
-                    for b in 0..R {
-                        wr[b] += x * ur[b];
-                    }
-                }
-            }
-            for p in 0..R {
-                for q in p..R {
-                    let mut d = 0.0;
-                    for b in 0..R {
-                        d += w[p][b] * w[q][b];
-                    }
-                    g[p * R + q] += sign * d;
-                    if q != p {
-                        g[q * R + p] += sign * d;
-                    }
-                }
-            }
-        });
+        .for_each(|(g, a)| low_rank_one::<R>(a, k, u, g, sign));
 }
 
 /// `G_i = (A_i F)(A_i F)ᵀ` for every candidate; `f` is `k × k` upper triangular, row-major.
@@ -445,28 +515,5 @@ fn exact_leverage<const R: usize>(data: &[f64], k: usize, leverage: &mut [f64], 
         .par_chunks_mut(R * R)
         .zip(data.par_chunks(R * k))
         .with_min_len(MIN_CHUNK)
-        .for_each_init(
-            || vec![0.0f64; R * k],
-            |w, (g, a)| {
-                w.iter_mut().for_each(|v| *v = 0.0);
-                for r in 0..R {
-                    let row = &a[r * k..(r + 1) * k];
-                    let wr = &mut w[r * k..(r + 1) * k];
-                    for (c, &x) in row.iter().enumerate() {
-                        // F is upper triangular: row c has entries c..k.
-                        let fr = &f[c * k + c..(c + 1) * k];
-                        for (wv, fv) in wr[c..].iter_mut().zip(fr) {
-                            *wv += x * fv;
-                        }
-                    }
-                }
-                for p in 0..R {
-                    for q in p..R {
-                        let d: f64 = w[p * k..(p + 1) * k].iter().zip(&w[q * k..(q + 1) * k]).map(|(x, y)| x * y).sum();
-                        g[p * R + q] = d;
-                        g[q * R + p] = d;
-                    }
-                }
-            },
-        );
+        .for_each_init(|| vec![0.0f64; R * k], |w, (g, a)| exact_one::<R>(a, k, f, w, g));
 }

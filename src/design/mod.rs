@@ -10,8 +10,12 @@
 //!    the identifiable parameters, in one contiguous buffer ([`CandidateJacobians`]).
 //! 3. [`indices`]: observability indices O1–O5 and D-optimality of a set
 //!    ([`ObservabilityIndices`]).
-//! 4. [`select`]: greedy, SFFS and exchange selection, made fast by low-rank updates of the
-//!    information matrix ([`information::InformationState`]).
+//! 4. [`mod@select`]: greedy, SFFS and exchange selection, made fast by lazy (submodular) gain
+//!    evaluation ([`lazy::LazyGains`]) and low-rank updates of the information matrix
+//!    ([`information::InformationState`]).
+//!
+//! All indices are computed on the **scaled** problem: rows divided by the measurement noise,
+//! columns by their root-mean-square over the candidate set ([`jacobians`]).
 //!
 //! [`write_plan_csv`] writes the chosen configurations.
 pub mod candidates;
@@ -25,7 +29,7 @@ pub use candidates::{candidates_in_input_box, candidates_in_workspace, Candidate
 pub use indices::{Criterion, ObservabilityIndices};
 pub use information::InformationState;
 pub use jacobians::{identifiable_columns, CandidateJacobians};
-pub use select::{exchange, greedy, select, sffs, ExchangeStart, SelectOptions, Selection, SelectionMethod, Step};
+pub use select::{candidate_pool, exchange, greedy, select, sffs, ExchangeStart, SelectOptions, Selection, SelectionMethod, Step};
 
 use std::io::Write;
 

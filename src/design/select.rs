@@ -1,23 +1,38 @@
 //! Choosing `n` configurations out of `N` candidates: greedy forward search, sequential forward
-//! floating search (SFFS) and a Fedorov/DETMAX-like exchange, all on [`InformationState`].
+//! floating search (SFFS) and a Fedorov/DETMAX-like exchange.
 //!
-//! # Scores
+//! # How a move is scored
 //! * **D and O1** are monotone in `log det M` for sets of equal size, so a move is scored by the
-//!   regularised `log det(M + εI)`, exactly and for every candidate at once via the determinant
-//!   lemma (`log det(M + εI) + log det(I ± G_i)`).
-//! * **O2–O5** depend on the extreme eigenvalues: re-evaluating them for each of `N` candidates
-//!   would need `N` eigendecompositions per step. Additions are therefore **screened**: the
-//!   `shortlist` candidates of largest D-optimality gain (which is `Σ log(1 + μ_j)` over the
-//!   eigenvalues `μ_j` of `G_i`, dominated by information added along the weakest directions of
-//!   `M`) are evaluated exactly (eigenvalues of `M + A_iᵀA_i`) and the best of them is taken.
-//!   Removals (at most `n + 1` members) are always evaluated exactly.
+//!   regularised `log det(M + εI)`, for every candidate at once via the matrix determinant lemma:
+//!   adding `i` changes it by `log det(I + A_i (M + εI)⁻¹ A_iᵀ)`, removing by
+//!   `log det(I − A_i (M + εI)⁻¹ A_iᵀ)`.
+//! * **O2–O5** depend on the extreme eigenvalues; evaluating them exactly for each of `N`
+//!   candidates would need `N` eigendecompositions per step. Additions are therefore
+//!   **screened**: the `shortlist` candidates of largest D-optimality gain (the gain is
+//!   `Σ log(1 + μ_j)` over the eigenvalues `μ_j` of `A_i (M + εI)⁻¹ A_iᵀ`, dominated by information
+//!   added along the weakest directions of `M`) are evaluated exactly (eigenvalues of
+//!   `M + A_iᵀA_i`) and the best of them is taken. Removals (at most `n + 1` members) are always
+//!   evaluated exactly.
+//!
+//! # How it is made fast
+//! * **Greedy** runs on all `N` candidates with [`LazyGains`]: D-gains only decrease as the set
+//!   grows (submodularity), so stale gains are upper bounds and only the candidates whose bound
+//!   beats the current best are brought up to date — by the stored rank-`r` Woodbury factors of
+//!   the additions they missed, or from the Cholesky factor of `M + εI`. The result is exactly
+//!   the greedy choice (up to round-off in near-ties).
+//! * **SFFS and exchange** add *and remove*, which breaks the bounds. On more than
+//!   [`SelectOptions::pool`] candidates they first run the greedy pass on all candidates, then
+//!   search a **pool**: the greedy set plus the `pool` candidates of largest D-gain with respect
+//!   to it ([`candidate_pool`]). Inside the pool every move is a Sherman–Morrison–Woodbury update
+//!   of all leverage blocks ([`InformationState`]). The greedy set is returned instead if it is
+//!   better, so neither method is ever worse than greedy.
 //!
 //! # Before full rank
 //! Until the set's information matrix has full rank (at least `⌈k/r⌉` configurations) O2–O5 are
 //! all zero and cannot rank additions: these first configurations are chosen D-optimally (with the
 //! ridge `ε`, [`super::information::DEFAULT_RIDGE`]); [`Selection::warm_up`] says how many.
 //!
-//! Ties are broken towards the lower candidate index, and every parallel reduction is
+//! Ties are broken towards the lower candidate index and every parallel reduction is
 //! order-independent, so a selection is deterministic (the seed only matters for the exchange's
 //! random start).
 use super::indices::{Criterion, ObservabilityIndices};
@@ -193,7 +208,7 @@ fn new_state<'a>(blocks: &'a CandidateJacobians, set: &[usize], opts: &SelectOpt
 
 /// Whether the set's information matrix is rank-deficient (O2–O5 are zero).
 fn rank_deficient(state: &InformationState) -> bool {
-    state.rows() < state.blocks().n_columns() || state.indices().o3 == 0.0
+    state.rank_deficient()
 }
 
 /// Score of the current set.
@@ -298,26 +313,34 @@ fn grow(
 ///
 /// Each step adds the candidate of best score (see the module docs): the D-optimality gains it
 /// needs are found by lazy evaluation ([`LazyGains`], exact thanks to submodularity), so a step
-/// costs a few thousand gain evaluations instead of `N`.
+/// usually brings only a fraction of the `N` gains up to date.
 pub fn greedy(blocks: &CandidateJacobians, opts: &SelectOptions, progress: StepFn) -> Result<Selection, CalibError> {
     check(blocks, opts)?;
+    Ok(greedy_lazy(blocks, opts, progress)?.0)
+}
+
+/// The greedy selection and the lazy-gain state it ends in.
+fn greedy_lazy<'a>(
+    blocks: &'a CandidateJacobians,
+    opts: &SelectOptions,
+    progress: StepFn,
+) -> Result<(Selection, LazyGains<'a>), CalibError> {
     let c = opts.criterion;
     let r = blocks.rows_per_candidate();
-    let k = blocks.n_columns();
-    let mut lazy = LazyGains::new(blocks, opts.ridge);
-    let mut m = nalgebra::DMatrix::zeros(k, k);
-    let mut set: Vec<usize> = Vec::with_capacity(opts.n);
+    let mut lazy = LazyGains::new(blocks, opts.ridge)?;
     let mut history = Vec::with_capacity(opts.n);
     let mut warm = 0;
-    while set.len() < opts.n {
-        let rank_def = set.len() * r < k || ObservabilityIndices::from_information(&m, set.len() * r).o3 == 0.0;
+    while lazy.selected().len() < opts.n {
+        let size = lazy.selected().len();
+        let rank_def = lazy.rank_deficient();
         let screened = !c.is_determinant_based() && !rank_def;
         if !c.is_determinant_based() && rank_def {
             warm += 1;
         }
-        let top = lazy.top(&m, if screened { opts.shortlist } else { 1 })?;
+        let top = lazy.top(if screened { opts.shortlist } else { 1 });
+        let m = lazy.information();
         let pick = if screened {
-            let rows = (set.len() + 1) * r;
+            let rows = (size + 1) * r;
             top.par_iter()
                 .map(|&(i, _)| {
                     let mut mi = m.clone();
@@ -329,43 +352,47 @@ pub fn greedy(blocks: &CandidateJacobians, opts: &SelectOptions, progress: StepF
             top.first().copied()
         };
         let (i, _) = pick.ok_or_else(|| CalibError::InvalidOption("ran out of candidates".into()))?;
-        add_gram(&mut m, blocks.block(i), r, 1.0);
-        set.push(i);
-        lazy.exclude(i);
+        lazy.add(i)?;
+        let m = lazy.information();
         let score = if c.is_determinant_based() {
-            super::information::inverse_factor(&m, opts.ridge)?.1
+            super::information::inverse_factor(m, opts.ridge)?.1
         } else {
-            ObservabilityIndices::from_information(&m, set.len() * r).value(c)
+            ObservabilityIndices::from_information(m, (size + 1) * r).value(c)
         };
         let step = Step {
             action: Action::Add,
             candidate: i,
-            size: set.len(),
+            size: size + 1,
             score,
         };
         progress(&step);
         history.push(step);
     }
-    Ok(finish(blocks, set, SelectionMethod::Greedy, opts, warm, history))
+    let set = lazy.selected().to_vec();
+    Ok((finish(blocks, set, SelectionMethod::Greedy, opts, warm, history), lazy))
 }
 
 /// The candidate pool of the floating and exchange searches on a large set: the `size`
-/// candidates of largest D-optimality gain with respect to the design `base` (the greedy set),
-/// together with `base` itself, in increasing index order.
+/// candidates of largest D-optimality gain with respect to the design `base` (the greedy or
+/// start set), together with `base` itself, in increasing index order.
 pub fn candidate_pool(blocks: &CandidateJacobians, base: &[usize], size: usize, ridge: f64) -> Result<Vec<usize>, CalibError> {
     if size >= blocks.len() {
         return Ok((0..blocks.len()).collect());
     }
-    let m = blocks.information(base);
-    let gains = LazyGains::all_exact(blocks, &m, ridge)?;
-    let mut order: Vec<(usize, f64)> = gains.into_iter().enumerate().collect();
-    let cmp = |a: &(usize, f64), b: &(usize, f64)| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0));
-    order.select_nth_unstable_by(size - 1, cmp);
-    let mut pool: Vec<usize> = order[..size].iter().map(|p| p.0).collect();
-    pool.extend_from_slice(base);
+    let mut lazy = LazyGains::new(blocks, ridge)?;
+    for &i in base {
+        lazy.add(i)?;
+    }
+    Ok(pool_from(&mut lazy, size))
+}
+
+/// The pool of [`candidate_pool`] from a lazy-gain state whose design is the base set.
+fn pool_from(lazy: &mut LazyGains, size: usize) -> Vec<usize> {
+    let mut pool: Vec<usize> = lazy.top(size).into_iter().map(|p| p.0).collect();
+    pool.extend_from_slice(lazy.selected());
     pool.sort_unstable();
     pool.dedup();
-    Ok(pool)
+    pool
 }
 
 /// Sequential forward floating search (Pudil et al. 1994, Fig. 13 of the 5-DOF paper).
@@ -387,8 +414,9 @@ pub fn sffs(blocks: &CandidateJacobians, opts: &SelectOptions, progress: StepFn)
     if blocks.len() <= opts.pool {
         return sffs_full(blocks, opts, progress);
     }
-    let g = greedy(blocks, opts, progress)?;
-    let pool = candidate_pool(blocks, &g.selected, opts.pool, opts.ridge)?;
+    let (g, mut lazy) = greedy_lazy(blocks, opts, progress)?;
+    let pool = pool_from(&mut lazy, opts.pool);
+    drop(lazy);
     let sub = blocks.subset(&pool);
     let inner = sffs_full(&sub, opts, &mut |s| progress(&remap(s, &pool)))?;
     Ok(merge_pooled(blocks, g, inner, &pool, SelectionMethod::Sffs, opts))
@@ -518,8 +546,17 @@ fn sffs_full(blocks: &CandidateJacobians, opts: &SelectOptions, progress: StepFn
 /// the exchange does not improve, or after `max_cycles` exchanges.
 pub fn exchange(blocks: &CandidateJacobians, opts: &SelectOptions, progress: StepFn) -> Result<Selection, CalibError> {
     check(blocks, opts)?;
-    let start = match opts.exchange_start {
-        ExchangeStart::Greedy => greedy(blocks, opts, progress)?,
+    let large = blocks.len() > opts.pool;
+    let (start, pool) = match opts.exchange_start {
+        ExchangeStart::Greedy => {
+            let (g, mut lazy) = greedy_lazy(blocks, opts, progress)?;
+            let pool = if large {
+                pool_from(&mut lazy, opts.pool)
+            } else {
+                (0..blocks.len()).collect()
+            };
+            (g, pool)
+        }
         ExchangeStart::Random { seed } => {
             let mut rng = ChaCha8Rng::seed_from_u64(seed);
             let mut set = Vec::with_capacity(opts.n);
@@ -530,13 +567,13 @@ pub fn exchange(blocks: &CandidateJacobians, opts: &SelectOptions, progress: Ste
                     set.push(i);
                 }
             }
-            finish(blocks, set, SelectionMethod::Exchange, opts, 0, Vec::new())
+            let pool = if large {
+                candidate_pool(blocks, &set, opts.pool, opts.ridge)?
+            } else {
+                (0..blocks.len()).collect()
+            };
+            (finish(blocks, set, SelectionMethod::Exchange, opts, 0, Vec::new()), pool)
         }
-    };
-    let pool: Vec<usize> = if blocks.len() <= opts.pool {
-        (0..blocks.len()).collect()
-    } else {
-        candidate_pool(blocks, &start.selected, opts.pool, opts.ridge)?
     };
     let sub = blocks.subset(&pool);
     let local_start: Vec<usize> = start
