@@ -37,6 +37,10 @@ struct Args {
     /// Seed of the chain and of the Halton shift.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Draw candidates in a workspace box (±100 mm, ±10° roll/pitch/yaw around the pose at
+    /// q = 0.3 rad) solved by inverse kinematics, instead of directly in joint space.
+    #[arg(long)]
+    workspace: bool,
     /// Shortlist size for O2–O5.
     #[arg(long, default_value_t = 32)]
     shortlist: usize,
@@ -114,17 +118,33 @@ fn main() -> anyhow::Result<()> {
     let chain = random_serial_chain(&mut rng, args.joints, 0);
     let lim = 170f64.to_radians();
     let (t, c0) = (Instant::now(), cpu_seconds());
-    let (cands, rep) = design::candidates_in_input_box(
-        &chain,
-        &vec![-lim; args.joints],
-        &vec![lim; args.joints],
-        &Sampling::Halton {
-            n: args.candidates,
-            seed: args.seed,
-        },
-        &CandidateFilter::default(),
-        None,
-    )?;
+    let sampling = Sampling::Halton {
+        n: args.candidates,
+        seed: args.seed,
+    };
+    let (cands, rep) = if args.workspace {
+        let q0 = vec![0.3; args.joints];
+        let home = chain.forward(&q0)?;
+        let d = nalgebra::Vector3::new(100.0, 100.0, 100.0);
+        let a = 10f64.to_radians();
+        let ws = design::Workspace {
+            position_min: home.translation.vector - d,
+            position_max: home.translation.vector + d,
+            reference: home.rotation,
+            rpy_min: [-a; 3],
+            rpy_max: [a; 3],
+        };
+        design::candidates_in_workspace(&chain, &ws, &sampling, Some(&q0), &CandidateFilter::default(), None)?
+    } else {
+        design::candidates_in_input_box(
+            &chain,
+            &vec![-lim; args.joints],
+            &vec![lim; args.joints],
+            &sampling,
+            &CandidateFilter::default(),
+            None,
+        )?
+    };
     println!(
         "candidates: {:.2} s wall, {:.2} s CPU  ({} sampled, {} kept) on {}",
         t.elapsed().as_secs_f64(),
