@@ -5,6 +5,7 @@
 //! Units inside the library: millimetres and radians. Twists are ordered (v, ω) (see [`se3`]).
 #![warn(missing_docs)]
 
+pub mod design;
 pub mod error;
 pub mod identifiability;
 pub mod identify;

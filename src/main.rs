@@ -38,6 +38,9 @@ enum Command {
     Validate(cli::validate::ValidateArgs),
     /// Target poses → actuator commands through the calibrated model's inverse kinematics.
     Compensate(cli::compensate::CompensateArgs),
+    /// Choose measurement configurations that maximise an observability index (greedy, SFFS or
+    /// exchange over a large candidate set) and write them as CSV.
+    Plan(cli::plan::PlanArgs),
 }
 
 fn main() -> ExitCode {
@@ -52,6 +55,7 @@ fn main() -> ExitCode {
         Command::Identify(a) => cli::identify::run(a),
         Command::Validate(a) => cli::validate::run(a),
         Command::Compensate(a) => cli::compensate::run(a),
+        Command::Plan(a) => cli::plan::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

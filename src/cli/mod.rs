@@ -10,3 +10,4 @@ pub mod simulate;
 pub mod study;
 pub mod study_t3r1;
 pub mod validate;
+pub mod plan;

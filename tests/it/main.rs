@@ -1,6 +1,7 @@
 //! kinecal integration tests (one binary, one module per concern).
 mod chain;
 mod closed;
+mod design;
 mod identify;
 mod irb120;
 mod model_file;

@@ -1,0 +1,275 @@
+//! Lazy evaluation of D-optimality gains for forward selection over very large candidate sets.
+//!
+//! The gain of candidate `i`, `log det(I + G_i)` with `G_i = A_i (M + εI)⁻¹ A_iᵀ`, can only
+//! **decrease** when configurations are added (`M` grows in the positive semidefinite order, so
+//! `(M + εI)⁻¹` shrinks): `log det` is submodular. A gain computed at an earlier step is therefore
+//! an upper bound at every later step of a forward search. To find the best `need` candidates,
+//! gains are brought up to date in parallel batches of the largest bounds until the `need`-th
+//! best current gain exceeds every remaining bound: the answer is exactly the one a full
+//! evaluation would give, usually after evaluating a fraction of the candidates.
+//!
+//! Bringing a candidate up to date reuses its last leverage block `G_i`: every addition `t` is
+//! stored as its Woodbury factor `U_t` (`k × r`, `P_{t+1} = P_t − U_t U_tᵀ`), and a block that
+//! missed a few additions is updated by `G_i ← G_i − (A_i U_t)(A_i U_t)ᵀ` (`r²k` operations
+//! each); a block that missed many is recomputed from the Cholesky factor of `M + εI`
+//! (`r k²/2`).
+use super::indices::ObservabilityIndices;
+use super::information::{exact_one, inverse_factor, log_det_identity_plus, low_rank_one};
+use super::jacobians::{add_gram, CandidateJacobians};
+use crate::error::CalibError;
+use nalgebra::DMatrix;
+use rayon::prelude::*;
+
+/// A forward search's design and the (possibly stale) gains of all candidates.
+#[derive(Debug, Clone)]
+pub struct LazyGains<'a> {
+    blocks: &'a CandidateJacobians,
+    ridge: f64,
+    m: DMatrix<f64>,
+    /// `P = (M + εI)⁻¹ = F Fᵀ`, `F` upper triangular row-major.
+    f: Vec<f64>,
+    selected: Vec<usize>,
+    leverage: Vec<f64>,
+    version: Vec<u32>,
+    updates: Vec<Vec<f64>>,
+    bound: Vec<f64>,
+    excluded: Vec<bool>,
+    /// Blocks older than this many additions are recomputed exactly: set when the design
+    /// reaches full rank, because blocks of the rank-deficient phase are of order `1/ε` and
+    /// updating them down to order 1 would cancel most of their digits.
+    exact_since: usize,
+    /// Candidate evaluations (gains brought up to date) made so far.
+    pub evaluations: usize,
+}
+
+/// Relative margin by which the `need`-th gain must exceed the remaining bounds (guards against
+/// round-off in the bounds).
+const MARGIN: f64 = 1e-10;
+
+/// A block that missed more additions than this is recomputed from `F` instead of updated.
+fn max_pending(k: usize, r: usize) -> usize {
+    // Update: r²k per addition; recompute: r·k²/2 + r²k/2.
+    (k / (2 * r)).max(1) + 1
+}
+
+impl<'a> LazyGains<'a> {
+    /// The empty design: `G_i = A_iA_iᵀ/ε` for every candidate.
+    pub fn new(blocks: &'a CandidateJacobians, ridge: f64) -> Result<Self, CalibError> {
+        if !(ridge > 0.0 && ridge.is_finite()) {
+            return Err(CalibError::InvalidOption(format!("ridge must be positive, got {ridge}")));
+        }
+        let n = blocks.len();
+        let k = blocks.n_columns();
+        let r = blocks.rows_per_candidate();
+        let mut leverage = vec![0.0; n * r * r];
+        leverage
+            .par_chunks_mut(r * r)
+            .zip(blocks.data().par_chunks(r * k))
+            .with_min_len(1024)
+            .for_each(|(g, a)| {
+                for p in 0..r {
+                    for q in p..r {
+                        let d: f64 = a[p * k..(p + 1) * k].iter().zip(&a[q * k..(q + 1) * k]).map(|(x, y)| x * y).sum();
+                        g[p * r + q] = d / ridge;
+                        g[q * r + p] = d / ridge;
+                    }
+                }
+            });
+        let bound: Vec<f64> = leverage
+            .par_chunks(r * r)
+            .with_min_len(1024)
+            .map(|g| {
+                if r == 3 {
+                    log_det_identity_plus::<3>(g, 1.0)
+                } else {
+                    log_det_identity_plus::<6>(g, 1.0)
+                }
+            })
+            .collect();
+        let m = DMatrix::zeros(k, k);
+        let (f, _) = inverse_factor(&m, ridge)?;
+        Ok(LazyGains {
+            blocks,
+            ridge,
+            m,
+            f,
+            selected: Vec::new(),
+            leverage,
+            version: vec![0; n],
+            updates: Vec::new(),
+            bound,
+            excluded: vec![false; n],
+            exact_since: 0,
+            evaluations: 0,
+        })
+    }
+
+    /// `M` of the selected set.
+    pub fn information(&self) -> &DMatrix<f64> {
+        &self.m
+    }
+
+    /// Selected candidates, in order.
+    pub fn selected(&self) -> &[usize] {
+        &self.selected
+    }
+
+    /// The current leverage block (into `g`) and gain of candidate `i`, from its stored block and
+    /// the additions it missed; `w` is scratch of length `r·k`.
+    fn current<const R: usize>(&self, i: usize, w: &mut [f64], g: &mut [f64]) -> f64 {
+        let k = self.blocks.n_columns();
+        let a = self.blocks.block(i);
+        let from = self.version[i] as usize;
+        if from >= self.exact_since && self.updates.len() - from <= max_pending(k, R) {
+            g.copy_from_slice(&self.leverage[i * R * R..(i + 1) * R * R]);
+            for u in &self.updates[from..] {
+                low_rank_one::<R>(a, k, u, g, -1.0);
+            }
+        } else {
+            exact_one::<R>(a, k, &self.f, w, g);
+        }
+        log_det_identity_plus::<R>(g, 1.0)
+    }
+
+    fn refresh_batch(&mut self, idx: &[usize]) -> Vec<f64> {
+        let r = self.blocks.rows_per_candidate();
+        let k = self.blocks.n_columns();
+        let rr = r * r;
+        let mut fresh = vec![0.0; idx.len() * rr];
+        let mut gains = vec![0.0; idx.len()];
+        let this = &*self;
+        fresh
+            .par_chunks_mut(rr)
+            .zip(gains.par_iter_mut())
+            .zip(idx.par_iter())
+            .with_min_len(64)
+            .for_each_init(
+                || vec![0.0; r * k],
+                |w, ((g, gain), &i)| {
+                    *gain = if r == 3 {
+                        this.current::<3>(i, w, g)
+                    } else {
+                        this.current::<6>(i, w, g)
+                    };
+                },
+            );
+        let now = self.updates.len() as u32;
+        for (&i, g) in idx.iter().zip(fresh.chunks_exact(rr)) {
+            self.leverage[i * rr..(i + 1) * rr].copy_from_slice(g);
+            self.version[i] = now;
+        }
+        self.evaluations += idx.len();
+        gains
+    }
+
+    /// The `need` unselected candidates of largest current gain, best first (ties by lower
+    /// index), with their gains.
+    pub fn top(&mut self, need: usize) -> Vec<(usize, f64)> {
+        let order = |a: &(usize, f64), b: &(usize, f64)| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0));
+        // Candidates and their bounds; batches of the largest bounds are moved to the front.
+        let mut rest: Vec<(usize, f64)> = self
+            .bound
+            .par_iter()
+            .enumerate()
+            .with_min_len(4096)
+            .filter(|(i, _)| !self.excluded[*i])
+            .map(|(i, &b)| (i, b))
+            .collect();
+        let mut best: Vec<(usize, f64)> = Vec::new();
+        let mut pos = 0;
+        let mut batch = (4 * need).max(1024);
+        while pos < rest.len() {
+            let end = (pos + batch).min(rest.len());
+            if end < rest.len() {
+                rest[pos..].select_nth_unstable_by(end - pos - 1, order);
+            }
+            // Every candidate after `end` has a bound ≤ the last bound of the batch.
+            let max_rest = if end < rest.len() { rest[end - 1].1 } else { f64::NEG_INFINITY };
+            // In index order, so the blocks and leverages are read sequentially.
+            let mut idx: Vec<usize> = rest[pos..end].iter().map(|p| p.0).collect();
+            idx.sort_unstable();
+            let gains = self.refresh_batch(&idx);
+            for (&i, &g) in idx.iter().zip(&gains) {
+                self.bound[i] = g;
+                best.push((i, g));
+            }
+            best.sort_by(order);
+            best.truncate(need);
+            pos = end;
+            if best.len() >= need && best[need - 1].1 > max_rest + MARGIN * (1.0 + max_rest.abs()) {
+                break;
+            }
+            batch += batch / 2;
+        }
+        best
+    }
+
+    /// Add candidate `j` to the design (its Woodbury factor is stored for the other candidates).
+    pub fn add(&mut self, j: usize) -> Result<(), CalibError> {
+        if j >= self.excluded.len() || self.excluded[j] {
+            return Err(CalibError::InvalidOption(format!("candidate {j} cannot be added")));
+        }
+        let r = self.blocks.rows_per_candidate();
+        let k = self.blocks.n_columns();
+        self.refresh_batch(&[j]);
+        let g = DMatrix::from_row_slice(r, r, &self.leverage[j * r * r..(j + 1) * r * r]);
+        let chol = (DMatrix::identity(r, r) + g)
+            .cholesky()
+            .ok_or_else(|| CalibError::Numerical("leverage block is not positive definite".into()))?;
+        let linv = chol
+            .l()
+            .solve_lower_triangular(&DMatrix::identity(r, r))
+            .ok_or_else(|| CalibError::Numerical("triangular solve in a low-rank update".into()))?;
+        let f = DMatrix::from_row_slice(k, k, &self.f);
+        let a = self.blocks.block_matrix(j);
+        let u = &f * (f.transpose() * a.transpose()) * linv.transpose(); // P Aᵀ L⁻ᵀ, k × r
+        let mut u_rows = Vec::with_capacity(k * r);
+        for c in 0..k {
+            for b in 0..r {
+                u_rows.push(u[(c, b)]);
+            }
+        }
+        self.updates.push(u_rows);
+        let was_deficient = self.rank_deficient();
+        add_gram(&mut self.m, self.blocks.block(j), r, 1.0);
+        self.f = inverse_factor(&self.m, self.ridge)?.0;
+        self.selected.push(j);
+        self.excluded[j] = true;
+        if was_deficient && !self.rank_deficient() {
+            self.exact_since = self.updates.len();
+        }
+        Ok(())
+    }
+
+    /// Whether `M` is rank-deficient (see [`ObservabilityIndices::from_information`]).
+    pub fn rank_deficient(&self) -> bool {
+        let r = self.blocks.rows_per_candidate();
+        self.selected.len() * r < self.blocks.n_columns()
+            || ObservabilityIndices::from_information(&self.m, self.selected.len() * r).o3 == 0.0
+    }
+
+    /// Exact gains of every candidate for the information matrix `m` (no laziness).
+    pub fn all_exact(blocks: &CandidateJacobians, m: &DMatrix<f64>, ridge: f64) -> Result<Vec<f64>, CalibError> {
+        let (f, _) = inverse_factor(m, ridge)?;
+        let k = blocks.n_columns();
+        let r = blocks.rows_per_candidate();
+        Ok(blocks
+            .data()
+            .par_chunks(r * k)
+            .with_min_len(256)
+            .map_init(
+                || vec![0.0; r * k],
+                |w, a| {
+                    let mut g = [0.0f64; 36];
+                    if r == 3 {
+                        exact_one::<3>(a, k, &f, w, &mut g[..9]);
+                        log_det_identity_plus::<3>(&g[..9], 1.0)
+                    } else {
+                        exact_one::<6>(a, k, &f, w, &mut g);
+                        log_det_identity_plus::<6>(&g, 1.0)
+                    }
+                },
+            )
+            .collect())
+    }
+}

@@ -1,0 +1,95 @@
+//! Measurement planning: choose the configurations at which to measure a mechanism so that
+//! measurement noise leaks as little as possible into the identified parameters (§4 of the 5-DOF
+//! paper).
+//!
+//! The pipeline, generic over any [`crate::Mechanism`]:
+//!
+//! 1. [`candidates`]: sample the workspace (or the joint space) on a grid or a Halton sequence and
+//!    keep reachable, in-limit, non-singular configurations ([`Candidate`]).
+//! 2. [`jacobians`]: one weighted, column-scaled identification Jacobian block per candidate on
+//!    the identifiable parameters, in one contiguous buffer ([`CandidateJacobians`]).
+//! 3. [`indices`]: observability indices O1–O5 and D-optimality of a set
+//!    ([`ObservabilityIndices`]).
+//! 4. [`mod@select`]: greedy, SFFS and exchange selection, made fast by lazy (submodular) gain
+//!    evaluation ([`lazy::LazyGains`]) and low-rank updates of the information matrix
+//!    ([`information::InformationState`]).
+//!
+//! All indices are computed on the **scaled** problem: rows divided by the measurement noise,
+//! columns by their root-mean-square over the candidate set ([`jacobians`]).
+//!
+//! [`write_plan_csv`] writes the chosen configurations.
+pub mod candidates;
+pub mod indices;
+pub mod information;
+pub mod jacobians;
+pub mod lazy;
+pub mod select;
+
+pub use candidates::{candidates_in_input_box, candidates_in_workspace, Candidate, CandidateFilter, GenerationReport, Sampling, Workspace};
+pub use indices::{Criterion, ObservabilityIndices};
+pub use information::InformationState;
+pub use jacobians::{identifiable_columns, CandidateJacobians};
+pub use select::{candidate_pool, exchange, greedy, select, sffs, ExchangeStart, SelectOptions, Selection, SelectionMethod, Step};
+
+use std::io::Write;
+
+/// Write the chosen configurations as CSV: `#` comment lines with the method, criterion and every
+/// index reached, then a header `config,candidate,<inputs…>,x_mm,y_mm,z_mm,roll_deg,pitch_deg,yaw_deg`
+/// and one row per configuration. Inputs flagged in `angle_inputs` are written in degrees (their
+/// column named `<name>_deg`), the others as they are (mm). The orientation is fixed-axes
+/// roll–pitch–yaw, `R = Rz(yaw)·Ry(pitch)·Rx(roll)`.
+pub fn write_plan_csv<W: Write>(
+    mut out: W,
+    input_names: &[String],
+    angle_inputs: &[bool],
+    candidates: &[Candidate],
+    selection: &Selection,
+) -> std::io::Result<()> {
+    let ix = &selection.indices;
+    writeln!(
+        out,
+        "# kinecal plan: {:?} on {}, {} configurations",
+        selection.method,
+        selection.criterion,
+        selection.selected.len()
+    )?;
+    writeln!(
+        out,
+        "# O1 = {:.6e}, O2 = {:.6e} (O_T = 1/O2 = {:.6e}), O3 = {:.6e}, O4 = {:.6e}, O5 = {:.6e}, log det = {:.6}",
+        ix.o1, ix.o2, ix.o_t, ix.o3, ix.o4, ix.o5, ix.log_det
+    )?;
+    write!(out, "config,candidate")?;
+    for (i, name) in input_names.iter().enumerate() {
+        let clean = name.replace(',', "_");
+        if angle_inputs.get(i).copied().unwrap_or(false) {
+            write!(out, ",{clean}_deg")?;
+        } else {
+            write!(out, ",{clean}")?;
+        }
+    }
+    writeln!(out, ",x_mm,y_mm,z_mm,roll_deg,pitch_deg,yaw_deg")?;
+    for (row, &i) in selection.selected.iter().enumerate() {
+        let c = &candidates[i];
+        write!(out, "{},{}", row + 1, i)?;
+        for (j, v) in c.q.iter().enumerate() {
+            if angle_inputs.get(j).copied().unwrap_or(false) {
+                write!(out, ",{:.9}", v.to_degrees())?;
+            } else {
+                write!(out, ",{v:.9}")?;
+            }
+        }
+        let p = c.target.translation.vector;
+        let (r, pi, y) = c.target.rotation.euler_angles();
+        writeln!(
+            out,
+            ",{:.6},{:.6},{:.6},{:.9},{:.9},{:.9}",
+            p.x,
+            p.y,
+            p.z,
+            r.to_degrees(),
+            pi.to_degrees(),
+            y.to_degrees()
+        )?;
+    }
+    Ok(())
+}
