@@ -42,6 +42,23 @@
 //!   in that frame, through its origin. `tool` is `T_{n,T}(0)`. Parameter names are
 //!   `"<dyad>.<vx|vy|vz|wx|wy|wz>"` with dyads `0-1`, `1-2`, …, `n-T`.
 //! * Limits of revolute joints are in the angle unit, of prismatic joints in the length unit.
+//! * `kind = "pm5"` (the 5-DOF PUU-2PR(RPRR)S machine) and `kind = "stewart"` (6-UPS): every value
+//!   of the constraint model, see "Closed-loop kinds" below and
+//!   `kinecal model export pm5`. Their parameter names are the presets' (the paper's `dg1, dc1x, …,
+//!   dφ1, …, dγ0` for pm5; `S1x … U1x … L01` for stewart); in `free`/`fixed` the Greek letters may
+//!   be spelt `phi`, `alpha`, `beta`, `gamma` ([`param_match`]).
+//!
+//! # Closed-loop kinds
+//! Poses are `position` + `euler_xyz = [α, β, γ]`, `R = Rot(x,α)·Rot(y,β)·Rot(z,γ)` (the
+//! platform coordinates of [`crate::model::closed`]). pm5: `[mechanism.limb1]` (`c`, `b`, `phi`,
+//! `l`, `g_offset`, `stroke`), `[mechanism.limb2]`/`[mechanism.limb3]` (`c`, `b`, `phi`,
+//! `g_offset`, `stroke`, `sub_loop = [l2, l3, l4, l5]`, `sub_offset`, `sub_stroke`),
+//! `[mechanism.tool]` (`position`), `[mechanism.base]`, `[mechanism.home]`,
+//! `[mechanism.workspace]` (`x, y, z, alpha, beta` as `[min, max]`; γ is parasitic) and
+//! `parasitic = "physical" | "paper"` (with `[mechanism.parasitic_reference]` `c, b, phi` for the
+//! paper's mode; default limb 1's values). stewart: `[mechanism.home]`, `[mechanism.workspace]`
+//! (with `gamma`) and six `[[mechanism.legs]]` (`base`, `platform`, `length`, `stroke`). The
+//! calibrated model is written with the current (identified) values, exactly.
 //!
 //! Every problem (a misspelt key, a wrong unit, a bad value) is one [`IoError`] line naming the
 //! file and the line. After loading, all values are in millimetres and radians.

@@ -236,7 +236,8 @@ fn pm5_model_file_through_the_whole_workflow() {
         after_mm < 1e-6 && after_axis < 1e-6,
         "after: {after_mm} mm, tool axis {after_axis} deg"
     );
-    assert!(std::fs::read_to_string(d.join("r.html")).unwrap().contains("dφ1"));
+    let html = std::fs::read_to_string(d.join("r.html")).unwrap();
+    assert!(html.contains("dφ1") && html.contains("tool axis max deg"));
 
     // The calibrated file is a pm5 model file with the identified geometry.
     let cal_text = std::fs::read_to_string(d.join("cal.toml")).unwrap();
