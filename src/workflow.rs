@@ -5,7 +5,7 @@
 use crate::error::{CalibError, KinError};
 use crate::io::model_file::InputSpec;
 use crate::measure::{self, Measurement, Noise, Observation};
-use crate::model::Mechanism;
+use crate::model::{Mechanism, Task};
 use crate::params::Unit;
 use crate::se3::{self, Pose};
 use nalgebra::{DVector, Vector3};
@@ -22,19 +22,31 @@ pub struct PoseErrors {
     pub position: Vec<f64>,
     /// `|log(R_meas·R_modelᵀ)|` per pose (rad), when the pose was measured.
     pub orientation: Vec<Option<f64>>,
+    /// Angle between the measured and the model's tool z-axes per pose (rad), when the pose was
+    /// measured: the commanded orientation of a 5-DOF machine ([`Task::PositionAndAxis`]).
+    pub tool_axis: Vec<Option<f64>>,
 }
 
 /// Errors of `model` at every measurement.
 pub fn pose_errors<M: Mechanism + ?Sized>(model: &M, data: &[Measurement]) -> Result<PoseErrors, CalibError> {
     let mut position = Vec::with_capacity(data.len());
     let mut orientation = Vec::with_capacity(data.len());
+    let mut tool_axis = Vec::with_capacity(data.len());
     for (i, m) in data.iter().enumerate() {
         let t = model.forward(&m.q).map_err(|source| CalibError::Kinematics { pose: i, source })?;
         let (p, o) = measure::errors(&m.obs, &t);
         position.push(p);
         orientation.push(o);
+        tool_axis.push(match &m.obs {
+            Observation::Pose(meas) => Some(tool_axis_angle(meas, &t)),
+            _ => None,
+        });
     }
-    Ok(PoseErrors { position, orientation })
+    Ok(PoseErrors {
+        position,
+        orientation,
+        tool_axis,
+    })
 }
 
 /// Summary statistics of [`PoseErrors`], in mm and degrees.
@@ -52,6 +64,10 @@ pub struct ErrorStats {
     pub orientation_mean_deg: Option<f64>,
     /// Largest orientation error (deg), when orientations were measured.
     pub orientation_max_deg: Option<f64>,
+    /// Mean tool-axis direction error (deg), when orientations were measured.
+    pub tool_axis_mean_deg: Option<f64>,
+    /// Largest tool-axis direction error (deg), when orientations were measured.
+    pub tool_axis_max_deg: Option<f64>,
 }
 
 impl ErrorStats {
@@ -59,6 +75,7 @@ impl ErrorStats {
     pub fn of(e: &PoseErrors) -> ErrorStats {
         let n = e.position.len().max(1) as f64;
         let o: Vec<f64> = e.orientation.iter().flatten().map(|v| v.to_degrees()).collect();
+        let a: Vec<f64> = e.tool_axis.iter().flatten().map(|v| v.to_degrees()).collect();
         ErrorStats {
             poses: e.position.len(),
             position_mean_mm: e.position.iter().sum::<f64>() / n,
@@ -66,6 +83,8 @@ impl ErrorStats {
             position_max_mm: e.position.iter().copied().fold(0.0, f64::max),
             orientation_mean_deg: (!o.is_empty()).then(|| o.iter().sum::<f64>() / o.len() as f64),
             orientation_max_deg: (!o.is_empty()).then(|| o.iter().copied().fold(0.0, f64::max)),
+            tool_axis_mean_deg: (!a.is_empty()).then(|| a.iter().sum::<f64>() / a.len() as f64),
+            tool_axis_max_deg: (!a.is_empty()).then(|| a.iter().copied().fold(0.0, f64::max)),
         }
     }
 }
@@ -106,6 +125,46 @@ pub fn random_inputs<R: Rng>(inputs: &[InputSpec], n: usize, rng: &mut R) -> Vec
                 .collect()
         })
         .collect()
+}
+
+/// `n` input vectors at which `model` assembles: the mechanism's own draw
+/// ([`Mechanism::sample_configurations`]: closed loops draw platform poses uniformly in their
+/// workspace and solve the inverse kinematics) when it has one, else inputs uniform within
+/// [`input_range`] ([`random_inputs`], drawn from `rng` directly). Reproducible: for a mechanism
+/// that draws its own, one `u64` is drawn from `rng` as its seed.
+pub fn random_configurations<M: Mechanism + ?Sized, R: Rng>(
+    model: &M,
+    inputs: &[InputSpec],
+    n: usize,
+    rng: &mut R,
+) -> Result<Vec<Vec<f64>>, KinError> {
+    // Asking for no configurations tells whether the mechanism draws its own, without using rng.
+    if model.sample_configurations(0, 0).is_none() {
+        return Ok(random_inputs(inputs, n, rng));
+    }
+    let seed: u64 = rng.random();
+    model
+        .sample_configurations(n, seed)
+        .unwrap_or_else(|| Ok(random_inputs(inputs, n, rng)))
+}
+
+/// Position error (mm) and the error of the commanded orientation (rad) of a reached tool pose
+/// against its target: the full rotation angle for [`Task::Full`], the angle between the tool
+/// z-axes for [`Task::PositionAndAxis`] (the rotation about the tool axis is not commanded).
+pub fn commanded_error(task: Task, target: &Pose, reached: &Pose) -> (f64, f64) {
+    let e = se3::pose_error(target, reached);
+    let angle = match task {
+        Task::Full => se3::ang(&e).norm(),
+        Task::PositionAndAxis => tool_axis_angle(target, reached),
+    };
+    (se3::lin(&e).norm(), angle)
+}
+
+/// Angle (rad) between the tool z-axes of two poses.
+pub fn tool_axis_angle(a: &Pose, b: &Pose) -> f64 {
+    let za = a.rotation * Vector3::z();
+    let zb = b.rotation * Vector3::z();
+    za.cross(&zb).norm().atan2(za.dot(&zb))
 }
 
 /// Reflector centres (mm) in the tool frame used for simulated three-reflector measurements:
@@ -261,7 +320,9 @@ pub const COMPENSATION_STARTS: usize = 24;
 /// solution, else from the zero configuration and [`COMPENSATION_STARTS`] fixed pseudo-random
 /// points within the limits (tried in that order until one gives a valid solution). Revolute
 /// inputs are moved by whole turns to the equivalent angle nearest the seed (or 0) within their
-/// limits; every solution is checked against the limits and against the forward kinematics (1e-6 mm, 1e-8 rad). `progress` is called after each target.
+/// limits; every solution is checked against the limits and against the forward kinematics
+/// (1e-6 mm, 1e-8 rad; for a 5-DOF mechanism, [`Task::PositionAndAxis`], the position and the tool
+/// axis only: see [`commanded_error`]). `progress` is called after each target.
 pub fn compensate<M: Mechanism + ?Sized>(
     model: &M,
     inputs: &[InputSpec],
@@ -293,21 +354,17 @@ pub fn compensate<M: Mechanism + ?Sized>(
             match model.inverse(target, Some(s)) {
                 Ok(mut q) => {
                     wrap_near(inputs, &mut q, seeds.and_then(|x| x.get(k)).map_or(&[][..], |x| x.as_slice()));
-                    let reached = model.forward(&q).map(|t| se3::pose_error(target, &t));
+                    let reached = model.forward(&q).map(|t| commanded_error(model.task(), target, &t));
                     match reached {
-                        Ok(e) if se3::lin(&e).norm() < 1e-6 && se3::ang(&e).norm() < 1e-8 => match check_limits(inputs, &q) {
+                        Ok((dp, dw)) if dp < 1e-6 && dw < 1e-8 => match check_limits(inputs, &q) {
                             Ok(()) => {
                                 found = Some(q);
                                 break;
                             }
                             Err(e) => limit_err = Some(e),
                         },
-                        Ok(e) => {
-                            last_err = KinError::Unreachable(format!(
-                                "inverse kinematics ended {:.3e} mm / {:.3e} rad from the target",
-                                se3::lin(&e).norm(),
-                                se3::ang(&e).norm()
-                            ))
+                        Ok((dp, dw)) => {
+                            last_err = KinError::Unreachable(format!("inverse kinematics ended {dp:.3e} mm / {dw:.3e} rad from the target"))
                         }
                         Err(e) => last_err = e,
                     }
@@ -413,12 +470,14 @@ mod tests {
         let e = PoseErrors {
             position: vec![1.0, 3.0],
             orientation: vec![Some(0.0), Some(PI / 180.0)],
+            tool_axis: vec![Some(0.0), Some(0.5 * PI / 180.0)],
         };
         let s = ErrorStats::of(&e);
         assert_eq!(s.position_mean_mm, 2.0);
         assert!((s.position_rms_mm - 5.0_f64.sqrt()).abs() < 1e-15);
         assert_eq!(s.position_max_mm, 3.0);
         assert!((s.orientation_max_deg.unwrap() - 1.0).abs() < 1e-12);
+        assert!((s.tool_axis_mean_deg.unwrap() - 0.25).abs() < 1e-12);
         // One grossly wrong measurement among good ones is flagged.
         let m = irb120();
         let mut rng = ChaCha8Rng::seed_from_u64(5);

@@ -4,6 +4,8 @@ use super::progress;
 use clap::Args;
 use kinecal::io::data_file::{input_headers, input_values_for_file, read_data, write_csv, InputColumns};
 use kinecal::io::model_file::ModelFile;
+use kinecal::model::Task;
+use kinecal::se3;
 use kinecal::workflow::{compensate, target_poses};
 use std::path::PathBuf;
 
@@ -74,11 +76,26 @@ pub fn run(a: CompensateArgs) -> anyhow::Result<()> {
         .map(|(q, id)| std::iter::once(*id as f64).chain(input_values_for_file(&inputs, q)).collect())
         .collect();
     write_csv(&a.out, &header, &rows)?;
+    // A 5-DOF machine matches position and tool axis; the rotation about the axis follows from its
+    // constraints. Say how far it is from the targets' (the whole rotation error, the axis being met).
+    let parasitic_deg = match model.task() {
+        Task::Full => None,
+        Task::PositionAndAxis => {
+            let mut worst: f64 = 0.0;
+            for (q, t) in commands.iter().zip(&targets) {
+                let reached = model.forward(q)?;
+                worst = worst.max(se3::ang(&se3::pose_error(t, &reached)).norm().to_degrees());
+            }
+            Some(worst)
+        }
+    };
     if a.json {
         println!(
             "{}",
             serde_json::to_string_pretty(&serde_json::json!({"model": file.name, "targets": a.targets,
-                "commands": a.out, "count": commands.len(), "columns": header}))?
+                "commands": a.out, "count": commands.len(), "columns": header,
+                "commanded": match model.task() { Task::Full => "pose", Task::PositionAndAxis => "position and tool axis" },
+                "rotation_about_tool_axis_max_deg": parasitic_deg}))?
         );
     } else {
         println!(
@@ -88,6 +105,12 @@ pub fn run(a: CompensateArgs) -> anyhow::Result<()> {
             file.name,
             a.out.display()
         );
+        if let Some(w) = parasitic_deg {
+            println!(
+                "{} is a 5-DOF machine: the commands reach each target's position and tool axis (< 1e-6 mm, < 1e-8 rad); the rotation about the tool axis is a parasitic motion it cannot command (up to {w:.4} deg from the targets')",
+                file.name
+            );
+        }
     }
     Ok(())
 }

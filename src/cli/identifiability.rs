@@ -7,7 +7,7 @@ use kinecal::identify::linearize;
 use kinecal::io::data_file::{read_data, InputColumns};
 use kinecal::io::model_file::ModelFile;
 use kinecal::measure::{Measurement, Observation};
-use kinecal::workflow::random_inputs;
+use kinecal::workflow::random_configurations;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use std::path::PathBuf;
@@ -46,7 +46,7 @@ pub fn run(a: IdentifiabilityArgs) -> anyhow::Result<()> {
         Some(p) => read_data(p, &inputs, InputColumns::Required)?.measurements,
         None => {
             let mut rng = ChaCha8Rng::seed_from_u64(a.seed);
-            random_inputs(&inputs, a.poses, &mut rng)
+            random_configurations(&*model, &inputs, a.poses, &mut rng)?
                 .into_iter()
                 .map(|q| {
                     let t = model.forward(&q)?;

@@ -6,7 +6,7 @@ use kinecal::io::data_file::write_data;
 use kinecal::io::model_file::ModelFile;
 use kinecal::measure::{Measurement, Noise, Observation};
 use kinecal::se3::{self, Pose};
-use kinecal::workflow::{random_inputs, reflector_centres, virtual_prototype};
+use kinecal::workflow::{random_configurations, reflector_centres, virtual_prototype};
 use nalgebra::Vector3;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -30,7 +30,9 @@ pub enum MeasureKind {
 pub struct SimulateArgs {
     /// Model file, or a built-in model name (`kinecal model list`).
     pub model: String,
-    /// Number of random poses (inputs uniform within the joint limits, ±180° / ±100 mm without).
+    /// Number of random poses: inputs uniform within the joint limits (±180° / ±100 mm without);
+    /// for closed-loop mechanisms (pm5, stewart) platform poses uniform in the model's workspace,
+    /// mapped to inputs by the nominal model's inverse kinematics.
     #[arg(long, default_value_t = 50)]
     pub poses: usize,
     /// Seed of every random draw (errors, poses, noise).
@@ -112,7 +114,8 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
     }
     let mut written = Vec::new();
     for (path, n, first_id) in sets {
-        let qs = random_inputs(&inputs, n, &mut rng);
+        let qs =
+            random_configurations(&*nominal, &inputs, n, &mut rng).map_err(|e| anyhow::anyhow!("drawing poses on {}: {e}", file.name))?;
         let pb = progress::bar(n, "measuring", a.json);
         let (np, nw) = (Normal::new(0.0, noise.position)?, Normal::new(0.0, noise.orientation)?);
         let mut meas = Vec::with_capacity(n);

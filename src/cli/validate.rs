@@ -2,6 +2,7 @@
 use clap::Args;
 use kinecal::io::data_file::{read_data, InputColumns};
 use kinecal::io::model_file::ModelFile;
+use kinecal::model::Task;
 use kinecal::workflow::{outliers, pose_errors, ErrorStats};
 use std::path::PathBuf;
 
@@ -33,6 +34,9 @@ pub fn run(a: ValidateArgs) -> anyhow::Result<()> {
         );
     } else {
         println!("{} on {} ({} poses): {}", file.name, a.data.display(), stats.poses, stats);
+        if let (Task::PositionAndAxis, Some(m), Some(x)) = (model.task(), stats.tool_axis_mean_deg, stats.tool_axis_max_deg) {
+            println!("tool axis (what this 5-DOF machine commands; the rotation about it is parasitic): mean {m:.5} / max {x:.5} deg");
+        }
         for o in &flagged {
             println!(
                 "outlier: pose {} (line {}): {:.4} mm, score {:.1}σ",

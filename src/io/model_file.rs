@@ -42,6 +42,23 @@
 //!   in that frame, through its origin. `tool` is `T_{n,T}(0)`. Parameter names are
 //!   `"<dyad>.<vx|vy|vz|wx|wy|wz>"` with dyads `0-1`, `1-2`, …, `n-T`.
 //! * Limits of revolute joints are in the angle unit, of prismatic joints in the length unit.
+//! * `kind = "pm5"` (the 5-DOF PUU-2PR(RPRR)S machine) and `kind = "stewart"` (6-UPS): every value
+//!   of the constraint model, see "Closed-loop kinds" below and
+//!   `kinecal model export pm5`. Their parameter names are the presets' (the paper's `dg1, dc1x, …,
+//!   dφ1, …, dγ0` for pm5; `S1x … U1x … L01` for stewart); in `free`/`fixed` the Greek letters may
+//!   be spelt `phi`, `alpha`, `beta`, `gamma` ([`param_match`]).
+//!
+//! # Closed-loop kinds
+//! Poses are `position` + `euler_xyz = [α, β, γ]`, `R = Rot(x,α)·Rot(y,β)·Rot(z,γ)` (the
+//! platform coordinates of [`crate::model::closed`]). pm5: `[mechanism.limb1]` (`c`, `b`, `phi`,
+//! `l`, `g_offset`, `stroke`), `[mechanism.limb2]`/`[mechanism.limb3]` (`c`, `b`, `phi`,
+//! `g_offset`, `stroke`, `sub_loop = [l2, l3, l4, l5]`, `sub_offset`, `sub_stroke`),
+//! `[mechanism.tool]` (`position`), `[mechanism.base]`, `[mechanism.home]`,
+//! `[mechanism.workspace]` (`x, y, z, alpha, beta` as `[min, max]`; γ is parasitic) and
+//! `parasitic = "physical" | "paper"` (with `[mechanism.parasitic_reference]` `c, b, phi` for the
+//! paper's mode; default limb 1's values). stewart: `[mechanism.home]`, `[mechanism.workspace]`
+//! (with `gamma`) and six `[[mechanism.legs]]` (`base`, `platform`, `length`, `stroke`). The
+//! calibrated model is written with the current (identified) values, exactly.
 //!
 //! Every problem (a misspelt key, a wrong unit, a bad value) is one [`IoError`] line naming the
 //! file and the line. After loading, all values are in millimetres and radians.
@@ -50,9 +67,14 @@
 //! Add a variant to [`MechanismSpec`], a `Raw…` struct with `#[serde(deny_unknown_fields)]` and a
 //! `kind` field, an arm in `load_str`'s dispatch, and the arms of the `MechanismSpec` methods.
 //! Nothing else (data files, CLI, report) depends on the kind.
+mod parallel;
+
 use super::IoError;
 use crate::measure::Noise;
 use crate::model::chain::{ChainJoint, JointKind, SerialChain};
+use crate::model::closed::{ClosedLoop, ConstraintSystem};
+use crate::model::presets::pm5::Pm5;
+use crate::model::presets::stewart::Stewart;
 use crate::model::Mechanism;
 use crate::params::{Param, Unit};
 use crate::se3::Pose;
@@ -177,6 +199,26 @@ pub struct InputSpec {
 pub enum MechanismSpec {
     /// `kind = "serial"`: a local-POE serial chain.
     Serial(SerialChain),
+    /// `kind = "pm5"`: the 5-DOF PUU-2PR(RPRR)S machine (44 parameters with the paper's names).
+    Pm5(ClosedLoop<Pm5>),
+    /// `kind = "stewart"`: a 6-UPS Stewart platform (42 parameters).
+    Stewart(ClosedLoop<Stewart>),
+}
+
+/// The mechanism kinds a model file can hold, as written in `[mechanism] kind`.
+pub const KINDS: [&str; 3] = ["serial", "pm5", "stewart"];
+
+fn closed_loop_inputs<C: ConstraintSystem>(m: &ClosedLoop<C>) -> Vec<InputSpec> {
+    let s = m.system();
+    s.input_names()
+        .into_iter()
+        .zip(s.strokes())
+        .map(|(name, st)| InputSpec {
+            name,
+            unit: Unit::Length,
+            limits: Some(st),
+        })
+        .collect()
 }
 
 impl MechanismSpec {
@@ -184,6 +226,8 @@ impl MechanismSpec {
     pub fn kind(&self) -> &'static str {
         match self {
             MechanismSpec::Serial(_) => "serial",
+            MechanismSpec::Pm5(_) => "pm5",
+            MechanismSpec::Stewart(_) => "stewart",
         }
     }
 
@@ -191,6 +235,8 @@ impl MechanismSpec {
     pub fn build(&self) -> Box<dyn Mechanism> {
         match self {
             MechanismSpec::Serial(c) => Box::new(c.clone()),
+            MechanismSpec::Pm5(m) => Box::new(m.clone()),
+            MechanismSpec::Stewart(m) => Box::new(m.clone()),
         }
     }
 
@@ -209,6 +255,8 @@ impl MechanismSpec {
                     limits: j.limits,
                 })
                 .collect(),
+            MechanismSpec::Pm5(m) => closed_loop_inputs(m),
+            MechanismSpec::Stewart(m) => closed_loop_inputs(m),
         }
     }
 
@@ -221,6 +269,14 @@ impl MechanismSpec {
                 .and_then(|a| a.downcast_ref::<SerialChain>())
                 .map(|c| MechanismSpec::Serial(c.clone()))
                 .ok_or_else(|| format!("model '{}' is not a serial chain", model.name())),
+            MechanismSpec::Pm5(_) => any
+                .and_then(|a| a.downcast_ref::<ClosedLoop<Pm5>>())
+                .map(|c| MechanismSpec::Pm5(c.clone()))
+                .ok_or_else(|| format!("model '{}' is not a pm5 machine", model.name())),
+            MechanismSpec::Stewart(_) => any
+                .and_then(|a| a.downcast_ref::<ClosedLoop<Stewart>>())
+                .map(|c| MechanismSpec::Stewart(c.clone()))
+                .ok_or_else(|| format!("model '{}' is not a Stewart platform", model.name())),
         }
     }
 
@@ -258,6 +314,8 @@ impl MechanismSpec {
                 out.push_str("\n[mechanism.tool]\n");
                 write_pose(c.tool(), units, out);
             }
+            MechanismSpec::Pm5(m) => parallel::write_pm5(m, units, out),
+            MechanismSpec::Stewart(m) => parallel::write_stewart(m, units, out),
         }
         Ok(())
     }
@@ -305,19 +363,35 @@ pub fn glob_match(pattern: &str, name: &str) -> bool {
     p[pi..].iter().all(|&c| c == '*')
 }
 
+/// A pattern with ASCII spellings of the Greek letters in parameter names replaced
+/// (`phi` → `φ`, `alpha` → `α`, `beta` → `β`, `gamma` → `γ`: `dphi1` means `dφ1`).
+pub fn greek_pattern(pattern: &str) -> String {
+    pattern
+        .replace("alpha", "α")
+        .replace("beta", "β")
+        .replace("gamma", "γ")
+        .replace("phi", "φ")
+}
+
+/// True when `name` matches `pattern` as a glob ([`glob_match`]), or with the pattern's ASCII
+/// Greek letters spelt out ([`greek_pattern`]).
+pub fn param_match(pattern: &str, name: &str) -> bool {
+    glob_match(pattern, name) || glob_match(&greek_pattern(pattern), name)
+}
+
 /// Indices of the parameters selected by `free` patterns minus those matching `fixed`, in the
-/// order of the patterns (priority order), each parameter once. Returns the first pattern that
+/// order of the patterns (priority order), each parameter once; patterns match as [`param_match`]. Returns the first pattern that
 /// matches no parameter as an error.
 pub fn select_params(params: &[Param], free: &[String], fixed: &[String]) -> Result<Vec<usize>, String> {
     for pat in free.iter().chain(fixed) {
-        if !params.iter().any(|p| glob_match(pat, &p.name)) {
+        if !params.iter().any(|p| param_match(pat, &p.name)) {
             return Err(pat.clone());
         }
     }
     let mut out = Vec::new();
     for pat in free {
         for (i, p) in params.iter().enumerate() {
-            if glob_match(pat, &p.name) && !fixed.iter().any(|f| glob_match(f, &p.name)) && !out.contains(&i) {
+            if param_match(pat, &p.name) && !fixed.iter().any(|f| param_match(f, &p.name)) && !out.contains(&i) {
                 out.push(i);
             }
         }
@@ -368,8 +442,16 @@ impl ModelFile {
     /// The file's text, in [`ModelFile::units`].
     pub fn to_toml(&self) -> Result<String, String> {
         let mut out = String::new();
-        out.push_str("# kinecal model file. Poses: position + rpy = [roll, pitch, yaw] with R = Rz(yaw)·Ry(pitch)·Rx(roll)\n");
-        out.push_str("# (or rotvec = axis·angle instead of rpy).\n");
+        match self.mechanism {
+            MechanismSpec::Serial(_) => {
+                out.push_str("# kinecal model file. Poses: position + rpy = [roll, pitch, yaw] with R = Rz(yaw)·Ry(pitch)·Rx(roll)\n");
+                out.push_str("# (or rotvec = axis·angle instead of rpy).\n");
+            }
+            MechanismSpec::Pm5(_) | MechanismSpec::Stewart(_) => {
+                out.push_str("# kinecal model file. Poses: position + euler_xyz = [α, β, γ] with R = Rot(x,α)·Rot(y,β)·Rot(z,γ).\n");
+                out.push_str("# Calibration parameters: the additive errors of these values (names: `kinecal identifiability`).\n");
+            }
+        }
         let _ = writeln!(out, "name = {}", quote(&self.name));
         if let Some(d) = &self.description {
             let _ = writeln!(out, "description = {}", quote(d));
@@ -440,7 +522,7 @@ impl ModelFile {
         let probe: Probe = toml::from_str(text).map_err(|e| ctx.toml_error(&e))?;
         let kind = probe.mechanism.and_then(|m| m.kind).ok_or_else(|| IoError::Invalid {
             path: path.to_path_buf(),
-            message: "missing key 'mechanism.kind' (one of: \"serial\")".into(),
+            message: format!("missing key 'mechanism.kind' (one of: {})", kinds_list()),
         })?;
         let file = match kind.get_ref().as_str() {
             "serial" => {
@@ -449,10 +531,22 @@ impl ModelFile {
                 let mech = ctx.serial(&raw.name, &raw.mechanism, &units)?;
                 ctx.finish(raw, units, mech)?
             }
+            "pm5" => {
+                let raw: RawFile<parallel::RawPm5> = toml::from_str(text).map_err(|e| ctx.toml_error(&e))?;
+                let units = ctx.units(&raw.units)?;
+                let mech = ctx.pm5(&raw.mechanism, &units)?;
+                ctx.finish(raw, units, mech)?
+            }
+            "stewart" => {
+                let raw: RawFile<parallel::RawStewart> = toml::from_str(text).map_err(|e| ctx.toml_error(&e))?;
+                let units = ctx.units(&raw.units)?;
+                let mech = ctx.stewart(&raw.mechanism, &units)?;
+                ctx.finish(raw, units, mech)?
+            }
             other => {
                 return Err(ctx.at(
                     &kind.span(),
-                    format!("mechanism.kind: unknown mechanism kind '{other}' (one of: \"serial\")"),
+                    format!("mechanism.kind: unknown mechanism kind '{other}' (one of: {})", kinds_list()),
                 ))
             }
         };
@@ -460,17 +554,23 @@ impl ModelFile {
     }
 }
 
+fn kinds_list() -> String {
+    KINDS.iter().map(|k| format!("\"{k}\"")).collect::<Vec<_>>().join(", ")
+}
+
 fn quote(s: &str) -> String {
     format!("\"{}\"", s.replace('\\', "\\\\").replace('"', "\\\""))
 }
 
-/// The shortest decimal within 2e-15 (relative) of `v`: unit conversions do not leave
-/// `119.99999999999999` where the user wrote `120`, and `-0.0` is written `0.0`.
+/// `v` as written in a file: a decimal of at most 12 significant digits when one lies within
+/// 2e-15 (relative) of `v` — unit conversions do not leave `119.99999999999999` where the user
+/// wrote `120` — else the shortest decimal that reads back as exactly `v` (calibrated values lose
+/// nothing). Writing a value read from such a text gives the same text again. `-0.0` is `0.0`.
 fn num(v: f64) -> String {
     if v == 0.0 {
         return "0.0".into();
     }
-    for prec in 0..17 {
+    for prec in 0..12 {
         let s = format!("{v:.prec$e}");
         if let Ok(p) = s.parse::<f64>() {
             if (p - v).abs() <= 2e-15 * v.abs() {
@@ -695,7 +795,7 @@ impl Ctx<'_> {
         };
         for (key, list) in [("free", &free), ("fixed", &fixed)] {
             for pat in list {
-                if !params.iter().any(|p| glob_match(pat.get_ref(), &p.name)) {
+                if !params.iter().any(|p| param_match(pat.get_ref(), &p.name)) {
                     let examples: Vec<&str> = params.iter().take(3).map(|p| p.name.as_str()).collect();
                     return Err(self.at(
                         &pat.span(),
@@ -744,5 +844,7 @@ mod tests {
         assert!(glob_match("*.w?", "3-4.wz"));
         assert!(glob_match("*", "anything"));
         assert!(!glob_match("*.wx", "3-4.wz"));
+        assert!(param_match("dphi1", "dφ1") && param_match("dgamma0", "dγ0") && param_match("dalpha?", "dα0"));
+        assert!(!param_match("dphi2", "dφ1"));
     }
 }

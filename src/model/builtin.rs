@@ -2,13 +2,25 @@
 //! (`kinecal model list`, `kinecal model export NAME`), edit and load back.
 use crate::io::model_file::{MechanismSpec, ModelFile};
 use crate::model::chain::SerialChain;
+use crate::model::presets::pm5::{Parasitic, Pm5};
+use crate::model::presets::stewart::{Stewart, StewartGeometry};
 
 /// Names and one-line descriptions of the built-in models.
 pub fn list() -> Vec<(&'static str, &'static str)> {
-    vec![(
-        "irb120",
-        "ABB IRB 120 6R serial arm, nominal (d1 290, a2 270, a3 70, d4 302, d6 72 mm), tool at the flange",
-    )]
+    vec![
+        (
+            "irb120",
+            "ABB IRB 120 6R serial arm, nominal (d1 290, a2 270, a3 70, d4 302, d6 72 mm), tool at the flange",
+        ),
+        (
+            "pm5",
+            "5-DOF PUU-2PR(RPRR)S parallel machine of the 5-DOF paper, nominal (44 error parameters, physical parasitic constraint)",
+        ),
+        (
+            "stewart",
+            "6-UPS Stewart platform, nominal (base r 200 mm, platform r 100 mm, home z 300 mm; 42 error parameters)",
+        ),
+    ]
 }
 
 /// The built-in model called `name` as a model file, if there is one.
@@ -16,6 +28,8 @@ pub fn model_file(name: &str) -> Option<ModelFile> {
     let description = list().into_iter().find(|(n, _)| *n == name)?.1;
     let mechanism = match name {
         "irb120" => MechanismSpec::Serial(irb120()),
+        "pm5" => MechanismSpec::Pm5(Pm5::mechanism(Parasitic::Physical)),
+        "stewart" => MechanismSpec::Stewart(Stewart::mechanism(StewartGeometry::default())),
         _ => return None,
     };
     let mut file = ModelFile::new(name, mechanism);

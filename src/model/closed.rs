@@ -230,7 +230,7 @@ impl Default for SolverOptions {
 
 /// A closed-loop mechanism: a [`ConstraintSystem`] with its current geometry, tool and base
 /// frames. Implements [`Mechanism`].
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct ClosedLoop<C: ConstraintSystem> {
     system: C,
     geometry: Vec<f64>,
@@ -316,6 +316,19 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
             frame_errors,
             solver: SolverOptions::default(),
         }
+    }
+
+    /// The same mechanism with the tool offset `t` (mm, platform frame) and the base pose
+    /// `(x0, y0, z0, α0, β0, γ0)` (mm, rad; X-Y-Z Euler angles) replaced, e.g. from a model file.
+    pub fn with_frames(mut self, tool: [f64; 3], base: [f64; 6]) -> Self {
+        self.tool = tool;
+        self.base = base;
+        self
+    }
+
+    /// Whether the tool offset and base pose are error parameters.
+    pub fn frame_errors(&self) -> bool {
+        self.frame_errors
     }
 
     /// Replace the Newton settings.
@@ -749,6 +762,17 @@ impl<C: ConstraintSystem> Mechanism for ClosedLoop<C> {
     }
     fn box_clone(&self) -> Box<dyn Mechanism> {
         Box::new(self.clone())
+    }
+    fn as_any(&self) -> Option<&dyn std::any::Any> {
+        Some(self)
+    }
+    fn task(&self) -> Task {
+        self.system.task()
+    }
+    fn sample_configurations(&self, n: usize, seed: u64) -> Option<Result<Vec<Vec<f64>>, KinError>> {
+        use rand::SeedableRng;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        Some(self.random_configurations(&mut rng, n))
     }
 }
 

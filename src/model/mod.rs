@@ -23,6 +23,8 @@ pub mod closed;
 pub mod irb120;
 pub mod presets;
 
+pub use closed::Task;
+
 /// A calibratable mechanism.
 pub trait Mechanism: Send + Sync {
     /// A short name, e.g. `"irb120"`.
@@ -50,6 +52,20 @@ pub trait Mechanism: Send + Sync {
     /// The concrete model, for code that writes a calibrated geometry back to a model file
     /// ([`crate::io::model_file`]). Mechanisms that a model file can describe return `Some(self)`.
     fn as_any(&self) -> Option<&dyn std::any::Any> {
+        None
+    }
+    /// Which part of the tool pose the inputs command: [`Task::Full`] (default) or, for a 5-DOF
+    /// machine, [`Task::PositionAndAxis`] (the rotation about the tool axis is then a parasitic
+    /// motion that inverse kinematics does not match).
+    fn task(&self) -> Task {
+        Task::Full
+    }
+    /// `n` input vectors at which the mechanism assembles, drawn reproducibly from `seed`, for
+    /// mechanisms where independent uniform inputs may not assemble (closed loops draw poses in
+    /// their workspace and solve the inverse kinematics). `None` (default): any inputs within the
+    /// limits assemble, draw them uniformly ([`crate::workflow::random_configurations`] does).
+    fn sample_configurations(&self, n: usize, seed: u64) -> Option<Result<Vec<Vec<f64>>, KinError>> {
+        let _ = (n, seed);
         None
     }
 }
@@ -90,6 +106,12 @@ impl Mechanism for Box<dyn Mechanism> {
     }
     fn as_any(&self) -> Option<&dyn std::any::Any> {
         (**self).as_any()
+    }
+    fn task(&self) -> Task {
+        (**self).task()
+    }
+    fn sample_configurations(&self, n: usize, seed: u64) -> Option<Result<Vec<Vec<f64>>, KinError>> {
+        (**self).sample_configurations(n, seed)
     }
 }
 

@@ -233,7 +233,7 @@ impl CalibrationReport {
             format!("{} of {} (rank of the identification Jacobian)", self.rank, self.free),
         );
         kv(&mut h, "condition number (column-scaled)", format!("{:.3e}", self.condition));
-        h.push_str("</table>\n<h2>Errors before and after calibration</h2>\n<table><tr><th class=\"l\">set</th><th class=\"l\">model</th><th>poses</th><th>mean mm</th><th>RMS mm</th><th>max mm</th><th>mean deg</th><th>max deg</th></tr>");
+        h.push_str("</table>\n<h2>Errors before and after calibration</h2>\n<table><tr><th class=\"l\">set</th><th class=\"l\">model</th><th>poses</th><th>mean mm</th><th>RMS mm</th><th>max mm</th><th>rotation mean deg</th><th>rotation max deg</th><th>tool axis mean deg</th><th>tool axis max deg</th></tr>");
         let mut sets = vec![("identification", &self.identification)];
         if let Some(v) = &self.validation {
             sets.push(("validation", v));
@@ -243,13 +243,15 @@ impl CalibrationReport {
                 let o = |v: Option<f64>| v.map(sig).unwrap_or_else(|| "—".into());
                 let _ = write!(
                     h,
-                    "<tr><td class=\"l\">{name}</td><td class=\"l\">{which}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+                    "<tr><td class=\"l\">{name}</td><td class=\"l\">{which}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
                     st.poses,
                     sig(st.position_mean_mm),
                     sig(st.position_rms_mm),
                     sig(st.position_max_mm),
                     o(st.orientation_mean_deg),
-                    o(st.orientation_max_deg)
+                    o(st.orientation_max_deg),
+                    o(st.tool_axis_mean_deg),
+                    o(st.tool_axis_max_deg)
                 );
             }
         }

@@ -406,5 +406,5 @@ fn model_file_typo_names_file_line_and_key() {
     );
     // An unknown built-in name or missing file.
     let e = fails(&d, &["validate", "nosuch", "ident.csv"]);
-    assert_eq!(e, "nosuch: no such file, and not a built-in model (built-in: irb120)");
+    assert_eq!(e, "nosuch: no such file, and not a built-in model (built-in: irb120, pm5, stewart)");
 }

@@ -114,10 +114,16 @@ impl Default for Pm5Geometry {
 /// The 5-DOF PUU-2PR(RPRR)S constraint system.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Pm5 {
-    geometry: Pm5Geometry,
     nominal: Vec<f64>,
+    reference: Vec<f64>,
     parasitic: Parasitic,
+    strokes: [(f64, f64); 5],
+    workspace: Workspace,
+    home: [f64; 6],
 }
+
+/// Number of geometric parameters `θ` of [`Pm5`] (dW1, eq. (14)).
+pub const GEOMETRY_PARAMS: usize = 35;
 
 /// Parameter names of dW (44), in the paper's order.
 pub const PARAM_NAMES: [&str; 44] = [
@@ -141,11 +147,59 @@ impl Pm5 {
             0.0, d, -d / 3.0, 0.0, 0.0, 0.0, g.h, g.phi[1], l2, l3, l4, l5, 0.0,
             0.0, -d, -d / 3.0, 0.0, 0.0, 0.0, g.h, g.phi[2], l2, l3, l4, l5, 0.0,
         ];
+        let a = 5f64.to_radians();
         Pm5 {
-            geometry,
+            reference: nominal.clone(),
             nominal,
             parasitic,
+            strokes: [(300.0, 550.0), (-20.0, 160.0), (-20.0, 160.0), (160.0, 280.0), (160.0, 280.0)],
+            workspace: Workspace {
+                min: [-50.0, -50.0, 350.0, -a, -a, 0.0],
+                max: [50.0, 50.0, 450.0, a, a, 0.0],
+            },
+            home: [0.0, 0.0, 400.0, 0.0, 0.0, 0.0],
         }
+    }
+
+    /// A machine of arbitrary geometry: the 35 absolute values `θ` in the order of
+    /// [`PARAM_NAMES`]`[..35]` (`g1` offset, `c1`, `b1`, `l1`, `φ1`, `g2` offset, `c2`, `b2`, `φ2`,
+    /// `l2…l5`, `g4` offset, then limb 3 likewise), e.g. a calibrated geometry. The paper's
+    /// parasitic constraint ([`Parasitic::NominalGeometry`]) is evaluated on `θ` until
+    /// [`Self::with_reference`] says otherwise; strokes, workspace and home are the defaults until
+    /// replaced. Errors: wrong length, a non-finite value.
+    pub fn from_parameters(theta: Vec<f64>, parasitic: Parasitic) -> Result<Self, crate::error::CalibError> {
+        check_theta(&theta, "geometry")?;
+        let mut m = Pm5::new(Pm5Geometry::default(), parasitic);
+        m.reference = theta.clone();
+        m.nominal = theta;
+        Ok(m)
+    }
+
+    /// The geometry on which the paper's parasitic constraint is evaluated (35 values, as in
+    /// [`Self::from_parameters`]; only `c1`, `b1` and `φ1` are used). Errors: as
+    /// [`Self::from_parameters`].
+    pub fn with_reference(mut self, reference: Vec<f64>) -> Result<Self, crate::error::CalibError> {
+        check_theta(&reference, "parasitic reference geometry")?;
+        self.reference = reference;
+        Ok(self)
+    }
+
+    /// Replace the actuator strokes `(min, max)` of `g1…g5` (mm).
+    pub fn with_strokes(mut self, strokes: [(f64, f64); 5]) -> Self {
+        self.strokes = strokes;
+        self
+    }
+
+    /// Replace the prescribed workspace (γ is parasitic: give `min[5] == max[5]`).
+    pub fn with_workspace(mut self, workspace: Workspace) -> Self {
+        self.workspace = workspace;
+        self
+    }
+
+    /// Replace the home pose (the forward-kinematics seed).
+    pub fn with_home(mut self, home: [f64; 6]) -> Self {
+        self.home = home;
+        self
     }
 
     /// The parasitic-constraint mode.
@@ -153,9 +207,9 @@ impl Pm5 {
         self.parasitic
     }
 
-    /// The nominal geometry.
-    pub fn geometry(&self) -> &Pm5Geometry {
-        &self.geometry
+    /// The geometry the paper's parasitic constraint is evaluated on.
+    pub fn reference(&self) -> &[f64] {
+        &self.reference
     }
 
     /// The calibratable mechanism: this system with tool and base frame errors (44 parameters).
@@ -164,6 +218,19 @@ impl Pm5 {
         let tool = g.tool;
         ClosedLoop::new(Pm5::new(g, parasitic), tool, true)
     }
+}
+
+fn check_theta(theta: &[f64], what: &str) -> Result<(), crate::error::CalibError> {
+    if theta.len() != GEOMETRY_PARAMS {
+        return Err(crate::error::CalibError::InvalidOption(format!(
+            "pm5 {what}: {} values, expected {GEOMETRY_PARAMS}",
+            theta.len()
+        )));
+    }
+    if theta.iter().any(|v| !v.is_finite()) {
+        return Err(crate::error::CalibError::InvalidOption(format!("pm5 {what}: non-finite value")));
+    }
+    Ok(())
 }
 
 /// `L22` of the cosine law, eq. (9).
@@ -237,7 +304,7 @@ impl ConstraintSystem for Pm5 {
         let f5 = match self.parasitic {
             Parasitic::Physical => v3::dot(&v3::cross(&rc1, &rod1), &w1) / v3::norm(&c1),
             Parasitic::NominalGeometry => {
-                let n = &self.nominal;
+                let n = &self.reference;
                 let c = v3::c::<D>;
                 let c1n = [c(n[1]), c(n[2]), c(n[3])];
                 let b1n = [c(n[4]), c(n[5]), c(n[6])];
@@ -292,17 +359,13 @@ impl ConstraintSystem for Pm5 {
         Task::PositionAndAxis
     }
     fn home(&self) -> [f64; 6] {
-        [0.0, 0.0, 400.0, 0.0, 0.0, 0.0]
+        self.home
     }
     fn strokes(&self) -> Vec<(f64, f64)> {
-        vec![(300.0, 550.0), (-20.0, 160.0), (-20.0, 160.0), (160.0, 280.0), (160.0, 280.0)]
+        self.strokes.to_vec()
     }
     fn workspace(&self) -> Workspace {
-        let a = 5f64.to_radians();
-        Workspace {
-            min: [-50.0, -50.0, 350.0, -a, -a, 0.0],
-            max: [50.0, 50.0, 450.0, a, a, 0.0],
-        }
+        self.workspace.clone()
     }
 }
 

@@ -110,8 +110,10 @@ impl StewartGeometry {
 /// The 6-UPS constraint system.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Stewart {
-    geometry: StewartGeometry,
     nominal: Vec<f64>,
+    home: [f64; 6],
+    strokes: [(f64, f64); 6],
+    workspace: Workspace,
 }
 
 impl Stewart {
@@ -128,12 +130,55 @@ impl Stewart {
             nominal.extend_from_slice(&u);
             nominal.push(v3::norm(&leg));
         }
-        Stewart { geometry, nominal }
+        let stroke = (-geometry.stroke, geometry.stroke);
+        Stewart {
+            nominal,
+            home: geometry.home,
+            strokes: [stroke; 6],
+            workspace: geometry.workspace,
+        }
+    }
+
+    /// A platform of arbitrary geometry: the 42 absolute values `θ` in the order of the
+    /// parameters (leg by leg `S_i` (3), `U_i` (3), `L0_i`), e.g. a calibrated geometry, with its
+    /// home pose, per-leg strokes `(min, max)` of `q_i` (mm) and workspace. Errors: wrong length,
+    /// a non-finite value, an empty stroke or workspace.
+    pub fn from_parameters(theta: Vec<f64>, home: [f64; 6], strokes: [(f64, f64); 6], workspace: Workspace) -> Result<Self, CalibError> {
+        if theta.len() != 42 {
+            return Err(CalibError::InvalidOption(format!(
+                "Stewart geometry: {} values, expected 42",
+                theta.len()
+            )));
+        }
+        if theta.iter().chain(home.iter()).any(|v| !v.is_finite()) {
+            return Err(CalibError::InvalidOption("Stewart geometry: non-finite value".into()));
+        }
+        if strokes.iter().any(|(lo, hi)| !(lo.is_finite() && hi.is_finite() && lo < hi)) {
+            return Err(CalibError::InvalidOption(
+                "Stewart geometry: every stroke needs finite min < max".into(),
+            ));
+        }
+        if (0..6).any(|i| workspace.min[i].partial_cmp(&workspace.max[i]).is_none_or(|o| o.is_gt())) {
+            return Err(CalibError::InvalidOption(
+                "Stewart geometry: workspace min must not exceed max".into(),
+            ));
+        }
+        Ok(Stewart {
+            nominal: theta,
+            home,
+            strokes,
+            workspace,
+        })
     }
 
     /// The calibratable mechanism (42 parameters, tool = platform frame, base = world frame).
     pub fn mechanism(geometry: StewartGeometry) -> ClosedLoop<Stewart> {
-        ClosedLoop::new(Stewart::new(geometry), [0.0; 3], false)
+        Self::mechanism_of(Stewart::new(geometry))
+    }
+
+    /// The calibratable mechanism of a platform, e.g. one of [`Stewart::from_parameters`].
+    pub fn mechanism_of(system: Stewart) -> ClosedLoop<Stewart> {
+        ClosedLoop::new(system, [0.0; 3], false)
     }
 }
 
@@ -186,12 +231,12 @@ impl ConstraintSystem for Stewart {
         Task::Full
     }
     fn home(&self) -> [f64; 6] {
-        self.geometry.home
+        self.home
     }
     fn strokes(&self) -> Vec<(f64, f64)> {
-        vec![(-self.geometry.stroke, self.geometry.stroke); 6]
+        self.strokes.to_vec()
     }
     fn workspace(&self) -> Workspace {
-        self.geometry.workspace.clone()
+        self.workspace.clone()
     }
 }
