@@ -18,6 +18,10 @@ struct Args {
 
 #[derive(Subcommand, Debug)]
 enum Command {
+    /// A complete calibration of the built-in 5-DOF parallel machine in one command: export the
+    /// model, plan 30 measurement configurations, measure a virtual prototype there, identify,
+    /// validate, compensate, and check the compensated commands on the prototype.
+    Quickstart(cli::quickstart::QuickstartArgs),
     /// Calibrate the ABB IRB 120 from real laser-tracker data (three tool reflectors), identify
     /// on poses idx < 500 and validate on idx ≥ 500.
     Irb120(cli::irb120::Irb120Args),
@@ -43,9 +47,10 @@ enum Command {
     Plan(cli::plan::PlanArgs),
 }
 
-fn main() -> ExitCode {
-    let args = Args::parse();
-    let result = match args.command {
+/// Run one parsed command.
+fn dispatch(command: Command) -> anyhow::Result<()> {
+    match command {
+        Command::Quickstart(a) => cli::quickstart::run(a, run_line),
         Command::Irb120(a) => cli::irb120::run(a),
         Command::Study(a) => cli::study::run(a),
         Command::Model(a) => cli::model::run(a),
@@ -56,8 +61,24 @@ fn main() -> ExitCode {
         Command::Validate(a) => cli::validate::run(a),
         Command::Compensate(a) => cli::compensate::run(a),
         Command::Plan(a) => cli::plan::run(a),
-    };
-    match result {
+    }
+}
+
+/// Run one `kinecal` command line given without the program name (the quickstart's steps).
+fn run_line(line: &[String]) -> anyhow::Result<()> {
+    let args = Args::try_parse_from(std::iter::once("kinecal".to_string()).chain(line.iter().cloned()))?;
+    dispatch(args.command)
+}
+
+fn main() -> ExitCode {
+    // Exit quietly when the reader of our output goes away (`kinecal … | head`), as command-line
+    // tools do, instead of panicking in `println!` on a broken pipe.
+    #[cfg(unix)]
+    // SAFETY: restoring the default disposition of SIGPIPE before any thread starts.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+    match dispatch(Args::parse().command) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             // Library errors already include their cause in their message: print the top one only.

@@ -35,6 +35,11 @@ pub struct SimulateArgs {
     /// mapped to inputs by the nominal model's inverse kinematics.
     #[arg(long, default_value_t = 50)]
     pub poses: usize,
+    /// Measure the identification set at the configurations of this file (the CSV of `kinecal
+    /// plan`, or any data file with the model's input columns) instead of at random ones;
+    /// `--poses` is then the file's row count.
+    #[arg(long, value_name = "PLAN.csv")]
+    pub at: Option<PathBuf>,
     /// Seed of every random draw (errors, poses, noise).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -107,15 +112,27 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
     ));
     truth_file.save(&a.truth)?;
 
-    let mut sets = vec![(a.out.clone(), a.poses, 0i64)];
+    let planned: Option<Vec<Vec<f64>>> = match &a.at {
+        Some(p) => {
+            let d = kinecal::io::data_file::read_data(p, &inputs, kinecal::io::data_file::InputColumns::Required)?;
+            anyhow::ensure!(!d.measurements.is_empty(), "{}: no configuration in the file", p.display());
+            Some(d.measurements.into_iter().map(|m| m.q).collect())
+        }
+        None => None,
+    };
+    let first_n = planned.as_ref().map_or(a.poses, |p| p.len());
+    let mut sets = vec![(a.out.clone(), first_n, 0i64)];
     if let Some(v) = &a.validation_out {
         anyhow::ensure!(a.validation_poses > 0, "--validation-out needs --validation-poses N (N ≥ 1)");
-        sets.push((v.clone(), a.validation_poses, a.poses as i64));
+        sets.push((v.clone(), a.validation_poses, first_n as i64));
     }
     let mut written = Vec::new();
     for (path, n, first_id) in sets {
-        let qs =
-            random_configurations(&*nominal, &inputs, n, &mut rng).map_err(|e| anyhow::anyhow!("drawing poses on {}: {e}", file.name))?;
+        let qs = match (&planned, first_id) {
+            (Some(p), 0) => p.clone(),
+            _ => random_configurations(&*nominal, &inputs, n, &mut rng)
+                .map_err(|e| anyhow::anyhow!("drawing poses on {}: {e}", file.name))?,
+        };
         let pb = progress::bar(n, "measuring", a.json);
         let (np, nw) = (Normal::new(0.0, noise.position)?, Normal::new(0.0, noise.orientation)?);
         let mut meas = Vec::with_capacity(n);

@@ -33,11 +33,13 @@ pub use select::{candidate_pool, exchange, greedy, select, sffs, ExchangeStart, 
 
 use std::io::Write;
 
-/// Write the chosen configurations as CSV: `#` comment lines with the method, criterion and every
-/// index reached, then a header `config,candidate,<inputs…>,x_mm,y_mm,z_mm,roll_deg,pitch_deg,yaw_deg`
-/// and one row per configuration. Inputs flagged in `angle_inputs` are written in degrees (their
-/// column named `<name>_deg`), the others as they are (mm). The orientation is fixed-axes
-/// roll–pitch–yaw, `R = Rz(yaw)·Ry(pitch)·Rx(roll)`.
+/// Write the chosen configurations as CSV, in the data-file format of [`crate::io::data_file`] so
+/// that the plan feeds `kinecal simulate --at` and `kinecal compensate` directly: `#` comment
+/// lines with the method, criterion, every index reached and the candidate numbers, then a header
+/// `id,<inputs…>,x_mm,y_mm,z_mm,roll_deg,pitch_deg,yaw_deg` and one row per configuration (its
+/// target pose). Inputs flagged in `angle_inputs` are written in degrees (`<name>_deg`), the
+/// others in millimetres (`<name>_mm`). The orientation is fixed-axes roll–pitch–yaw,
+/// `R = Rz(yaw)·Ry(pitch)·Rx(roll)`.
 pub fn write_plan_csv<W: Write>(
     mut out: W,
     input_names: &[String],
@@ -58,19 +60,21 @@ pub fn write_plan_csv<W: Write>(
         "# O1 = {:.6e}, O2 = {:.6e} (O_T = 1/O2 = {:.6e}), O3 = {:.6e}, O4 = {:.6e}, O5 = {:.6e}, log det = {:.6}",
         ix.o1, ix.o2, ix.o_t, ix.o3, ix.o4, ix.o5, ix.log_det
     )?;
-    write!(out, "config,candidate")?;
+    let numbers: Vec<String> = selection.selected.iter().map(|i| i.to_string()).collect();
+    writeln!(out, "# candidate numbers: {}", numbers.join(" "))?;
+    write!(out, "id")?;
     for (i, name) in input_names.iter().enumerate() {
         let clean = name.replace(',', "_");
         if angle_inputs.get(i).copied().unwrap_or(false) {
             write!(out, ",{clean}_deg")?;
         } else {
-            write!(out, ",{clean}")?;
+            write!(out, ",{clean}_mm")?;
         }
     }
     writeln!(out, ",x_mm,y_mm,z_mm,roll_deg,pitch_deg,yaw_deg")?;
     for (row, &i) in selection.selected.iter().enumerate() {
         let c = &candidates[i];
-        write!(out, "{},{}", row + 1, i)?;
+        write!(out, "{row}")?;
         for (j, v) in c.q.iter().enumerate() {
             if angle_inputs.get(j).copied().unwrap_or(false) {
                 write!(out, ",{:.9}", v.to_degrees())?;

@@ -309,6 +309,55 @@ pub fn read_data(path: &Path, inputs: &[InputSpec], input_columns: InputColumns)
     data_from_table(&table, inputs, input_columns)
 }
 
+/// Read an inputs-only file (an optional `id` column and one column per input, with unit
+/// suffixes), such as the commands `kinecal compensate` writes. Returns the ids (row numbers from
+/// 0 without an `id` column) and the inputs in mm / rad. Any other column is an error.
+pub fn read_inputs(path: &Path, inputs: &[InputSpec]) -> Result<(Vec<i64>, Vec<Vec<f64>>), IoError> {
+    let table = read_table(path)?;
+    let mut slots = Vec::with_capacity(table.columns.len());
+    for col in &table.columns {
+        match classify(path, col, inputs)? {
+            (s @ (Slot::Id | Slot::Input(_)), f) => slots.push((s, f)),
+            _ => {
+                return Err(IoError::AtLine {
+                    path: path.to_path_buf(),
+                    line: 1,
+                    message: format!(
+                        "column '{col}': an inputs file holds only id and the input columns ({})",
+                        input_headers(inputs).join(",")
+                    ),
+                })
+            }
+        }
+    }
+    for (k, inp) in inputs.iter().enumerate() {
+        if !slots.iter().any(|(s, _)| matches!(s, Slot::Input(j) if *j == k)) {
+            let u = if inp.unit == Unit::Angle { "deg" } else { "mm" };
+            return Err(IoError::MissingColumn {
+                path: path.to_path_buf(),
+                column: format!("{}_{u}", inp.name),
+                header: table.columns.join(","),
+            });
+        }
+    }
+    let mut ids = Vec::with_capacity(table.len());
+    let mut qs = Vec::with_capacity(table.len());
+    for (r, row) in table.rows.iter().enumerate() {
+        let mut q = vec![0.0; inputs.len()];
+        let mut id = r as i64;
+        for ((slot, f), v) in slots.iter().zip(row) {
+            match slot {
+                Slot::Id => id = *v as i64,
+                Slot::Input(k) => q[*k] = v * f,
+                _ => {}
+            }
+        }
+        ids.push(id);
+        qs.push(q);
+    }
+    Ok((ids, qs))
+}
+
 /// [`read_data`] on a table already read.
 pub fn data_from_table(table: &Table, inputs: &[InputSpec], input_columns: InputColumns) -> Result<DataSet, IoError> {
     let path = &table.path;

@@ -400,11 +400,11 @@ fn plan_csv_has_one_row_per_configuration() {
     let text = String::from_utf8(out).unwrap();
     let lines: Vec<&str> = text.lines().filter(|l| !l.starts_with('#')).collect();
     assert_eq!(lines.len(), 9);
-    assert!(lines[0].starts_with("config,candidate,q1_deg"));
+    assert!(lines[0].starts_with("id,q1_deg"));
     let first: Vec<f64> = lines[1].split(',').map(|v| v.parse().unwrap()).collect();
     let c = &cands[sel.selected[0]];
-    assert_relative_eq!(first[2], c.q[0].to_degrees(), max_relative = 1e-8);
-    assert_relative_eq!(first[8], c.target.translation.vector.x, epsilon = 1e-5);
+    assert_relative_eq!(first[1], c.q[0].to_degrees(), max_relative = 1e-8);
+    assert_relative_eq!(first[7], c.target.translation.vector.x, epsilon = 1e-5);
 }
 
 #[test]
