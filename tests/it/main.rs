@@ -5,6 +5,7 @@ mod design;
 mod identify;
 mod irb120;
 mod model_file;
+mod plan_pm5;
 mod se3_props;
 mod study;
 mod t3r1;
