@@ -41,6 +41,16 @@ struct Args {
     /// q = 0.3 rad) solved by inverse kinematics, instead of directly in joint space.
     #[arg(long)]
     workspace: bool,
+    /// Benchmark a preset instead of the random chain: `pm5` (candidates in its platform
+    /// workspace, filtered by IK, strokes, FK∘IK and the actuator-Jacobian condition).
+    #[arg(long)]
+    preset: Option<String>,
+    /// Sample the pm5 workspace on the paper's grid of 304,920 points instead of Halton points.
+    #[arg(long)]
+    grid: bool,
+    /// Largest actuator-Jacobian condition number of a pm5 candidate.
+    #[arg(long, default_value_t = 100.0)]
+    max_condition: f64,
     /// Shortlist size for O2–O5.
     #[arg(long, default_value_t = 32)]
     shortlist: usize,
@@ -110,10 +120,52 @@ fn bench<M: Mechanism + ?Sized>(mech: &M, candidates: &[Candidate], kind: Observ
     Ok(())
 }
 
+/// The 5-DOF preset: candidates over its prescribed workspace, then [`bench`].
+fn bench_pm5(args: &Args) -> anyhow::Result<()> {
+    use kinecal::model::closed::ConstraintSystem;
+    use kinecal::model::presets::pm5::{Parasitic, Pm5};
+    let mech = Pm5::mechanism(Parasitic::Physical);
+    let sampling = if args.grid {
+        Sampling::Grid {
+            counts: design::PM5_GRID.to_vec(),
+        }
+    } else {
+        Sampling::Halton {
+            n: args.candidates,
+            seed: args.seed,
+        }
+    };
+    let filter = CandidateFilter {
+        input_limits: Some(mech.system().strokes()),
+        max_condition: Some(args.max_condition),
+        ..Default::default()
+    };
+    let (t, c0) = (Instant::now(), cpu_seconds());
+    let (cands, gen) = design::candidates_in_platform_box(&mech, &mech.system().workspace(), &sampling, &filter, None)?;
+    let rep = gen.report;
+    println!(
+        "candidates: {:.2} s wall, {:.2} s CPU  ({} sampled, {} kept, {} unreachable, {} out of strokes, {} near-singular; actuator-Jacobian condition {:.2}–{:.2}) on pm5",
+        t.elapsed().as_secs_f64(),
+        cpu_seconds() - c0,
+        rep.sampled,
+        rep.kept,
+        rep.unreachable,
+        rep.out_of_limits,
+        rep.near_singular,
+        gen.condition_min,
+        gen.condition_max
+    );
+    bench(&mech, &cands, ObservationKind::Pose, args)
+}
+
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
     println!("threads: {}, load average: {}", rayon::current_num_threads(), load.trim());
+    if let Some(p) = &args.preset {
+        anyhow::ensure!(p == "pm5", "--preset: only pm5 is supported, got '{p}'");
+        return bench_pm5(&args);
+    }
     let mut rng = ChaCha8Rng::seed_from_u64(args.seed);
     let chain = random_serial_chain(&mut rng, args.joints, 0);
     let lim = 170f64.to_radians();

@@ -44,7 +44,7 @@ enum Command {
     Compensate(cli::compensate::CompensateArgs),
     /// Choose measurement configurations that maximise an observability index (greedy, SFFS or
     /// exchange over a large candidate set) and write them as CSV.
-    Plan(cli::plan::PlanArgs),
+    Plan(Box<cli::plan::PlanArgs>),
 }
 
 /// Run one parsed command.
@@ -60,7 +60,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Identify(a) => cli::identify::run(a),
         Command::Validate(a) => cli::validate::run(a),
         Command::Compensate(a) => cli::compensate::run(a),
-        Command::Plan(a) => cli::plan::run(a),
+        Command::Plan(a) => cli::plan::run(*a),
     }
 }
 

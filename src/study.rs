@@ -71,6 +71,10 @@ pub struct StudyOptions {
     pub parasitic: Parasitic,
     /// Which sub-loop parameters dW′ keeps.
     pub sub_loop: SubLoopChoice,
+    /// Identification configurations (actuator inputs) to use in every trial instead of random
+    /// ones, e.g. a planned set from [`pm5_plan`]; `None`: `identification` random
+    /// configurations per trial.
+    pub planned: Option<Vec<Vec<f64>>>,
 }
 
 /// Which two of the five sub-loop parameters (`dl2…dl5, dg4`, likewise for limb 3) dW′ drops.
@@ -95,6 +99,7 @@ impl Default for StudyOptions {
             noise: Noise::default(),
             parasitic: Parasitic::Physical,
             sub_loop: SubLoopChoice::KeepL2L3,
+            planned: None,
         }
     }
 }
@@ -305,6 +310,16 @@ fn targets(nominal: &ClosedLoop<Pm5>, rng: &mut ChaCha8Rng, n: usize) -> Result<
     Ok((poses, qs))
 }
 
+/// Targets of given nominal commands: the nominal tool poses they reach.
+fn planned_targets(nominal: &ClosedLoop<Pm5>, qs: &[Vec<f64>]) -> Result<(Vec<Pose>, Vec<Vec<f64>>), CalibError> {
+    let poses = qs
+        .iter()
+        .enumerate()
+        .map(|(i, q)| nominal.forward(q).map_err(kin(i)))
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok((poses, qs.to_vec()))
+}
+
 /// One trial with errors, configurations and (optionally) noise drawn from `rng`; returns the
 /// noise-free and/or noisy results on the same errors and configurations.
 fn trial(opts: &StudyOptions, free: &[usize], seed: u64, noisy_only: bool) -> Result<(Option<Trial>, Trial), CalibError> {
@@ -312,7 +327,10 @@ fn trial(opts: &StudyOptions, free: &[usize], seed: u64, noisy_only: bool) -> Re
     let nominal = Pm5::mechanism(opts.parasitic);
     let delta = simulate::random_errors(&nominal, &mut rng, opts.error_length, opts.error_angle, None);
     let truth = simulate::perturbed(&nominal, &delta);
-    let (t_id, q_id) = targets(&nominal, &mut rng, opts.identification)?;
+    let (t_id, q_id) = match &opts.planned {
+        Some(qs) => planned_targets(&nominal, qs)?,
+        None => targets(&nominal, &mut rng, opts.identification)?,
+    };
     let (t_ver, q_ver) = targets(&nominal, &mut rng, opts.verification)?;
     let run = |noise: Option<&Noise>, rng: &mut ChaCha8Rng| -> Result<Trial, CalibError> {
         let data = simulate::measure(&truth, &q_id, ObservationKind::Pose, noise, rng)?;
@@ -341,6 +359,13 @@ fn trial(opts: &StudyOptions, free: &[usize], seed: u64, noisy_only: bool) -> Re
 /// Run the §5.1 study: one noise-free and one noisy trial on the same errors and configurations,
 /// and a Monte-Carlo of `draws` noisy trials (in parallel, each seeded).
 pub fn pm5_study(opts: &StudyOptions) -> Result<Pm5Study, CalibError> {
+    if opts.planned.as_ref().is_some_and(|p| p.len() != opts.identification) {
+        return Err(CalibError::InvalidOption(format!(
+            "{} planned configurations for {} identification configurations",
+            opts.planned.as_ref().map_or(0, Vec::len),
+            opts.identification
+        )));
+    }
     if opts.identification == 0 || opts.verification == 0 {
         return Err(CalibError::InvalidOption(
             "the study needs identification and verification configurations".into(),
@@ -396,5 +421,325 @@ pub fn pm5_study(opts: &StudyOptions) -> Result<Pm5Study, CalibError> {
         noisy,
         monte_carlo,
         paper: PAPER,
+    })
+}
+
+/// Options of [`pm5_plan`]: measurement planning (issue #5) on the 5-DOF preset.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PlanOptions {
+    /// Halton samples of the prescribed workspace (before filtering).
+    pub candidates: usize,
+    /// Seed of the Halton shift.
+    pub seed: u64,
+    /// Configurations to choose.
+    pub n: usize,
+    /// Largest actuator-Jacobian condition number of a candidate (see
+    /// [`crate::design::actuator_condition`]).
+    pub max_condition: f64,
+    /// Measurement noise (the row weights of the design; the paper's 20 µm / 0.02° by default).
+    pub noise: Noise,
+    /// Parasitic-constraint model of the nominal machine.
+    pub parasitic: Parasitic,
+    /// Which sub-loop parameters dW′ keeps (the design is on exactly the identified columns).
+    pub sub_loop: SubLoopChoice,
+}
+
+impl Default for PlanOptions {
+    fn default() -> Self {
+        PlanOptions {
+            candidates: 300_000,
+            seed: 1,
+            n: 30,
+            max_condition: 100.0,
+            noise: Noise::default(),
+            parasitic: Parasitic::Physical,
+            sub_loop: SubLoopChoice::KeepL2L3,
+        }
+    }
+}
+
+/// One planned set of configurations.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PlannedSet {
+    /// Selection method.
+    pub method: crate::design::SelectionMethod,
+    /// Criterion maximised.
+    pub criterion: crate::design::Criterion,
+    /// Actuator inputs of the chosen configurations (mm).
+    pub inputs: Vec<Vec<f64>>,
+    /// Indices reached (scaled problem).
+    pub indices: crate::design::ObservabilityIndices,
+    /// Selection time (s).
+    pub seconds: f64,
+}
+
+/// Planned configuration sets of the 5-DOF preset: one per `(method, criterion)`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Pm5Plan {
+    /// Options used.
+    pub options: PlanOptions,
+    /// Candidate counts.
+    pub generation: crate::design::GenerationReport,
+    /// Parameter columns of the design (the identified dW′, indices into the 44).
+    pub columns: Vec<usize>,
+    /// Candidate generation time (s).
+    pub candidate_seconds: f64,
+    /// Jacobian-block time (s).
+    pub jacobian_seconds: f64,
+    /// The planned sets.
+    pub sets: Vec<PlannedSet>,
+}
+
+/// The free parameters (dW′) of the study for a parasitic model and sub-loop choice.
+fn identified_columns(parasitic: Parasitic, sub_loop: SubLoopChoice, seed: u64) -> Result<Vec<usize>, CalibError> {
+    let priority = match sub_loop {
+        SubLoopChoice::KeepL2L3 => pm5::natural_priority(),
+        SubLoopChoice::KeepL4L5 => pm5::paper_priority(),
+    };
+    Ok(pm5::identifiability(parasitic, 40, seed, &priority)?.identifiable_indices)
+}
+
+/// Plan measurement configurations for the 5-DOF preset: Halton candidates over its prescribed
+/// workspace ([`crate::design::candidates_in_platform_box`], strokes and the condition bound
+/// applied), full-pose identification Jacobian blocks on the identified dW′, and one selection
+/// per entry of `methods` (each a method and a criterion).
+pub fn pm5_plan(opts: &PlanOptions, methods: &[(crate::design::SelectionMethod, crate::design::Criterion)]) -> Result<Pm5Plan, CalibError> {
+    use crate::design::{self, CandidateFilter, CandidateJacobians, Sampling, SelectOptions};
+    use crate::model::closed::ConstraintSystem;
+    use std::time::Instant;
+    let mech = Pm5::mechanism(opts.parasitic);
+    let t = Instant::now();
+    let filter = CandidateFilter {
+        input_limits: Some(mech.system().strokes()),
+        max_condition: Some(opts.max_condition),
+        ..Default::default()
+    };
+    let (cands, gen) = design::candidates_in_platform_box(
+        &mech,
+        &mech.system().workspace(),
+        &Sampling::Halton {
+            n: opts.candidates,
+            seed: opts.seed,
+        },
+        &filter,
+        None,
+    )?;
+    if cands.len() < opts.n {
+        return Err(CalibError::InvalidOption(format!(
+            "only {} candidates for {} configurations",
+            cands.len(),
+            opts.n
+        )));
+    }
+    let candidate_seconds = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let columns = identified_columns(opts.parasitic, opts.sub_loop, 2024)?;
+    let blocks = CandidateJacobians::build(&mech, &cands, ObservationKind::Pose, &opts.noise, &columns, None)?;
+    let jacobian_seconds = t.elapsed().as_secs_f64();
+    let mut sets = Vec::new();
+    for &(method, criterion) in methods {
+        let t = Instant::now();
+        let sel = design::select(
+            &blocks,
+            method,
+            &SelectOptions {
+                n: opts.n,
+                criterion,
+                ..Default::default()
+            },
+            &mut |_| {},
+        )?;
+        sets.push(PlannedSet {
+            method,
+            criterion,
+            inputs: sel.selected.iter().map(|&i| cands[i].q.clone()).collect(),
+            indices: sel.indices.clone(),
+            seconds: t.elapsed().as_secs_f64(),
+        });
+    }
+    Ok(Pm5Plan {
+        options: opts.clone(),
+        generation: gen.report,
+        columns,
+        candidate_seconds,
+        jacobian_seconds,
+        sets,
+    })
+}
+
+/// Options of [`pm5_design_study`].
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DesignStudyOptions {
+    /// Seed: draw `k` uses `seed + k`.
+    pub seed: u64,
+    /// Monte-Carlo draws of geometric errors and noise.
+    pub draws: usize,
+    /// Verification configurations per draw (random, fresh per draw).
+    pub verification: usize,
+    /// Half-width of the uniform length errors (mm).
+    pub error_length: f64,
+    /// Half-width of the uniform angle errors (rad).
+    pub error_angle: f64,
+}
+
+impl Default for DesignStudyOptions {
+    fn default() -> Self {
+        DesignStudyOptions {
+            seed: 7,
+            draws: 200,
+            verification: 50,
+            error_length: 0.2,
+            error_angle: 0.02f64.to_radians(),
+        }
+    }
+}
+
+/// Verification errors of one identification set over the Monte-Carlo draws.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DesignRow {
+    /// `"random"` or `"<method> <criterion>"`.
+    pub set: String,
+    /// O2 of the set's scaled Jacobian on the nominal model (mean over draws for random sets).
+    pub o2: f64,
+    /// Per-draw mean verification position error after exact compensation (mm).
+    pub position: Spread,
+    /// Per-draw mean verification tool-axis error after exact compensation (deg).
+    pub axis: Spread,
+    /// Per-draw maximum verification position error (mm).
+    pub position_max: Spread,
+    /// Draws whose identification or compensation failed.
+    pub failures: usize,
+}
+
+/// Result of [`pm5_design_study`].
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DesignStudy {
+    /// Options used.
+    pub options: DesignStudyOptions,
+    /// The plan the optimised sets come from.
+    pub plan: Pm5Plan,
+    /// One row per optimised set, then the random sets (fresh per draw).
+    pub rows: Vec<DesignRow>,
+}
+
+/// Does measurement planning matter? For each draw: random geometric errors (uniform
+/// `±error_length` / `±error_angle` on all 44 parameters), the truth, `verification` fresh random
+/// verification configurations, and one identification per set — each optimised set of `plan`
+/// and a fresh random set of the same size — measured on the truth with the plan's noise
+/// (full pose), identified with the iterated Gauss–Newton on dW′ (weighted by the noise), then
+/// exact compensation (calibrated inverse kinematics) evaluated on the verification
+/// configurations. In parallel over draws; every draw is seeded, and a set's noise comes from
+/// its own seeded stream, so adding a set does not change the others' numbers.
+pub fn pm5_design_study(plan: Pm5Plan, opts: &DesignStudyOptions) -> Result<DesignStudy, CalibError> {
+    let po = &plan.options;
+    let n = po.n;
+    let free = plan.columns.clone();
+    if opts.verification == 0 || opts.draws == 0 {
+        return Err(CalibError::InvalidOption(
+            "the design study needs draws and verification configurations".into(),
+        ));
+    }
+    let nominal = Pm5::mechanism(po.parasitic);
+    let o2_of = |qs: &[Vec<f64>]| -> f64 {
+        let lin = qs
+            .iter()
+            .map(|q| {
+                nominal.forward_with_jacobian(q).map(|(pose, jac)| {
+                    let obs = crate::measure::Observation::Pose(pose);
+                    let a = crate::measure::residual_jacobian(&obs, &pose, &jac);
+                    let w = crate::measure::row_weights(&obs, &po.noise);
+                    (a, w)
+                })
+            })
+            .collect::<Result<Vec<_>, _>>();
+        let Ok(blocks) = lin else { return f64::NAN };
+        let mut m = nalgebra::DMatrix::zeros(6 * blocks.len(), free.len());
+        for (b, (a, w)) in blocks.iter().enumerate() {
+            for r in 0..6 {
+                for (j, &c) in free.iter().enumerate() {
+                    m[(6 * b + r, j)] = a[(r, c)] * w[r];
+                }
+            }
+        }
+        // Column scaling by the column norms of this set (unit-free comparison of sets).
+        for mut col in m.column_iter_mut() {
+            let s = col.norm();
+            if s > 0.0 {
+                col /= s;
+            }
+        }
+        let sv = crate::identifiability::singular_values(&m);
+        sv.last().copied().unwrap_or(0.0) / sv.first().copied().unwrap_or(1.0)
+    };
+    let nsets = plan.sets.len();
+    type DrawResult = Vec<Result<(f64, f64, f64, f64), CalibError>>;
+    let per_draw: Vec<DrawResult> = (0..opts.draws)
+        .into_par_iter()
+        .map(|k| {
+            let draw_seed = opts.seed.wrapping_add(k as u64);
+            let mut rng = ChaCha8Rng::seed_from_u64(draw_seed);
+            let delta = simulate::random_errors(&nominal, &mut rng, opts.error_length, opts.error_angle, None);
+            let truth = simulate::perturbed(&nominal, &delta);
+            let ver = targets(&nominal, &mut rng, opts.verification);
+            let random = targets(&nominal, &mut rng, n);
+            let (Ok((t_ver, q_ver)), Ok((_, q_rand))) = (ver, random) else {
+                return vec![Err(CalibError::Numerical("random targets failed".into())); nsets + 1];
+            };
+            let sets: Vec<&[Vec<f64>]> = plan
+                .sets
+                .iter()
+                .map(|s| s.inputs.as_slice())
+                .chain(std::iter::once(q_rand.as_slice()))
+                .collect();
+            sets.iter()
+                .enumerate()
+                .map(|(j, qs)| {
+                    let mut noise_rng = ChaCha8Rng::seed_from_u64(draw_seed.wrapping_mul(1_000_003).wrapping_add(j as u64));
+                    let data = simulate::measure(&truth, qs, ObservationKind::Pose, Some(&po.noise), &mut noise_rng)?;
+                    let res = identify(
+                        &nominal,
+                        &data,
+                        &Options {
+                            free: Some(free.clone()),
+                            noise: po.noise,
+                            ..Options::default()
+                        },
+                    )?;
+                    let mut pos = Vec::with_capacity(t_ver.len());
+                    for (i, (target, q)) in t_ver.iter().zip(&q_ver).enumerate() {
+                        let qc = res.model.inverse(target, Some(q)).map_err(kin(i))?;
+                        pos.push(pose_errors(&truth.forward(&qc).map_err(kin(i))?, target));
+                    }
+                    let st = ErrorStats::from_errors(&pos);
+                    let o2 = if j == nsets { o2_of(qs) } else { f64::NAN };
+                    Ok((st.position_mean, st.axis_mean, st.position_max, o2))
+                })
+                .collect()
+        })
+        .collect();
+    let mut rows = Vec::new();
+    for j in 0..=nsets {
+        let ok: Vec<(f64, f64, f64, f64)> = per_draw.iter().filter_map(|d| d[j].as_ref().ok().copied()).collect();
+        let failures = per_draw.len() - ok.len();
+        let (set, o2) = if j < nsets {
+            let s = &plan.sets[j];
+            (format!("{:?} {}", s.method, s.criterion), o2_of(&s.inputs))
+        } else {
+            let v: Vec<f64> = ok.iter().map(|r| r.3).filter(|v| v.is_finite()).collect();
+            ("random".to_string(), v.iter().sum::<f64>() / v.len().max(1) as f64)
+        };
+        rows.push(DesignRow {
+            set,
+            o2,
+            position: Spread::of(ok.iter().map(|r| r.0).collect()),
+            axis: Spread::of(ok.iter().map(|r| r.1).collect()),
+            position_max: Spread::of(ok.iter().map(|r| r.2).collect()),
+            failures,
+        });
+    }
+    Ok(DesignStudy {
+        options: opts.clone(),
+        plan,
+        rows,
     })
 }

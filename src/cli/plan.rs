@@ -1,14 +1,25 @@
 //! `kinecal plan`: choose measurement configurations (issue #5) and write them as CSV.
 //!
-//! For now the mechanism is a seeded random revolute serial chain (candidates drawn in joint
-//! space); the library API (`kinecal::design`) is generic over any mechanism, so presets and model
-//! files plug in here without changing the planning code.
+//! The mechanism comes from, in this order of precedence:
+//! * `--preset pm5`: the 5-DOF preset ([`kinecal::model::presets::pm5`]); candidates in its
+//!   platform-coordinate workspace (default: the preset's; override with `--x-mm`, `--y-mm`,
+//!   `--z-mm`, `--alpha-deg`, `--beta-deg`), filtered by inverse kinematics, strokes, FK∘IK and
+//!   the actuator-Jacobian condition ([`kinecal::design::closed`]);
+//! * `--model NAME|FILE`: any built-in model or model file, loaded exactly as `kinecal identify`
+//!   does ([`ModelFile::load_or_builtin`]); candidates in a tool-pose box (`--x-mm`, `--y-mm`,
+//!   `--z-mm` required; roll/pitch/yaw about the world axes applied to the tool orientation at zero
+//!   inputs, `--alpha-deg`, `--beta-deg`, `--gamma-deg`, default 0) solved by its inverse
+//!   kinematics from zero inputs, input limits of the model file applied;
+//! * neither: a seeded random revolute serial chain (`--joints`, `--chain-seed`), candidates in
+//!   joint space (a self-contained demonstration, used by the tests).
 use anyhow::Context;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use kinecal::design::{self, CandidateFilter, CandidateJacobians, Criterion, Sampling, SelectOptions, SelectionMethod};
+use kinecal::design::{self, Candidate, CandidateFilter, CandidateJacobians, Criterion, Sampling, SelectOptions, SelectionMethod};
+use kinecal::io::model_file::ModelFile;
 use kinecal::measure::Noise;
 use kinecal::model::Mechanism;
+use kinecal::params::Unit;
 use kinecal::simulate::{random_serial_chain, ObservationKind};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -18,20 +29,49 @@ use std::time::Instant;
 /// Arguments of `kinecal plan`.
 #[derive(Args, Debug)]
 pub struct PlanArgs {
+    /// Built-in preset to plan for: pm5 (the 5-DOF PUU-2PR(RPRR)S machine).
+    #[arg(long, conflicts_with = "model")]
+    pub preset: Option<String>,
+    /// Built-in model name or model file (as for `kinecal identify`).
+    #[arg(long)]
+    pub model: Option<String>,
+    /// Workspace range of x, "MIN,MAX" or a fixed "VALUE" (mm).
+    #[arg(long, allow_hyphen_values = true)]
+    pub x_mm: Option<String>,
+    /// Workspace range of y (mm).
+    #[arg(long, allow_hyphen_values = true)]
+    pub y_mm: Option<String>,
+    /// Workspace range of z (mm).
+    #[arg(long, allow_hyphen_values = true)]
+    pub z_mm: Option<String>,
+    /// Range of α (pm5: platform X-Y-Z Euler angle α; model: roll about world x) (degrees).
+    #[arg(long, allow_hyphen_values = true)]
+    pub alpha_deg: Option<String>,
+    /// Range of β (pm5: Euler angle β; model: pitch about world y) (degrees).
+    #[arg(long, allow_hyphen_values = true)]
+    pub beta_deg: Option<String>,
+    /// Range of γ (model: yaw about world z; pm5: parasitic, must be a fixed value) (degrees).
+    #[arg(long, allow_hyphen_values = true)]
+    pub gamma_deg: Option<String>,
+    /// Sample the workspace on a full grid "N1,N2,…" (one count per coordinate x, y, z, α, β, γ;
+    /// pm5 default grid with --grid paper: 11,11,21,12,10,1 = 304,920 points) instead of Halton
+    /// points.
+    #[arg(long)]
+    pub grid: Option<String>,
     /// Revolute joints of the built-in random serial chain.
     #[arg(long, default_value_t = 6)]
     pub joints: usize,
     /// Seed of the random chain.
     #[arg(long, default_value_t = 1)]
     pub chain_seed: u64,
-    /// Number of candidate configurations (Halton points in joint space).
+    /// Number of candidate samples (Halton points).
     #[arg(long, default_value_t = 300_000)]
     pub candidates: usize,
     /// Joint range ± (degrees) of the candidates.
     #[arg(long, default_value_t = 170.0)]
     pub joint_range_deg: f64,
     /// Largest condition number of the input Jacobian (orientation rows × 100 mm) a candidate may
-    /// have; none by default.
+    /// have; none by default (pm5: 100).
     #[arg(long)]
     pub max_condition: Option<f64>,
     /// Configurations to choose.
@@ -77,24 +117,172 @@ fn bar(len: u64, what: &str) -> ProgressBar {
     pb
 }
 
-/// Run the command.
-pub fn run(args: PlanArgs) -> anyhow::Result<()> {
-    let kind = match args.observe.as_str() {
-        "pose" => ObservationKind::Pose,
-        "position" => ObservationKind::Position,
-        o => anyhow::bail!("--observe must be pose or position, got '{o}'"),
+/// Parse a range "MIN,MAX" or a fixed "VALUE"; `None` → `default`.
+fn range(arg: &Option<String>, flag: &str, default: Option<(f64, f64)>) -> anyhow::Result<(f64, f64)> {
+    let Some(text) = arg else {
+        return default.ok_or_else(|| anyhow::anyhow!("--{flag} is required with --model (MIN,MAX or VALUE)"));
     };
+    let v: Vec<f64> = text
+        .split(',')
+        .map(|t| t.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| anyhow::anyhow!("--{flag}: expected MIN,MAX or VALUE, got '{text}'"))?;
+    let r = match v.as_slice() {
+        [a] => (*a, *a),
+        [a, b] => (*a, *b),
+        _ => anyhow::bail!("--{flag}: expected MIN,MAX or VALUE, got '{text}'"),
+    };
+    anyhow::ensure!(
+        r.0.is_finite() && r.1.is_finite() && r.0 <= r.1,
+        "--{flag}: need finite MIN ≤ MAX, got '{text}'"
+    );
+    Ok(r)
+}
+
+fn sampling(args: &PlanArgs, paper_grid: Option<&[usize]>) -> anyhow::Result<Sampling> {
+    Ok(match &args.grid {
+        None => Sampling::Halton {
+            n: args.candidates,
+            seed: args.seed,
+        },
+        Some(g) if g == "paper" => Sampling::Grid {
+            counts: paper_grid
+                .ok_or_else(|| anyhow::anyhow!("--grid paper is only defined for --preset pm5"))?
+                .to_vec(),
+        },
+        Some(g) => Sampling::Grid {
+            counts: g
+                .split(',')
+                .map(|t| t.trim().parse::<usize>())
+                .collect::<Result<_, _>>()
+                .map_err(|_| anyhow::anyhow!("--grid: expected six counts N1,…,N6 or 'paper', got '{g}'"))?,
+        },
+    })
+}
+
+/// The mechanism, its candidates and which inputs are angles (written in degrees).
+struct Planned {
+    mech: Box<dyn Mechanism>,
+    candidates: Vec<Candidate>,
+    angle_inputs: Vec<bool>,
+}
+
+fn print_generation(name: &str, rep: &design::GenerationReport, secs: f64) {
+    println!(
+        "mechanism {name}: {} candidates kept of {} sampled ({} unreachable, {} outside strokes/limits, {} near-singular, {} rejected) in {secs:.2} s",
+        rep.kept, rep.sampled, rep.unreachable, rep.out_of_limits, rep.near_singular, rep.rejected
+    );
+}
+
+fn pm5_candidates(args: &PlanArgs) -> anyhow::Result<Planned> {
+    use kinecal::model::closed::{ConstraintSystem, Workspace};
+    use kinecal::model::presets::pm5::{Parasitic, Pm5};
+    let mech = Pm5::mechanism(Parasitic::Physical);
+    let ws = mech.system().workspace();
+    let deg = |a: f64| a.to_degrees();
+    let rd = |r: (f64, f64)| (r.0.to_radians(), r.1.to_radians());
+    let x = range(&args.x_mm, "x-mm", Some((ws.min[0], ws.max[0])))?;
+    let y = range(&args.y_mm, "y-mm", Some((ws.min[1], ws.max[1])))?;
+    let z = range(&args.z_mm, "z-mm", Some((ws.min[2], ws.max[2])))?;
+    let a = rd(range(&args.alpha_deg, "alpha-deg", Some((deg(ws.min[3]), deg(ws.max[3]))))?);
+    let b = rd(range(&args.beta_deg, "beta-deg", Some((deg(ws.min[4]), deg(ws.max[4]))))?);
+    let g = rd(range(&args.gamma_deg, "gamma-deg", Some((0.0, 0.0)))?);
+    let ws = Workspace {
+        min: [x.0, y.0, z.0, a.0, b.0, g.0],
+        max: [x.1, y.1, z.1, a.1, b.1, g.1],
+    };
+    let sampling = sampling(args, Some(&design::PM5_GRID))?;
+    let filter = CandidateFilter {
+        input_limits: Some(mech.system().strokes()),
+        max_condition: Some(args.max_condition.unwrap_or(100.0)),
+        ..Default::default()
+    };
+    let n = sampling.len(6)?;
+    println!(
+        "pm5 workspace: x {:?} mm, y {:?} mm, z {:?} mm, α {:?}°, β {:?}°, γ {:?}° (parasitic), {n} samples, actuator-Jacobian condition ≤ {}",
+        x,
+        y,
+        z,
+        (deg(a.0), deg(a.1)),
+        (deg(b.0), deg(b.1)),
+        (deg(g.0), deg(g.1)),
+        filter.max_condition.unwrap_or(f64::INFINITY)
+    );
+    let t = Instant::now();
+    let pb = bar(n as u64, "candidates");
+    let inc = |k: u64| pb.inc(k);
+    let (candidates, gen) = design::candidates_in_platform_box(&mech, &ws, &sampling, &filter, Some(&inc))?;
+    pb.finish_and_clear();
+    print_generation("pm5", &gen.report, t.elapsed().as_secs_f64());
+    println!(
+        "actuator-Jacobian condition of the kept candidates: {:.2} – {:.2}",
+        gen.condition_min, gen.condition_max
+    );
+    Ok(Planned {
+        mech: Box::new(mech),
+        candidates,
+        angle_inputs: vec![false; 5],
+    })
+}
+
+fn model_candidates(args: &PlanArgs, model: &str) -> anyhow::Result<Planned> {
+    let file = ModelFile::load_or_builtin(model)?;
+    let mech = file.build();
+    let inputs = file.inputs();
+    let zeros = vec![0.0; inputs.len()];
+    let home = mech
+        .forward(&zeros)
+        .map_err(|e| anyhow::anyhow!("{}: forward kinematics at zero inputs: {e}", file.name))?;
+    let x = range(&args.x_mm, "x-mm", None)?;
+    let y = range(&args.y_mm, "y-mm", None)?;
+    let z = range(&args.z_mm, "z-mm", None)?;
+    let rd = |r: (f64, f64)| (r.0.to_radians(), r.1.to_radians());
+    let a = rd(range(&args.alpha_deg, "alpha-deg", Some((0.0, 0.0)))?);
+    let b = rd(range(&args.beta_deg, "beta-deg", Some((0.0, 0.0)))?);
+    let g = rd(range(&args.gamma_deg, "gamma-deg", Some((0.0, 0.0)))?);
+    let ws = design::Workspace {
+        position_min: nalgebra::Vector3::new(x.0, y.0, z.0),
+        position_max: nalgebra::Vector3::new(x.1, y.1, z.1),
+        reference: home.rotation,
+        rpy_min: [a.0, b.0, g.0],
+        rpy_max: [a.1, b.1, g.1],
+    };
+    let limits: Option<Vec<(f64, f64)>> = if inputs.iter().any(|i| i.limits.is_some()) {
+        Some(
+            inputs
+                .iter()
+                .map(|i| i.limits.unwrap_or((f64::NEG_INFINITY, f64::INFINITY)))
+                .collect(),
+        )
+    } else {
+        None
+    };
+    let filter = CandidateFilter {
+        input_limits: limits,
+        max_condition: args.max_condition,
+        ..Default::default()
+    };
+    let sampling = sampling(args, None)?;
+    let t = Instant::now();
+    let pb = bar(sampling.len(6)? as u64, "candidates");
+    let inc = |k: u64| pb.inc(k);
+    let (candidates, rep) = design::candidates_in_workspace(&*mech, &ws, &sampling, Some(&zeros), &filter, Some(&inc))?;
+    pb.finish_and_clear();
+    print_generation(&file.name, &rep, t.elapsed().as_secs_f64());
+    Ok(Planned {
+        mech,
+        candidates,
+        angle_inputs: inputs.iter().map(|i| i.unit == Unit::Angle).collect(),
+    })
+}
+
+fn chain_candidates(args: &PlanArgs) -> anyhow::Result<Planned> {
     if args.joints == 0 || args.joints > 16 {
         anyhow::bail!("--joints must be between 1 and 16, got {}", args.joints);
     }
-    let noise = Noise {
-        position: args.noise_position_mm,
-        orientation: args.noise_orientation_deg.to_radians(),
-    };
     let mut rng = ChaCha8Rng::seed_from_u64(args.chain_seed);
     let chain = random_serial_chain(&mut rng, args.joints, 0);
     let lim = args.joint_range_deg.to_radians();
-
     let t = Instant::now();
     let pb = bar(args.candidates as u64, "candidates");
     let inc = |k: u64| pb.inc(k);
@@ -102,31 +290,59 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         max_condition: args.max_condition,
         ..Default::default()
     };
-    let (cands, rep) = design::candidates_in_input_box(
+    let (candidates, rep) = design::candidates_in_input_box(
         &chain,
         &vec![-lim; args.joints],
         &vec![lim; args.joints],
-        &Sampling::Halton {
-            n: args.candidates,
-            seed: args.seed,
-        },
+        &sampling(args, None)?,
         &filter,
         Some(&inc),
     )?;
     pb.finish_and_clear();
-    println!(
-        "mechanism {}: {} candidates kept of {} sampled ({} near-singular, {} unreachable) in {:.2} s",
-        chain.name(),
-        rep.kept,
-        rep.sampled,
-        rep.near_singular,
-        rep.unreachable,
-        t.elapsed().as_secs_f64()
+    print_generation(chain.name(), &rep, t.elapsed().as_secs_f64());
+    Ok(Planned {
+        mech: Box::new(chain),
+        candidates,
+        angle_inputs: vec![true; args.joints],
+    })
+}
+
+/// Run the command.
+pub fn run(args: PlanArgs) -> anyhow::Result<()> {
+    let kind = match args.observe.as_str() {
+        "pose" => ObservationKind::Pose,
+        "position" => ObservationKind::Position,
+        o => anyhow::bail!("--observe must be pose or position, got '{o}'"),
+    };
+    let noise = Noise {
+        position: args.noise_position_mm,
+        orientation: args.noise_orientation_deg.to_radians(),
+    };
+    anyhow::ensure!(
+        noise.position > 0.0 && noise.orientation > 0.0 && noise.position.is_finite() && noise.orientation.is_finite(),
+        "--noise-position-mm / --noise-orientation-deg must be finite and > 0"
+    );
+    let planned = match (&args.preset, &args.model) {
+        (Some(p), _) if p == "pm5" => pm5_candidates(&args)?,
+        (Some(p), _) => anyhow::bail!("--preset: unknown preset '{p}' (available: pm5)"),
+        (None, Some(m)) => model_candidates(&args, m)?,
+        (None, None) => chain_candidates(&args)?,
+    };
+    let Planned {
+        mech,
+        candidates: cands,
+        angle_inputs,
+    } = planned;
+    anyhow::ensure!(
+        cands.len() >= args.n,
+        "only {} candidates survived the filters, fewer than the {} configurations asked for",
+        cands.len(),
+        args.n
     );
 
     let t = Instant::now();
     let cols = design::identifiable_columns(
-        &chain,
+        &*mech,
         &cands,
         kind,
         &noise,
@@ -136,7 +352,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
     )?;
     let pb = bar(cands.len() as u64, "jacobians");
     let inc = |k: u64| pb.inc(k);
-    let blocks = CandidateJacobians::build(&chain, &cands, kind, &noise, &cols, Some(&inc))?;
+    let blocks = CandidateJacobians::build(&*mech, &cands, kind, &noise, &cols, Some(&inc))?;
     pb.finish_and_clear();
     println!(
         "identification Jacobian blocks: {} × {}×{} ({} identifiable of {} parameters) in {:.2} s",
@@ -144,7 +360,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         blocks.rows_per_candidate(),
         blocks.n_columns(),
         cols.len(),
-        chain.n_params(),
+        mech.n_params(),
         t.elapsed().as_secs_f64()
     );
 
@@ -180,11 +396,10 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         ix.o1, ix.o2, ix.o_t, ix.o3, ix.o4, ix.o5, ix.log_det
     );
     let file = std::fs::File::create(&args.output).with_context(|| format!("cannot create {}", args.output.display()))?;
-    let angle_inputs = vec![true; args.joints];
-    design::write_plan_csv(std::io::BufWriter::new(file), &chain.input_names(), &angle_inputs, &cands, &sel)
+    design::write_plan_csv(std::io::BufWriter::new(file), &mech.input_names(), &angle_inputs, &cands, &sel)
         .with_context(|| format!("cannot write {}", args.output.display()))?;
     println!(
-        "wrote {} (joint values in degrees, target poses in mm and degrees)",
+        "wrote {} (angle inputs in degrees, length inputs in mm, target tool poses in mm and degrees)",
         args.output.display()
     );
     Ok(())

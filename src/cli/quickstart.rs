@@ -30,14 +30,15 @@ pub fn command_lines(dir: &Path, seed: u64, candidates: usize) -> Vec<Vec<String
         vec!["model".into(), "export".into(), "pm5".into(), "--out".into(), p("pm5.toml")],
         vec![
             "plan".into(),
-            p("pm5.toml"),
+            "--preset".into(),
+            "pm5".into(),
             "--candidates".into(),
             candidates.to_string(),
             "-n".into(),
             "30".into(),
             "--method".into(),
             "sffs".into(),
-            "--out".into(),
+            "--output".into(),
             p("plan.csv"),
         ],
         vec![

@@ -1,7 +1,10 @@
 //! `kinecal study pm5 | t3r1`: the seed papers' simulation studies, paper vs kinecal.
 use clap::{Args, Subcommand, ValueEnum};
+use kinecal::design::{Criterion, SelectionMethod};
 use kinecal::model::presets::pm5::Parasitic;
-use kinecal::study::{pm5_study, Compensation, ErrorStats, Pm5Study, StudyOptions, SubLoopChoice};
+use kinecal::study::{
+    pm5_design_study, pm5_plan, pm5_study, Compensation, DesignStudyOptions, ErrorStats, PlanOptions, Pm5Study, StudyOptions, SubLoopChoice,
+};
 use std::time::Instant;
 
 /// Arguments of `kinecal study`.
@@ -18,6 +21,10 @@ pub enum Study {
     /// 20 verification configurations, noise-free and noisy, exact and first-order compensation,
     /// Monte-Carlo.
     Pm5(StudyArgs),
+    /// Issue #5's evidence: Monte-Carlo on the 5-DOF machine comparing identification on planned
+    /// configuration sets (greedy/SFFS/exchange on O2 and D) with fresh random sets of the same
+    /// size: verification error after exact compensation, mean and 95th percentile.
+    Pm5Design(DesignArgs),
     /// §6 of the 3T1R paper: ranks, identification of the B1/B3 pair with the closure-computed
     /// lower angles, idle-pair cross-validation and §7 compensation, noise-free and noisy.
     T3r1(super::study_t3r1::StudyT3r1Args),
@@ -27,6 +34,7 @@ pub enum Study {
 pub fn run(cmd: StudyCommand) -> anyhow::Result<()> {
     match cmd.which {
         Study::Pm5(a) => run_pm5(a),
+        Study::Pm5Design(a) => run_design(a),
         Study::T3r1(a) => super::study_t3r1::run(a),
     }
 }
@@ -70,9 +78,154 @@ pub struct StudyArgs {
     /// Sub-loop parameters dW′ keeps: l2l3 (dl2 dl3 dg4, issue #3's advice) or l4l5 (the paper's).
     #[arg(long, value_enum, default_value_t = SubLoopArg::L2l3)]
     pub sub_loop: SubLoopArg,
+    /// Identification configurations: random (fresh per trial, default) or optimised (one set
+    /// planned by SFFS on O2 over --plan-candidates Halton candidates, used in every trial).
+    #[arg(long, value_enum, default_value_t = ConfigurationsArg::Random)]
+    pub configurations: ConfigurationsArg,
+    /// Candidates of the plan (with --configurations optimised).
+    #[arg(long, default_value_t = 300_000)]
+    pub plan_candidates: usize,
+    /// Method of the plan (with --configurations optimised): greedy, sffs or exchange.
+    #[arg(long, default_value = "sffs")]
+    pub plan_method: SelectionMethod,
+    /// Criterion of the plan (with --configurations optimised): d, o1 … o5.
+    #[arg(long, default_value = "o2")]
+    pub plan_criterion: Criterion,
     /// Print JSON instead of tables.
     #[arg(long)]
     pub json: bool,
+}
+
+/// Where the identification configurations come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ConfigurationsArg {
+    /// Random in the workspace, fresh per trial.
+    Random,
+    /// Planned (issue #5), the same set in every trial.
+    Optimised,
+}
+
+/// Arguments of `kinecal study pm5-design`.
+#[derive(Args, Debug)]
+pub struct DesignArgs {
+    /// Seed: draw k uses seed + k.
+    #[arg(long, default_value_t = 7)]
+    pub seed: u64,
+    /// Monte-Carlo draws.
+    #[arg(long, default_value_t = 200)]
+    pub draws: usize,
+    /// Verification configurations per draw (fresh random).
+    #[arg(long, default_value_t = 50)]
+    pub verification: usize,
+    /// Halton candidates of the plan.
+    #[arg(long, default_value_t = 300_000)]
+    pub candidates: usize,
+    /// Configurations per set.
+    #[arg(short, long, default_value_t = 30)]
+    pub n: usize,
+    /// Optimised sets, comma-separated METHOD:CRITERION (methods greedy, sffs, exchange;
+    /// criteria d, o1 … o5).
+    #[arg(long, default_value = "greedy:o2,sffs:o2,exchange:o2,greedy:d,exchange:d", value_delimiter = ',')]
+    pub sets: Vec<String>,
+    /// Print JSON instead of tables.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn parse_sets(sets: &[String]) -> anyhow::Result<Vec<(SelectionMethod, Criterion)>> {
+    sets.iter()
+        .map(|s| {
+            let (m, c) = s
+                .split_once(':')
+                .ok_or_else(|| anyhow::anyhow!("--sets: expected METHOD:CRITERION, got '{s}'"))?;
+            let m: SelectionMethod = m.parse().map_err(|e| anyhow::anyhow!("--sets '{s}': {e}"))?;
+            let c: Criterion = c.parse().map_err(|e| anyhow::anyhow!("--sets '{s}': {e}"))?;
+            Ok((m, c))
+        })
+        .collect()
+}
+
+fn run_design(args: DesignArgs) -> anyhow::Result<()> {
+    let methods = parse_sets(&args.sets)?;
+    let start = Instant::now();
+    let sp = super::progress::spinner(
+        &format!("planning {} sets of {} on {} candidates", methods.len(), args.n, args.candidates),
+        args.json,
+    );
+    let plan = pm5_plan(
+        &PlanOptions {
+            candidates: args.candidates,
+            n: args.n,
+            ..PlanOptions::default()
+        },
+        &methods,
+    )?;
+    sp.finish_and_clear();
+    let plan_secs = start.elapsed().as_secs_f64();
+    let sp = super::progress::spinner(
+        &format!("Monte-Carlo: {} draws × {} identifications", args.draws, methods.len() + 1),
+        args.json,
+    );
+    let opts = DesignStudyOptions {
+        seed: args.seed,
+        draws: args.draws,
+        verification: args.verification,
+        ..DesignStudyOptions::default()
+    };
+    let study = pm5_design_study(plan, &opts)?;
+    sp.finish_and_clear();
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&study)?);
+        return Ok(());
+    }
+    let p = &study.plan;
+    println!(
+        "kinecal study pm5-design — does planning matter? (seed {}, {} draws, errors ±{} mm / ±{:.3}°, noise {:.0} µm / {:.3}°)",
+        opts.seed,
+        opts.draws,
+        opts.error_length,
+        opts.error_angle.to_degrees(),
+        p.options.noise.position * 1000.0,
+        p.options.noise.orientation.to_degrees()
+    );
+    println!(
+        "plan: {} candidates kept of {} ({:.1} s), Jacobian blocks on {} parameters ({:.1} s), {} sets of {} ({:.1} s in all)",
+        p.generation.kept,
+        p.generation.sampled,
+        p.candidate_seconds,
+        p.columns.len(),
+        p.jacobian_seconds,
+        p.sets.len(),
+        p.options.n,
+        plan_secs
+    );
+    println!(
+        "verification: {} fresh random configurations per draw; identification on {} configurations; exact compensation",
+        opts.verification, p.options.n
+    );
+    println!(
+        "  {:<18} {:>10} {:>11} {:>11} {:>11} {:>11} {:>11} {:>8}",
+        "set", "O2 (norm.)", "pos mean", "pos p95", "axis mean", "axis p95", "pos/random", "failed"
+    );
+    let random = study.rows.last().map(|r| r.position.mean).unwrap_or(f64::NAN);
+    for r in &study.rows {
+        println!(
+            "  {:<18} {:>10.3e} {:>8.4} mm {:>8.4} mm {:>9.5}° {:>9.5}° {:>11.3} {:>8}",
+            r.set,
+            r.o2,
+            r.position.mean,
+            r.position.p95,
+            r.axis.mean,
+            r.axis.p95,
+            r.position.mean / random,
+            r.failures
+        );
+    }
+    println!(
+        "(per-draw mean verification error, then mean and 95th percentile over draws; {:.1} s)",
+        start.elapsed().as_secs_f64()
+    );
+    Ok(())
 }
 
 fn row(label: &str, s: &ErrorStats, paper: Option<(f64, f64)>) -> String {
@@ -213,6 +366,35 @@ fn run_pm5(args: StudyArgs) -> anyhow::Result<()> {
                 },
                 ..StudyOptions::default()
             };
+            let mut opts = opts;
+            if args.configurations == ConfigurationsArg::Optimised {
+                let sp = super::progress::spinner(
+                    &format!(
+                        "planning {} configurations ({:?} on {}) over {} candidates",
+                        args.identification, args.plan_method, args.plan_criterion, args.plan_candidates
+                    ),
+                    args.json,
+                );
+                let plan = pm5_plan(
+                    &PlanOptions {
+                        candidates: args.plan_candidates,
+                        n: args.identification,
+                        parasitic: opts.parasitic,
+                        sub_loop: opts.sub_loop,
+                        ..PlanOptions::default()
+                    },
+                    &[(args.plan_method, args.plan_criterion)],
+                )?;
+                sp.finish_and_clear();
+                let set = &plan.sets[0];
+                if !args.json {
+                    println!(
+                        "optimised identification configurations: {:?} on {} over {} candidates, O_T {:.1} (scaled), the same {} in every trial",
+                        set.method, set.criterion, plan.generation.kept, set.indices.o_t, args.identification
+                    );
+                }
+                opts.planned = Some(set.inputs.clone());
+            }
             let start = Instant::now();
             let study = pm5_study(&opts)?;
             let secs = start.elapsed().as_secs_f64();

@@ -228,7 +228,7 @@ impl std::fmt::Debug for CandidateFilter {
 }
 
 /// Counts of a candidate generation.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
 pub struct GenerationReport {
     /// Sample points drawn.
     pub sampled: usize,

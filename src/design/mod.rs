@@ -5,7 +5,8 @@
 //! The pipeline, generic over any [`crate::Mechanism`]:
 //!
 //! 1. [`candidates`]: sample the workspace (or the joint space) on a grid or a Halton sequence and
-//!    keep reachable, in-limit, non-singular configurations ([`Candidate`]).
+//!    keep reachable, in-limit, non-singular configurations ([`Candidate`]); [`closed`] does the
+//!    same in the platform-coordinate box of a closed-loop mechanism (the 5-DOF preset).
 //! 2. [`jacobians`]: one weighted, column-scaled identification Jacobian block per candidate on
 //!    the identifiable parameters, in one contiguous buffer ([`CandidateJacobians`]).
 //! 3. [`indices`]: observability indices O1–O5 and D-optimality of a set
@@ -19,6 +20,7 @@
 //!
 //! [`write_plan_csv`] writes the chosen configurations.
 pub mod candidates;
+pub mod closed;
 pub mod indices;
 pub mod information;
 pub mod jacobians;
@@ -26,6 +28,7 @@ pub mod lazy;
 pub mod select;
 
 pub use candidates::{candidates_in_input_box, candidates_in_workspace, Candidate, CandidateFilter, GenerationReport, Sampling, Workspace};
+pub use closed::{actuator_condition, candidates_in_platform_box, PlatformGeneration, PM5_GRID};
 pub use indices::{Criterion, ObservabilityIndices};
 pub use information::InformationState;
 pub use jacobians::{identifiable_columns, CandidateJacobians};

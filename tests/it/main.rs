@@ -6,6 +6,8 @@ mod identify;
 mod irb120;
 mod model_file;
 mod parallel_workflow;
+mod plan_pm5;
+mod quickstart;
 mod se3_props;
 mod study;
 mod t3r1;
