@@ -3,7 +3,12 @@
 //!
 //! ```text
 //! cargo run --release --example plan_bench -- --candidates 300000 --n 30 --criterion o2
+//! cargo run --release --example plan_bench -- --preset pm5 --candidates 300000 --criterion o2
+//! cargo run --release --example plan_bench -- --preset pm5 --grid --criterion d
 //! ```
+//!
+//! With `--preset pm5` the candidates are the 5-DOF machine's platform workspace
+//! (`design::candidates_in_platform_box`); measured figures are in `docs/design.md`.
 //!
 //! The phases after candidate generation are in [`bench`], generic over any [`Mechanism`]: to
 //! benchmark another mechanism, generate its candidates (e.g. with

@@ -429,6 +429,9 @@ pub fn pm5_study(opts: &StudyOptions) -> Result<Pm5Study, CalibError> {
 pub struct PlanOptions {
     /// Halton samples of the prescribed workspace (before filtering).
     pub candidates: usize,
+    /// Sample the workspace on the paper-sized grid [`crate::design::PM5_GRID`] (304,920 points,
+    /// corners included) instead of `candidates` Halton points.
+    pub paper_grid: bool,
     /// Seed of the Halton shift.
     pub seed: u64,
     /// Configurations to choose.
@@ -448,6 +451,7 @@ impl Default for PlanOptions {
     fn default() -> Self {
         PlanOptions {
             candidates: 300_000,
+            paper_grid: false,
             seed: 1,
             n: 30,
             max_condition: 100.0,
@@ -499,8 +503,8 @@ fn identified_columns(parasitic: Parasitic, sub_loop: SubLoopChoice, seed: u64) 
     Ok(pm5::identifiability(parasitic, 40, seed, &priority)?.identifiable_indices)
 }
 
-/// Plan measurement configurations for the 5-DOF preset: Halton candidates over its prescribed
-/// workspace ([`crate::design::candidates_in_platform_box`], strokes and the condition bound
+/// Plan measurement configurations for the 5-DOF preset: Halton (or paper-grid) candidates over
+/// its prescribed workspace ([`crate::design::candidates_in_platform_box`], strokes and the condition bound
 /// applied), full-pose identification Jacobian blocks on the identified dW′, and one selection
 /// per entry of `methods` (each a method and a criterion).
 pub fn pm5_plan(opts: &PlanOptions, methods: &[(crate::design::SelectionMethod, crate::design::Criterion)]) -> Result<Pm5Plan, CalibError> {
@@ -517,9 +521,15 @@ pub fn pm5_plan(opts: &PlanOptions, methods: &[(crate::design::SelectionMethod, 
     let (cands, gen) = design::candidates_in_platform_box(
         &mech,
         &mech.system().workspace(),
-        &Sampling::Halton {
-            n: opts.candidates,
-            seed: opts.seed,
+        &if opts.paper_grid {
+            Sampling::Grid {
+                counts: design::PM5_GRID.to_vec(),
+            }
+        } else {
+            Sampling::Halton {
+                n: opts.candidates,
+                seed: opts.seed,
+            }
         },
         &filter,
         None,
@@ -607,6 +617,10 @@ pub struct DesignRow {
     pub axis: Spread,
     /// Per-draw maximum verification position error (mm).
     pub position_max: Spread,
+    /// Fraction of the draws (where both succeeded) in which this set's mean verification
+    /// position error is below the random set's (same errors, same verification
+    /// configurations: a paired comparison); 0.5 for the random row itself.
+    pub beats_random: f64,
     /// Draws whose identification or compensation failed.
     pub failures: usize,
 }
@@ -728,9 +742,22 @@ pub fn pm5_design_study(plan: Pm5Plan, opts: &DesignStudyOptions) -> Result<Desi
             let v: Vec<f64> = ok.iter().map(|r| r.3).filter(|v| v.is_finite()).collect();
             ("random".to_string(), v.iter().sum::<f64>() / v.len().max(1) as f64)
         };
+        let paired: Vec<bool> = per_draw
+            .iter()
+            .filter_map(|d| match (&d[j], &d[nsets]) {
+                (Ok(a), Ok(r)) => Some(a.0 < r.0),
+                _ => None,
+            })
+            .collect();
+        let beats_random = if j == nsets {
+            0.5
+        } else {
+            paired.iter().filter(|&&b| b).count() as f64 / paired.len().max(1) as f64
+        };
         rows.push(DesignRow {
             set,
             o2,
+            beats_random,
             position: Spread::of(ok.iter().map(|r| r.0).collect()),
             axis: Spread::of(ok.iter().map(|r| r.1).collect()),
             position_max: Spread::of(ok.iter().map(|r| r.2).collect()),

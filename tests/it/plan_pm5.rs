@@ -211,4 +211,5 @@ fn planned_configurations_drive_the_study_and_beat_random_sets() {
     assert_eq!(rnd.set, "random");
     assert!(opt.o2 > rnd.o2, "{opt:?} {rnd:?}");
     assert!(opt.position.mean < rnd.position.mean, "{opt:?} {rnd:?}");
+    assert!(opt.beats_random > 0.5 && rnd.beats_random == 0.5, "{opt:?}");
 }
