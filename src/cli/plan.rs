@@ -174,10 +174,10 @@ fn print_generation(name: &str, rep: &design::GenerationReport, secs: f64) {
     );
 }
 
-fn pm5_candidates(args: &PlanArgs) -> anyhow::Result<Planned> {
+/// Candidates of a 5-DOF machine (the built-in preset or a pm5 model file's geometry) in its
+/// platform-coordinate workspace.
+fn pm5_candidates(args: &PlanArgs, mech: kinecal::model::closed::ClosedLoop<kinecal::model::presets::pm5::Pm5>) -> anyhow::Result<Planned> {
     use kinecal::model::closed::{ConstraintSystem, Workspace};
-    use kinecal::model::presets::pm5::{Parasitic, Pm5};
-    let mech = Pm5::mechanism(Parasitic::Physical);
     let ws = mech.system().workspace();
     let deg = |a: f64| a.to_degrees();
     let rd = |r: (f64, f64)| (r.0.to_radians(), r.1.to_radians());
@@ -228,6 +228,13 @@ fn pm5_candidates(args: &PlanArgs) -> anyhow::Result<Planned> {
 fn model_candidates(args: &PlanArgs, model: &str) -> anyhow::Result<Planned> {
     let file = ModelFile::load_or_builtin(model)?;
     let mech = file.build();
+    // A 5-DOF machine plans in its own platform workspace (the file's geometry, strokes, box).
+    if let Some(pm5) = mech
+        .as_any()
+        .and_then(|a| a.downcast_ref::<kinecal::model::closed::ClosedLoop<kinecal::model::presets::pm5::Pm5>>())
+    {
+        return pm5_candidates(args, pm5.clone());
+    }
     let inputs = file.inputs();
     let zeros = vec![0.0; inputs.len()];
     let home = mech
@@ -323,7 +330,10 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         "--noise-position-mm / --noise-orientation-deg must be finite and > 0"
     );
     let planned = match (&args.preset, &args.model) {
-        (Some(p), _) if p == "pm5" => pm5_candidates(&args)?,
+        (Some(p), _) if p == "pm5" => pm5_candidates(
+            &args,
+            kinecal::model::presets::pm5::Pm5::mechanism(kinecal::model::presets::pm5::Parasitic::Physical),
+        )?,
         (Some(p), _) => anyhow::bail!("--preset: unknown preset '{p}' (available: pm5)"),
         (None, Some(m)) => model_candidates(&args, m)?,
         (None, None) => chain_candidates(&args)?,

@@ -30,8 +30,8 @@ pub fn command_lines(dir: &Path, seed: u64, candidates: usize) -> Vec<Vec<String
         vec!["model".into(), "export".into(), "pm5".into(), "--out".into(), p("pm5.toml")],
         vec![
             "plan".into(),
-            "--preset".into(),
-            "pm5".into(),
+            "--model".into(),
+            p("pm5.toml"),
             "--candidates".into(),
             candidates.to_string(),
             "-n".into(),
