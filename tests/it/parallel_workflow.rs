@@ -1,7 +1,7 @@
 //! The closed-loop presets as model-file kinds (`kind = "pm5"`, `kind = "stewart"`): export →
 //! load round trips (nominal and calibrated geometry, any units), the whole workflow through the
 //! binary with the numbers checked, and the one-line errors of bad inputs.
-use assert_cmd::Command;
+use crate::cli::{fails, json, ok};
 use kinecal::io::data_file::{read_data, write_data, InputColumns};
 use kinecal::io::model_file::{MechanismSpec, ModelFile};
 use kinecal::io::table::read_table;
@@ -15,7 +15,6 @@ use kinecal::workflow::{random_configurations, tool_axis_angle};
 use kinecal::Mechanism;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use serde_json::Value;
 use std::path::Path;
 
 fn load(text: &str) -> Result<ModelFile, String> {
@@ -107,34 +106,6 @@ fn calibrated_geometry_round_trips_in_any_units() {
             assert!(se3::lin(&e).norm() > 0.05, "{e}");
         }
     }
-}
-
-fn kinecal(dir: &Path, args: &[&str]) -> std::process::Output {
-    Command::cargo_bin("kinecal").unwrap().current_dir(dir).args(args).output().unwrap()
-}
-
-fn ok(dir: &Path, args: &[&str]) -> String {
-    let out = kinecal(dir, args);
-    assert!(
-        out.status.success(),
-        "kinecal {args:?} failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap()
-}
-
-fn json(dir: &Path, args: &[&str]) -> Value {
-    let mut a = args.to_vec();
-    a.push("--json");
-    serde_json::from_str(&ok(dir, &a)).unwrap()
-}
-
-fn fails(dir: &Path, args: &[&str]) -> String {
-    let out = kinecal(dir, args);
-    assert_eq!(out.status.code(), Some(1), "kinecal {args:?} should fail with exit 1");
-    let err = String::from_utf8(out.stderr).unwrap();
-    assert_eq!(err.lines().count(), 1, "one line expected, got: {err}");
-    err.trim_end().strip_prefix("kinecal: error: ").unwrap().to_string()
 }
 
 fn simulate(d: &Path, model: &str, poses: &str, validation: &str) {

@@ -1,48 +1,14 @@
 //! End-to-end: the `kinecal` binary through model export → simulate → identifiability → identify
 //! → validate → compensate on the built-in IRB 120, checking the numbers; and one test per bad
 //! input, checking the one-line message and the non-zero exit.
-use assert_cmd::Command;
+use crate::cli::{fails, json, ok};
 use kinecal::io::data_file::{read_data, write_data, InputColumns};
 use kinecal::io::model_file::ModelFile;
 use kinecal::io::table::read_table;
 use kinecal::measure::{Measurement, Observation};
 use kinecal::se3;
-use serde_json::Value;
 use std::path::{Path, PathBuf};
 use tempfile::TempDir;
-
-fn kinecal(dir: &Path, args: &[&str]) -> std::process::Output {
-    Command::cargo_bin("kinecal").unwrap().current_dir(dir).args(args).output().unwrap()
-}
-
-fn ok(dir: &Path, args: &[&str]) -> String {
-    let out = kinecal(dir, args);
-    assert!(
-        out.status.success(),
-        "kinecal {args:?} failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap()
-}
-
-fn json(dir: &Path, args: &[&str]) -> Value {
-    let mut a = args.to_vec();
-    a.push("--json");
-    serde_json::from_str(&ok(dir, &a)).unwrap()
-}
-
-/// Runs a failing command; returns its single stderr line (without the `kinecal: error: ` prefix).
-fn fails(dir: &Path, args: &[&str]) -> String {
-    let out = kinecal(dir, args);
-    assert!(!out.status.success(), "kinecal {args:?} should fail");
-    assert_eq!(out.status.code(), Some(1));
-    let err = String::from_utf8(out.stderr).unwrap();
-    assert_eq!(err.lines().count(), 1, "one line expected, got: {err}");
-    err.trim_end()
-        .strip_prefix("kinecal: error: ")
-        .unwrap_or_else(|| panic!("prefix: {err}"))
-        .to_string()
-}
 
 /// A directory with the exported IRB 120 model and noise-free simulated data.
 fn setup(poses: usize) -> (TempDir, PathBuf) {

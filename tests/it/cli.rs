@@ -1,0 +1,40 @@
+//! Helpers shared by the tests that drive the `kinecal` binary.
+use assert_cmd::Command;
+use serde_json::Value;
+use std::path::Path;
+
+/// Run `kinecal ARGS` in `dir`.
+pub fn kinecal(dir: &Path, args: &[&str]) -> std::process::Output {
+    Command::cargo_bin("kinecal").unwrap().current_dir(dir).args(args).output().unwrap()
+}
+
+/// Run a command that must succeed; returns its standard output.
+pub fn ok(dir: &Path, args: &[&str]) -> String {
+    let out = kinecal(dir, args);
+    assert!(
+        out.status.success(),
+        "kinecal {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap()
+}
+
+/// Run a command with `--json` that must succeed; returns the parsed output.
+pub fn json(dir: &Path, args: &[&str]) -> Value {
+    let mut a = args.to_vec();
+    a.push("--json");
+    serde_json::from_str(&ok(dir, &a)).unwrap()
+}
+
+/// Run a command that must fail with exit code 1 and exactly one line on stderr; returns that
+/// line without the `kinecal: error: ` prefix.
+pub fn fails(dir: &Path, args: &[&str]) -> String {
+    let out = kinecal(dir, args);
+    assert_eq!(out.status.code(), Some(1), "kinecal {args:?} should fail with exit 1");
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(err.lines().count(), 1, "one line expected, got: {err}");
+    err.trim_end()
+        .strip_prefix("kinecal: error: ")
+        .unwrap_or_else(|| panic!("prefix: {err}"))
+        .to_string()
+}
