@@ -258,20 +258,3 @@ fn error_paths_are_typed() {
         "{r:?}"
     );
 }
-
-#[test]
-fn stewart_geometry_from_toml_round_trips_and_rejects_bad_files() {
-    let g = StewartGeometry::default();
-    let text = toml::to_string(&g).unwrap();
-    let back = StewartGeometry::from_toml_str(&text).unwrap();
-    assert_eq!(back, g);
-    let m = Stewart::mechanism(back);
-    let q = m.inverse(&m.tool_pose_of(&[10.0, -5.0, 310.0, 0.02, -0.03, 0.05]), None).unwrap();
-    assert_eq!(q.len(), 6);
-    let bad = text.replace("stroke = 120.0", "stroke = -1.0");
-    assert!(matches!(
-        StewartGeometry::from_toml_str(&bad),
-        Err(kinecal::CalibError::InvalidOption(_))
-    ));
-    assert!(StewartGeometry::from_toml_str("base = 3").is_err());
-}

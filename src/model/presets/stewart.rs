@@ -22,8 +22,8 @@ use crate::error::{CalibError, KinError};
 use crate::model::closed::{v3, ClosedLoop, ConstraintSystem, Scalar, Task, Workspace};
 use crate::params::{Param, Unit};
 
-/// Geometry of a 6-UPS platform (mm, rad). Deserialisable, so users give their own geometry in
-/// a model file ([`StewartGeometry::from_toml_str`]).
+/// Geometry of a 6-UPS platform (mm, rad). Users give their own in a model file
+/// (`kind = "stewart"`, see [`crate::io::model_file`]).
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct StewartGeometry {
     /// Base joints `U_i` (base frame).
@@ -56,54 +56,6 @@ impl Default for StewartGeometry {
                 max: [40.0, 40.0, 340.0, a, a, a],
             },
         }
-    }
-}
-
-impl StewartGeometry {
-    /// Read a geometry from TOML text, e.g.
-    ///
-    /// ```toml
-    /// base = [[200.0, 0.0, 0.0], ...]      # six U_i (mm, base frame)
-    /// platform = [[100.0, 0.0, 0.0], ...]  # six S_i (mm, platform frame)
-    /// home = [0.0, 0.0, 300.0, 0.0, 0.0, 0.0]
-    /// stroke = 120.0
-    /// [workspace]
-    /// min = [-40.0, -40.0, 260.0, -0.14, -0.14, -0.14]
-    /// max = [40.0, 40.0, 340.0, 0.14, 0.14, 0.14]
-    /// ```
-    ///
-    /// Errors: syntax, missing keys, non-finite values, a non-positive stroke, an empty
-    /// workspace, or a home pose where a leg has zero length.
-    pub fn from_toml_str(text: &str) -> Result<Self, CalibError> {
-        let g: StewartGeometry = toml::from_str(text).map_err(|e| CalibError::InvalidOption(format!("Stewart geometry: {e}")))?;
-        let finite = g
-            .base
-            .iter()
-            .chain(g.platform.iter())
-            .flatten()
-            .chain(g.home.iter())
-            .all(|v| v.is_finite());
-        if !finite {
-            return Err(CalibError::InvalidOption("Stewart geometry: non-finite value".into()));
-        }
-        if g.stroke <= 0.0 {
-            return Err(CalibError::InvalidOption(format!(
-                "Stewart geometry: stroke {} must be positive",
-                g.stroke
-            )));
-        }
-        if (0..6).any(|i| g.workspace.min[i] > g.workspace.max[i]) {
-            return Err(CalibError::InvalidOption(
-                "Stewart geometry: workspace min must not exceed max".into(),
-            ));
-        }
-        let s = Stewart::new(g.clone());
-        if s.nominal.chunks(7).any(|c| c[6] <= 1e-9) {
-            return Err(CalibError::InvalidOption(
-                "Stewart geometry: a leg has zero length at the home pose".into(),
-            ));
-        }
-        Ok(g)
     }
 }
 
