@@ -318,7 +318,8 @@ pub const COMPENSATION_STARTS: usize = 24;
 /// Actuator commands that bring the (calibrated) `model`'s tool to each target pose: inverse
 /// kinematics from `seeds[k]` when given (e.g. the nominal commands), else from the previous
 /// solution, else from the zero configuration and [`COMPENSATION_STARTS`] fixed pseudo-random
-/// points within the limits (tried in that order until one gives a valid solution). Revolute
+/// points within the limits (tried in that order until one gives a valid solution; only the first
+/// when the mechanism's inverse ignores its seed, [`Mechanism::inverse_ignores_seed`]). Revolute
 /// inputs are moved by whole turns to the equivalent angle nearest the seed (or 0) within their
 /// limits; every solution is checked against the limits and against the forward kinematics
 /// (1e-6 mm, 1e-8 rad; for a 5-DOF mechanism, [`Task::PositionAndAxis`], the position and the tool
@@ -346,6 +347,10 @@ pub fn compensate<M: Mechanism + ?Sized>(
             starts.push(prev.clone());
         }
         starts.extend(fixed_starts.iter().cloned());
+        if model.inverse_ignores_seed() {
+            // One attempt says all: other starting points would give the same answer.
+            starts.truncate(1);
+        }
         let mut last_err = KinError::Unreachable("no starting point".into());
         // A solution outside the limits says more than a failed convergence: report it first.
         let mut limit_err: Option<KinError> = None;
@@ -376,15 +381,18 @@ pub fn compensate<M: Mechanism + ?Sized>(
             Some(q) => out.push(q),
             None => {
                 let tried = starts.len();
+                let from = if tried == 1 {
+                    String::new()
+                } else {
+                    format!(" from {tried} starting points")
+                };
                 let limit_err = limit_err.map(|e| match e {
-                    KinError::OutOfWorkspace(m) => {
-                        KinError::OutOfWorkspace(format!("no solution within the limits from {tried} starting points (one had {m})"))
-                    }
+                    KinError::OutOfWorkspace(m) => KinError::OutOfWorkspace(format!("no solution within the limits{from} (one had {m})")),
                     e => e,
                 });
                 let source = match limit_err.unwrap_or(last_err) {
                     KinError::NoConvergence { residual, .. } => KinError::Unreachable(format!(
-                        "inverse kinematics found no solution from {tried} starting points (residual {residual:.3e}); the target is probably outside the workspace"
+                        "inverse kinematics found no solution{from} (residual {residual:.3e}); the target is probably outside the workspace"
                     )),
                     e => e,
                 };

@@ -695,6 +695,10 @@ impl<C: ConstraintSystem> Mechanism for ClosedLoop<C> {
     fn name(&self) -> &str {
         self.system.name()
     }
+    /// The inverse starts from the per-limb closed form, never from a seed.
+    fn inverse_ignores_seed(&self) -> bool {
+        true
+    }
     fn input_names(&self) -> Vec<String> {
         self.system.input_names()
     }

@@ -49,6 +49,11 @@ pub trait Mechanism: Send + Sync {
     fn inverse(&self, target: &Pose, seed: Option<&[f64]>) -> Result<Vec<f64>, KinError>;
     /// A boxed copy (lets command-line code hold any mechanism).
     fn box_clone(&self) -> Box<dyn Mechanism>;
+    /// Whether [`Mechanism::inverse`] ignores its `seed` (a closed-form or self-started inverse):
+    /// callers then gain nothing by retrying from other starting points.
+    fn inverse_ignores_seed(&self) -> bool {
+        false
+    }
     /// The concrete model, for code that writes a calibrated geometry back to a model file
     /// ([`crate::io::model_file`]). Mechanisms that a model file can describe return `Some(self)`.
     fn as_any(&self) -> Option<&dyn std::any::Any> {
@@ -103,6 +108,9 @@ impl Mechanism for Box<dyn Mechanism> {
     }
     fn box_clone(&self) -> Box<dyn Mechanism> {
         (**self).box_clone()
+    }
+    fn inverse_ignores_seed(&self) -> bool {
+        (**self).inverse_ignores_seed()
     }
     fn as_any(&self) -> Option<&dyn std::any::Any> {
         (**self).as_any()
