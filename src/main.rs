@@ -22,16 +22,11 @@ enum Command {
     /// model, plan 30 measurement configurations, measure a virtual prototype there, identify,
     /// validate, compensate, and check the compensated commands on the prototype.
     Quickstart(cli::quickstart::QuickstartArgs),
-    /// Calibrate the ABB IRB 120 from real laser-tracker data (three tool reflectors), identify
-    /// on poses idx < 500 and validate on idx ≥ 500.
-    Irb120(cli::irb120::Irb120Args),
-    /// Reproduce a seed paper's simulation study (`study pm5`: §5.1 of the 5-DOF paper; `study t3r1`: §6 of the 3T1R paper) and print
-    /// the paper's figures beside kinecal's.
-    Study(cli::study::StudyCommand),
     /// Built-in models: list them, export one as a model file (TOML) to edit.
     Model(cli::model::ModelArgs),
-    /// Data files: check one against a model, join an inputs file and a measurement file.
-    Data(cli::data::DataArgs),
+    /// Choose measurement configurations that maximise an observability index (greedy, SFFS or
+    /// exchange over a large candidate set) and write them as CSV.
+    Plan(Box<cli::plan::PlanArgs>),
     /// Virtual prototype: random geometric errors and noisy measurements → data CSV + true model.
     Simulate(cli::simulate::SimulateArgs),
     /// Rank, redundant parameters and condition number of the identification problem.
@@ -42,9 +37,14 @@ enum Command {
     Validate(cli::validate::ValidateArgs),
     /// Target poses → actuator commands through the calibrated model's inverse kinematics.
     Compensate(cli::compensate::CompensateArgs),
-    /// Choose measurement configurations that maximise an observability index (greedy, SFFS or
-    /// exchange over a large candidate set) and write them as CSV.
-    Plan(Box<cli::plan::PlanArgs>),
+    /// Data files: check one against a model, join an inputs file and a measurement file.
+    Data(cli::data::DataArgs),
+    /// Reproduce a seed paper's simulation study (`study pm5`, `study pm5-design`: the 5-DOF paper; `study t3r1`: the 3T1R paper) and print
+    /// the paper's figures beside kinecal's.
+    Study(cli::study::StudyCommand),
+    /// Calibrate the ABB IRB 120 from real laser-tracker data (three tool reflectors), identify
+    /// on poses idx < 500 and validate on idx ≥ 500.
+    Irb120(cli::irb120::Irb120Args),
 }
 
 /// Run one parsed command.
