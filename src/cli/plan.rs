@@ -24,7 +24,20 @@ use kinecal::simulate::{random_serial_chain, ObservationKind};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
+
+/// Set by `--json`: the text lines are not printed.
+static QUIET: AtomicBool = AtomicBool::new(false);
+
+/// `println!` unless `--json` asked for JSON only.
+macro_rules! say {
+    ($($t:tt)*) => {
+        if !QUIET.load(Ordering::Relaxed) {
+            println!($($t)*);
+        }
+    };
+}
 
 /// Arguments of `kinecal plan`.
 #[derive(Args, Debug)]
@@ -104,6 +117,9 @@ pub struct PlanArgs {
     /// Output CSV (inputs in degrees, target poses in mm and degrees).
     #[arg(short, long, default_value = "plan.csv")]
     pub output: PathBuf,
+    /// Print a JSON summary (indices, chosen candidates, timings) instead of text.
+    #[arg(long)]
+    pub json: bool,
 }
 
 fn bar(len: u64, what: &str) -> ProgressBar {
@@ -168,7 +184,7 @@ struct Planned {
 }
 
 fn print_generation(name: &str, rep: &design::GenerationReport, secs: f64) {
-    println!(
+    say!(
         "mechanism {name}: {} candidates kept of {} sampled ({} unreachable, {} outside strokes/limits, {} near-singular, {} rejected) in {secs:.2} s",
         rep.kept, rep.sampled, rep.unreachable, rep.out_of_limits, rep.near_singular, rep.rejected
     );
@@ -198,7 +214,7 @@ fn pm5_candidates(args: &PlanArgs, mech: kinecal::model::closed::ClosedLoop<kine
         ..Default::default()
     };
     let n = sampling.len(6)?;
-    println!(
+    say!(
         "pm5 workspace: x {:?} mm, y {:?} mm, z {:?} mm, α {:?}°, β {:?}°, γ {:?}° (parasitic), {n} samples, actuator-Jacobian condition ≤ {}",
         x,
         y,
@@ -214,9 +230,10 @@ fn pm5_candidates(args: &PlanArgs, mech: kinecal::model::closed::ClosedLoop<kine
     let (candidates, gen) = design::candidates_in_platform_box(&mech, &ws, &sampling, &filter, Some(&inc))?;
     pb.finish_and_clear();
     print_generation("pm5", &gen.report, t.elapsed().as_secs_f64());
-    println!(
+    say!(
         "actuator-Jacobian condition of the kept candidates: {:.2} – {:.2}",
-        gen.condition_min, gen.condition_max
+        gen.condition_min,
+        gen.condition_max
     );
     Ok(Planned {
         mech: Box::new(mech),
@@ -316,6 +333,8 @@ fn chain_candidates(args: &PlanArgs) -> anyhow::Result<Planned> {
 
 /// Run the command.
 pub fn run(args: PlanArgs) -> anyhow::Result<()> {
+    QUIET.store(args.json, Ordering::Relaxed);
+    let started = Instant::now();
     let kind = match args.observe.as_str() {
         "pose" => ObservationKind::Pose,
         "position" => ObservationKind::Position,
@@ -364,7 +383,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
     let inc = |k: u64| pb.inc(k);
     let blocks = CandidateJacobians::build(&*mech, &cands, kind, &noise, &cols, Some(&inc))?;
     pb.finish_and_clear();
-    println!(
+    say!(
         "identification Jacobian blocks: {} × {}×{} ({} identifiable of {} parameters) in {:.2} s",
         blocks.len(),
         blocks.rows_per_candidate(),
@@ -382,7 +401,11 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         ..Default::default()
     };
     let t = Instant::now();
-    let spinner = ProgressBar::new_spinner();
+    let spinner = if args.json {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new_spinner()
+    };
     let sel = design::select(&blocks, args.method, &opts, &mut |s| {
         spinner.set_message(format!(
             "{:?} {:?} #{}: size {}, score {:.5e}",
@@ -391,8 +414,9 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         spinner.tick();
     })?;
     spinner.finish_and_clear();
+    let selection_seconds = t.elapsed().as_secs_f64();
     let ix = &sel.indices;
-    println!(
+    say!(
         "{:?} on {}: {} configurations in {:.2} s ({} moves, {} chosen D-optimally before full rank)",
         sel.method,
         sel.criterion,
@@ -401,16 +425,38 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         sel.history.len(),
         sel.warm_up
     );
-    println!(
+    say!(
         "indices (scaled, dimensionless): O1 {:.4e}  O2 {:.4e} (O_T {:.3})  O3 {:.4e}  O4 {:.4e}  O5 {:.4e}  log det {:.3}",
-        ix.o1, ix.o2, ix.o_t, ix.o3, ix.o4, ix.o5, ix.log_det
+        ix.o1,
+        ix.o2,
+        ix.o_t,
+        ix.o3,
+        ix.o4,
+        ix.o5,
+        ix.log_det
     );
     let file = std::fs::File::create(&args.output).with_context(|| format!("cannot create {}", args.output.display()))?;
     design::write_plan_csv(std::io::BufWriter::new(file), &mech.input_names(), &angle_inputs, &cands, &sel)
         .with_context(|| format!("cannot write {}", args.output.display()))?;
-    println!(
+    say!(
         "wrote {} (angle inputs in degrees, length inputs in mm, target tool poses in mm and degrees)",
         args.output.display()
     );
+    if args.json {
+        let summary = serde_json::json!({
+            "mechanism": mech.name(),
+            "candidates": cands.len(),
+            "identifiable_parameters": cols.len(),
+            "method": format!("{:?}", sel.method),
+            "criterion": sel.criterion.to_string(),
+            "configurations": sel.selected.len(),
+            "chosen_candidates": sel.selected,
+            "indices": {"o1": ix.o1, "o2": ix.o2, "o_t": ix.o_t, "o3": ix.o3, "o4": ix.o4, "o5": ix.o5, "log_det": ix.log_det},
+            "selection_seconds": selection_seconds,
+            "total_seconds": started.elapsed().as_secs_f64(),
+            "output": args.output,
+        });
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+    }
     Ok(())
 }

@@ -213,3 +213,36 @@ fn planned_configurations_drive_the_study_and_beat_random_sets() {
     assert!(opt.position.mean < rnd.position.mean, "{opt:?} {rnd:?}");
     assert!(opt.beats_random > 0.5 && rnd.beats_random == 0.5, "{opt:?}");
 }
+
+#[test]
+fn plan_json_reports_the_chosen_set_and_its_indices() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("plan.csv");
+    let res = assert_cmd::Command::cargo_bin("kinecal")
+        .unwrap()
+        .args([
+            "plan",
+            "--model",
+            "pm5",
+            "--candidates",
+            "300",
+            "-n",
+            "10",
+            "--method",
+            "greedy",
+            "--json",
+            "-o",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&res.stdout).expect("stdout is only JSON");
+    assert_eq!(v["mechanism"], "pm5");
+    assert_eq!(v["configurations"], 10);
+    assert_eq!(v["chosen_candidates"].as_array().unwrap().len(), 10);
+    assert_eq!(v["identifiable_parameters"], 32);
+    let o2 = v["indices"]["o2"].as_f64().unwrap();
+    assert!(o2 > 0.0 && (v["indices"]["o_t"].as_f64().unwrap() * o2 - 1.0).abs() < 1e-9);
+    assert!(out.exists());
+}
