@@ -274,18 +274,16 @@ pub struct SchemeResult {
     pub identification: ErrorStats,
     /// Errors on the held-out poses.
     pub validation: ErrorStats,
-    /// The calibrated model.
-    #[serde(skip)]
-    pub model: SerialChain,
     /// The starting model: nominal geometry with the registered base and tool frames.
     #[serde(skip)]
     pub start: SerialChain,
     /// The free parameters, in priority order.
     #[serde(skip)]
     pub free_params: Vec<usize>,
-    /// The full identification result (history, identifiability, uncertainties).
+    /// The full identification result: the calibrated model, history, identifiability,
+    /// uncertainties.
     #[serde(skip)]
-    pub result: identify::Identification<SerialChain>,
+    pub fit: identify::Identification<SerialChain>,
 }
 
 /// Options of [`calibrate`].
@@ -365,9 +363,8 @@ pub fn calibrate(
         noise: res.noise,
         identification: error_stats(&res.model, train)?,
         validation: error_stats(&res.model, test)?,
-        model: res.model.clone(),
         start,
         free_params: free,
-        result: res,
+        fit: res,
     })
 }

@@ -175,7 +175,7 @@ pub fn run(args: Irb120Args) -> anyhow::Result<()> {
     );
 
     // What geometry does not explain: validation errors of (ii) by joint-1 range.
-    let full = &runs[1].result.model;
+    let full = &runs[1].result.fit.model;
     let mut rows: Vec<(f64, f64)> = Vec::new();
     for m in &test {
         let t = full.forward(&m.q)?;
@@ -205,7 +205,7 @@ pub fn run(args: Irb120Args) -> anyhow::Result<()> {
         let r = &runs[1].result;
         let report = kinecal::report::CalibrationReport::new(
             &r.start,
-            &r.result,
+            &r.fit,
             &r.free_params,
             "GaussNewton, frame residual",
             &format!("{} (idx < {split})", args.data.display()),

@@ -26,7 +26,7 @@ pub struct QuickstartArgs {
 /// The command lines of the quickstart, with paths under `dir`.
 pub fn command_lines(dir: &Path, seed: u64, candidates: usize) -> Vec<Vec<String>> {
     let p = |f: &str| dir.join(f).display().to_string();
-    let lines: Vec<Vec<String>> = vec![
+    vec![
         vec!["model".into(), "export".into(), "pm5".into(), "--out".into(), p("pm5.toml")],
         vec![
             "plan".into(),
@@ -91,8 +91,7 @@ pub fn command_lines(dir: &Path, seed: u64, candidates: usize) -> Vec<Vec<String
             "--out".into(),
             p("commands.csv"),
         ],
-    ];
-    lines
+    ]
 }
 
 /// Run the quickstart; `run_line` runs one `kinecal` command line (without the program name).
