@@ -62,6 +62,11 @@ pub fn singular_values(a: &DMatrix<f64>) -> Vec<f64> {
     if a.ncols() == 0 || a.nrows() == 0 {
         return Vec::new();
     }
+    // nalgebra's SVD does not return on NaN / infinite input: report such a matrix as having no
+    // information (all singular values NaN compare false against every tolerance, rank 0).
+    if a.iter().any(|v| !v.is_finite()) {
+        return vec![f64::NAN; a.ncols().min(a.nrows())];
+    }
     // Work on the smaller Gram side when tall: the SVD of AᵀA squares the condition number, so use
     // a thin QR first and the SVD of its small R factor instead.
     let r = if a.nrows() > a.ncols() { a.clone().qr().r() } else { a.clone() };

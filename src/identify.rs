@@ -14,7 +14,7 @@
 //! Parameter standard deviations are `sqrt(diag(σ̂₀²·(AᵀA)⁻¹))` on the identifiable subset, with
 //! `A` the weighted Jacobian at the solution and `σ̂₀² = |r|²/(m − k)` the a-posteriori variance of
 //! unit weight (the issue's `σ²(JᵀJ)⁻¹`).
-use crate::error::CalibError;
+use crate::error::{CalibError, KinError};
 use crate::identifiability::{self, Identifiability};
 use crate::measure::{self, Measurement, Noise};
 use crate::model::Mechanism;
@@ -124,8 +124,16 @@ pub fn linearize<M: Mechanism + ?Sized>(model: &M, data: &[Measurement], noise: 
             let (pose, jac) = model
                 .forward_with_jacobian(&m.q)
                 .map_err(|source| CalibError::Kinematics { pose: i, source })?;
+            if jac.iter().any(|v| !v.is_finite()) {
+                let source = KinError::NonFinite("the identification Jacobian (check the model's geometry for extreme values)".into());
+                return Err(CalibError::Kinematics { pose: i, source });
+            }
             let a = measure::residual_jacobian(&m.obs, &pose, &jac);
             let r = measure::residual(&m.obs, &pose);
+            if r.iter().any(|v| !v.is_finite()) {
+                let source = KinError::NonFinite("the residual (check the measurement and the model's geometry)".into());
+                return Err(CalibError::Kinematics { pose: i, source });
+            }
             let w = measure::row_weights(&m.obs, noise);
             Ok((a, r, w))
         })
@@ -174,6 +182,10 @@ fn solve_subset(a: &DMatrix<f64>, b: &DVector<f64>, cols: &[usize], damping: f64
         (scaled, b.clone())
     };
     let b = &rhs;
+    // nalgebra's SVD does not return on non-finite input.
+    if small.iter().chain(b.iter()).any(|v| !v.is_finite()) {
+        return Err(CalibError::Numerical("non-finite values in the least-squares system".into()));
+    }
     let svd = small.svd(true, true);
     let (u, vt) = match (&svd.u, &svd.v_t) {
         (Some(u), Some(vt)) => (u, vt),

@@ -165,6 +165,9 @@ pub fn register_points(src: &[Vector3<f64>], dst: &[Vector3<f64>]) -> Option<Pos
     for (s, d) in src.iter().zip(dst) {
         z += (d - cd) * (s - cs).transpose();
     }
+    if z.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
     let svd = z.svd(true, true);
     let (u, vt) = (svd.u?, svd.v_t?);
     let sv = svd.singular_values;

@@ -197,6 +197,18 @@ fn check(blocks: &CandidateJacobians, opts: &SelectOptions) -> Result<(), CalibE
     if opts.shortlist == 0 {
         return Err(CalibError::InvalidOption("shortlist must be at least 1".into()));
     }
+    if opts.pool == 0 {
+        return Err(CalibError::InvalidOption("pool must be at least 1 candidate".into()));
+    }
+    let (k, rows) = (blocks.n_columns(), blocks.rows_per_candidate());
+    if opts.n * rows < k {
+        return Err(CalibError::InvalidOption(format!(
+            "{} configurations give {} measurement rows for {k} identifiable parameters: choose at least {}",
+            opts.n,
+            opts.n * rows,
+            k.div_ceil(rows)
+        )));
+    }
     Ok(())
 }
 

@@ -437,8 +437,15 @@ pub fn data_from_table(table: &Table, inputs: &[InputSpec], input_columns: Input
         }
     };
 
+    if table.is_empty() {
+        return Err(IoError::Invalid {
+            path: path.clone(),
+            message: "no data rows after the header; a data file needs one row per pose".into(),
+        });
+    }
     let mut measurements = Vec::with_capacity(table.len());
     let mut ids = Vec::with_capacity(table.len());
+    let mut first_line_of_id = std::collections::HashMap::new();
     for (r, row) in table.rows.iter().enumerate() {
         let line = table.lines[r];
         let mut q = vec![0.0; if has_inputs { inputs.len() } else { 0 }];
@@ -464,6 +471,16 @@ pub fn data_from_table(table: &Table, inputs: &[InputSpec], input_columns: Input
                 Slot::Rpy(i) => rpy[i] = v,
                 Slot::Reflector(m, a) => refl[m][a] = v,
             }
+        }
+        if let Some(first) = first_line_of_id.insert(id, line) {
+            return Err(IoError::AtLine {
+                path: path.clone(),
+                line,
+                message: format!("id {id} appears twice (first on line {first}); every pose needs its own id"),
+            });
+        }
+        if has_inputs {
+            check_limits(path, line, inputs, &q)?;
         }
         let obs = match format {
             MeasurementFormat::Position => Observation::Position(p),
@@ -501,6 +518,30 @@ pub fn data_from_table(table: &Table, inputs: &[InputSpec], input_columns: Input
         format,
         has_inputs,
     })
+}
+
+/// Each input within its limits (the model file's): a value outside is a wrong unit, a wrong
+/// column order or a wrong model far more often than a real pose.
+fn check_limits(path: &Path, line: usize, inputs: &[InputSpec], q: &[f64]) -> Result<(), IoError> {
+    for (inp, &v) in inputs.iter().zip(q) {
+        let Some((lo, hi)) = inp.limits else { continue };
+        let slack = 1e-9 * (1.0 + lo.abs().max(hi.abs()));
+        if v < lo - slack || v > hi + slack {
+            let (shown, lo_s, hi_s, unit) = match inp.unit {
+                Unit::Angle => (v.to_degrees(), lo.to_degrees(), hi.to_degrees(), "deg"),
+                _ => (v, lo, hi, "mm"),
+            };
+            return Err(IoError::AtLine {
+                path: path.to_path_buf(),
+                line,
+                message: format!(
+                    "{}: {shown:.4} {unit} is outside the model's limits [{lo_s:.4}, {hi_s:.4}] {unit} (check the column's unit and the joint order)",
+                    inp.name
+                ),
+            });
+        }
+    }
+    Ok(())
 }
 
 fn reflector_column(base: &str) -> Option<(usize, usize)> {

@@ -138,3 +138,89 @@ pub enum IoError {
         message: String,
     },
 }
+
+/// Read a text file the way users' tools write them: a UTF-8 byte-order mark (Excel's
+/// "CSV UTF-8") is dropped, and bytes that are not UTF-8 are an error naming the line and what to
+/// do, instead of a confusing message about the first column.
+pub fn read_text(path: &std::path::Path) -> Result<String, IoError> {
+    let bytes = std::fs::read(path).map_err(|source| IoError::Read {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(&bytes);
+    match std::str::from_utf8(bytes) {
+        Ok(s) => Ok(s.to_string()),
+        Err(e) => {
+            let at = e.valid_up_to();
+            let line = 1 + bytes[..at].iter().filter(|&&b| b == b'\n').count();
+            Err(IoError::AtLine {
+                path: path.to_path_buf(),
+                line,
+                message: format!(
+                    "byte {:#04x} is not UTF-8 text; save the file as UTF-8 (or plain ASCII) and try again",
+                    bytes[at]
+                ),
+            })
+        }
+    }
+}
+
+/// Write `contents` to `path` whole or not at all: to a temporary file in the same directory,
+/// flushed, then renamed over `path`. A failure (full disk, missing directory) leaves any
+/// existing file at `path` untouched and no temporary file behind.
+pub fn write_atomic(path: &std::path::Path, contents: &[u8]) -> Result<(), IoError> {
+    use std::io::Write as _;
+    let err = |source| IoError::Write {
+        path: path.to_path_buf(),
+        source,
+    };
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "out".into());
+    let tmp = dir.join(format!(".{name}.kinecal-{}.tmp", std::process::id()));
+    let result = (|| {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(contents)?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if let Err(e) = result {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(err(e));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bom_is_dropped_and_bad_bytes_name_their_line() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("a.csv");
+        std::fs::write(&p, b"\xEF\xBB\xBFid,x\n1,2\n").unwrap();
+        assert_eq!(read_text(&p).unwrap(), "id,x\n1,2\n");
+        std::fs::write(&p, b"id,x\n1,2\n3,\xFF\n").unwrap();
+        let e = read_text(&p).unwrap_err().to_string();
+        assert!(e.contains("a.csv:3:") && e.contains("0xff") && e.contains("UTF-8"), "{e}");
+    }
+
+    #[test]
+    fn atomic_write_leaves_the_old_file_on_failure() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("m.toml");
+        write_atomic(&p, b"old").unwrap();
+        write_atomic(&p, b"new").unwrap();
+        assert_eq!(std::fs::read(&p).unwrap(), b"new");
+        let bad = dir.path().join("no-such-dir").join("x.toml");
+        assert!(write_atomic(&bad, b"x").is_err());
+        assert!(!bad.exists());
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1, "no temporary file left");
+    }
+}

@@ -509,10 +509,7 @@ impl ModelFile {
 
     /// Read and check a model file.
     pub fn load(path: &Path) -> Result<ModelFile, IoError> {
-        let text = std::fs::read_to_string(path).map_err(|source| IoError::Read {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let text = super::read_text(path)?;
         Self::load_str(path, &text)
     }
 
@@ -520,6 +517,7 @@ impl ModelFile {
     pub fn load_str(path: &Path, text: &str) -> Result<ModelFile, IoError> {
         let ctx = Ctx { path, text };
         let probe: Probe = toml::from_str(text).map_err(|e| ctx.toml_error(&e))?;
+        ctx.check_array_lengths()?;
         let kind = probe.mechanism.and_then(|m| m.kind).ok_or_else(|| IoError::Invalid {
             path: path.to_path_buf(),
             message: format!("missing key 'mechanism.kind' (one of: {})", kinds_list()),
@@ -670,7 +668,66 @@ struct Ctx<'a> {
     text: &'a str,
 }
 
+/// Fixed lengths of the numeric arrays of model files, by key: serde reads the first `n` values
+/// of a longer TOML array and drops the rest, so a typo such as `c = [0, 100, 0, 5]` would pass
+/// silently without this check.
+const ARRAY_LENGTHS: [(&str, usize); 19] = [
+    ("position", 3),
+    ("rpy", 3),
+    ("rotvec", 3),
+    ("axis", 3),
+    ("b", 3),
+    ("c", 3),
+    ("base", 3),
+    ("platform", 3),
+    ("euler_xyz", 3),
+    ("alpha", 2),
+    ("beta", 2),
+    ("gamma", 2),
+    ("limits", 2),
+    ("stroke", 2),
+    ("sub_stroke", 2),
+    ("x", 2),
+    ("y", 2),
+    ("z", 2),
+    ("sub_loop", 4),
+];
+
 impl Ctx<'_> {
+    /// Every array under a key of [`ARRAY_LENGTHS`] has exactly that many values.
+    fn check_array_lengths(&self) -> Result<(), IoError> {
+        use toml::de::{DeTable, DeValue};
+        fn walk(ctx: &Ctx<'_>, table: &DeTable<'_>, prefix: &str) -> Result<(), IoError> {
+            for (k, v) in table.iter() {
+                let key = k.get_ref().as_ref();
+                let full = if prefix.is_empty() {
+                    key.to_string()
+                } else {
+                    format!("{prefix}.{key}")
+                };
+                match v.get_ref() {
+                    DeValue::Table(t) => walk(ctx, t, &full)?,
+                    DeValue::Array(items) => {
+                        if let Some(&(_, n)) = ARRAY_LENGTHS.iter().find(|(name, _)| *name == key) {
+                            if items.len() != n {
+                                return Err(ctx.at(&v.span(), format!("{full}: expected {n} values, found {}", items.len())));
+                            }
+                        }
+                        for item in items {
+                            if let DeValue::Table(t) = item.get_ref() {
+                                walk(ctx, t, &full)?;
+                            }
+                        }
+                    }
+                    _ => {}
+                }
+            }
+            Ok(())
+        }
+        let table = DeTable::parse(self.text).map_err(|e| self.toml_error(&e))?;
+        walk(self, table.get_ref(), "")
+    }
+
     fn line_of(&self, offset: usize) -> usize {
         self.text[..offset.min(self.text.len())].matches('\n').count() + 1
     }

@@ -46,10 +46,7 @@ impl Table {
 /// starting with `#` are skipped. Every row must have as many fields as the header; every field
 /// must parse as a finite number. Errors name the file, the line and the column.
 pub fn read_table(path: &Path) -> Result<Table, IoError> {
-    let text = std::fs::read_to_string(path).map_err(|source| IoError::Read {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let text = super::read_text(path)?;
     parse_table(path, &text)
 }
 

@@ -292,7 +292,15 @@ fn max_abs(v: &[f64]) -> f64 {
     v.iter().fold(0.0, |m, x| m.max(x.abs()))
 }
 
+/// Halvings of a Newton step before a solve gives up (the step is then 2⁻⁴⁰ of its length).
+const MAX_BACKTRACKS: usize = 40;
+
+/// Condition number of a square matrix; infinite when it holds a non-finite entry (nalgebra's
+/// SVD does not return on NaN input, so it must never see one).
 fn condition(m: &DMatrix<f64>) -> f64 {
+    if m.iter().any(|v| !v.is_finite()) {
+        return f64::INFINITY;
+    }
     let s = m.clone().singular_values();
     let hi = s.iter().cloned().fold(0.0, f64::max);
     let lo = s.iter().cloned().fold(f64::INFINITY, f64::min);
@@ -484,9 +492,11 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
                 what: "forward kinematics (constraint Jacobian F_X)".into(),
                 condition: f64::INFINITY,
             })?;
-            // Backtracking on the residual max-norm.
+            // Backtracking on the residual max-norm, bounded: a step whose trial points never
+            // evaluate to finite residuals ends the solve instead of halving forever.
             let mut t = 1.0;
-            loop {
+            let mut accepted = false;
+            for _ in 0..MAX_BACKTRACKS {
                 let mut trial = x;
                 for i in 0..6 {
                     trial[i] += t * step[i];
@@ -497,9 +507,16 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
                     x = trial;
                     f = ft;
                     norm = nt;
+                    accepted = true;
                     break;
                 }
                 t *= 0.5;
+            }
+            if !accepted {
+                return Err(KinError::NonFinite(format!(
+                    "{} forward kinematics: the constraint residual is not finite near the current pose",
+                    self.system.name()
+                )));
             }
         }
         if norm <= self.solver.tolerance {
@@ -629,7 +646,8 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
                 condition: f64::INFINITY,
             })?;
             let mut s = 1.0;
-            loop {
+            let mut accepted = false;
+            for _ in 0..MAX_BACKTRACKS {
                 let trial: Vec<f64> = z.iter().zip(step.iter()).map(|(a, b)| a + s * b).collect();
                 let ft = eval(&trial);
                 let nt = max_abs(&ft);
@@ -637,9 +655,16 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
                     z = trial;
                     f = ft;
                     norm = nt;
+                    accepted = true;
                     break;
                 }
                 s *= 0.5;
+            }
+            if !accepted {
+                return Err(KinError::NonFinite(format!(
+                    "{} inverse kinematics: the constraint residual is not finite near the current pose",
+                    self.system.name()
+                )));
             }
         }
         if norm.is_nan() || norm > self.solver.tolerance {

@@ -9,6 +9,7 @@ mod model_file;
 mod parallel_workflow;
 mod plan_pm5;
 mod quickstart;
+mod robustness;
 mod se3_props;
 mod study;
 mod t3r1;
