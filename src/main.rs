@@ -9,8 +9,13 @@ mod cli;
 ///
 /// Units: lengths in mm, angles in degrees on the command line and in reports (radians inside
 /// model files only where a file says so).
+///
+/// Exit codes: 0 the result is usable; 1 wrong input or options, or nothing could be computed;
+/// 2 a result was computed but failed its checks (not converged, residual far beyond the noise).
+/// Outputs are written all together only when the command succeeds, never over an input, and
+/// replace existing files only with --force.
 #[derive(Parser, Debug)]
-#[command(name = "kinecal", version, about, long_about = None)]
+#[command(name = "kinecal", version, about)]
 struct Args {
     #[command(subcommand)]
     command: Command,
@@ -82,8 +87,13 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             // Library errors already include their cause in their message: print the top one only.
-            eprintln!("kinecal: error: {e}");
-            ExitCode::FAILURE
+            if e.downcast_ref::<cli::FailedChecks>().is_some() {
+                eprintln!("kinecal: failed: {e}");
+                ExitCode::from(cli::EXIT_FAILED_CHECKS)
+            } else {
+                eprintln!("kinecal: error: {e}");
+                ExitCode::from(cli::EXIT_ERROR)
+            }
         }
     }
 }

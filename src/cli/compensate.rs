@@ -2,12 +2,13 @@
 //! calibrated model.
 use super::progress;
 use clap::Args;
-use kinecal::io::data_file::{input_headers, input_values_for_file, read_data, write_csv, InputColumns};
+use kinecal::io::data_file::{csv_text, input_headers, input_values_for_file, read_data, InputColumns};
 use kinecal::io::model_file::ModelFile;
+use kinecal::io::output::Outputs;
 use kinecal::model::Task;
 use kinecal::se3;
 use kinecal::workflow::{compensate, target_poses};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `kinecal compensate`.
 #[derive(Args, Debug)]
@@ -28,11 +29,28 @@ pub struct CompensateArgs {
     /// Print JSON instead of text.
     #[arg(long)]
     pub json: bool,
+    /// Replace an existing output file; use a model marked failed by `kinecal identify --force`.
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// Run the command.
 pub fn run(a: CompensateArgs) -> anyhow::Result<()> {
+    let mut outputs = Outputs::new(a.force);
+    outputs.input(Path::new(&a.model)).input(&a.targets);
+    if let Some(n) = &a.nominal {
+        outputs.input(Path::new(n));
+    }
+    outputs.output(&a.out)?;
     let file = ModelFile::load_or_builtin(&a.model)?;
+    if let Some(p) = file.provenance.as_ref().filter(|p| p.status == "failed") {
+        anyhow::ensure!(
+            a.force,
+            "{}: this model is marked failed ({}); recalibrate, or pass --force to use it anyway",
+            a.model,
+            p.reasons.first().map_or("see its [provenance]", String::as_str)
+        );
+    }
     let model = file.build();
     let inputs = file.inputs();
     let data = read_data(&a.targets, &inputs, InputColumns::Optional)?;
@@ -75,7 +93,8 @@ pub fn run(a: CompensateArgs) -> anyhow::Result<()> {
         .zip(&data.ids)
         .map(|(q, id)| std::iter::once(*id as f64).chain(input_values_for_file(&inputs, q)).collect())
         .collect();
-    write_csv(&a.out, &header, &rows)?;
+    outputs.stage(&a.out, csv_text(&header, &rows).as_bytes())?;
+    outputs.commit()?;
     // A 5-DOF machine matches position and tool axis; the rotation about the axis follows from its
     // constraints. Say how far it is from the targets' (the whole rotation error, the axis being met).
     let parasitic_deg = match model.task() {

@@ -1,8 +1,9 @@
 //! `kinecal data check | join`: check a data file against a model, or join an inputs file and a
 //! measurement file into one data file.
 use clap::{Args, Subcommand};
-use kinecal::io::data_file::{join_files, read_data, write_data, DataSet, InputColumns};
+use kinecal::io::data_file::{data_text, join_files, read_data, DataSet, InputColumns};
 use kinecal::io::model_file::ModelFile;
+use kinecal::io::output::Outputs;
 use std::path::PathBuf;
 
 /// Arguments of `kinecal data`.
@@ -41,6 +42,9 @@ enum DataCommand {
         /// Print JSON instead of text.
         #[arg(long)]
         json: bool,
+        /// Replace an existing output file.
+        #[arg(long)]
+        force: bool,
     },
 }
 
@@ -70,10 +74,15 @@ pub fn run(args: DataArgs) -> anyhow::Result<()> {
             measurements,
             out,
             json,
+            force,
         } => {
+            let mut outputs = Outputs::new(force);
+            outputs.input(std::path::Path::new(&model)).input(&inputs).input(&measurements);
+            outputs.output(&out)?;
             let file = ModelFile::load_or_builtin(&model)?;
             let d = join_files(&inputs, &measurements, &file.inputs())?;
-            write_data(&out, &file.inputs(), &d.ids, &d.measurements, None)?;
+            outputs.stage(&out, data_text(&out, &file.inputs(), &d.ids, &d.measurements, None)?.as_bytes())?;
+            outputs.commit()?;
             summary(&d, json)?;
             if !json {
                 println!("joined → {}", out.display());

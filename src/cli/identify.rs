@@ -3,11 +3,13 @@ use super::progress;
 use clap::{Args, ValueEnum};
 use kinecal::identify::{identify, Method, Options};
 use kinecal::io::data_file::{read_data, InputColumns};
-use kinecal::io::model_file::ModelFile;
+use kinecal::io::model_file::{ModelFile, Provenance};
+use kinecal::io::output::Outputs;
 use kinecal::measure::Noise;
-use kinecal::report::{CalibrationReport, ParamStatus};
+use kinecal::report::{CalibrationReport, ParamStatus, Status};
 use kinecal::workflow::default_noise;
-use std::path::PathBuf;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
 
 /// Identification algorithm.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -52,6 +54,10 @@ pub struct IdentifyArgs {
     /// Print the report as JSON instead of text.
     #[arg(long)]
     pub json: bool,
+    /// Replace existing output files; and write the model and report even when the calibration
+    /// failed its checks (marked failed in both; the exit code is still 2).
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// The noise weights: command line, else model file, else the default.
@@ -70,6 +76,12 @@ pub fn resolve_noise(file: &ModelFile, mm: Option<f64>, deg: Option<f64>) -> any
 
 /// Run the command.
 pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
+    let mut outputs = Outputs::new(a.force);
+    outputs.input(Path::new(&a.model)).input(&a.data);
+    if let Some(v) = &a.validation {
+        outputs.input(v);
+    }
+    outputs.output(&a.out)?.output_opt(a.report.as_deref())?;
     let file = ModelFile::load_or_builtin(&a.model)?;
     let nominal = file.build();
     let inputs = file.inputs();
@@ -96,8 +108,7 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
     let mut calibrated = file.with_geometry_of(&*result.model).map_err(|e| anyhow::anyhow!(e))?;
     calibrated.description = Some(format!("calibrated from '{}' on {}", file.name, a.data.display()));
     calibrated.noise = Some(result.noise);
-    calibrated.save(&a.out)?;
-    let report = CalibrationReport::new(
+    let mut report = CalibrationReport::new(
         &nominal,
         &result,
         &free,
@@ -108,12 +119,39 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
             .as_ref()
             .map(|v| (v.path.to_str().unwrap_or("validation"), v.measurements.as_slice())),
     )?;
-    if let Some(path) = &a.report {
-        let html = report.to_html().map_err(|e| anyhow::anyhow!("report: {e}"))?;
-        std::fs::write(path, html).map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", path.display()))?;
+    report.assess(&opts.noise);
+    let failed = report.verdict.status == Status::Failed;
+    let mut data_files = vec![a.data.display().to_string()];
+    data_files.extend(a.validation.iter().map(|v| format!("{} (validation)", v.display())));
+    calibrated.provenance = Some(Provenance {
+        status: report.verdict.status.as_str().to_string(),
+        reasons: report.verdict.reasons.clone(),
+        command: std::env::args().collect::<Vec<_>>().join(" "),
+        version: env!("CARGO_PKG_VERSION").to_string(),
+        date: super::utc_now(),
+        data: data_files,
+    });
+    if !failed || a.force {
+        let text = calibrated.to_toml().map_err(|e| anyhow::anyhow!("{}: {e}", a.out.display()))?;
+        outputs.stage(&a.out, text.as_bytes())?;
+        if let Some(path) = &a.report {
+            let html = report.to_html().map_err(|e| anyhow::anyhow!("report: {e}"))?;
+            outputs.stage(path, html.as_bytes())?;
+        }
+        outputs.commit()?;
     }
+    let verdict = || {
+        let mut line = format!("verdict: {}", report.verdict.status.as_str());
+        if !report.verdict.reasons.is_empty() {
+            let _ = write!(line, ": {}", report.verdict.reasons.join("; "));
+        }
+        line
+    };
     if a.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
+        if failed {
+            return Err(super::FailedChecks(verdict()).into());
+        }
         return Ok(());
     }
     println!(
@@ -123,7 +161,11 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         file.name,
         data.measurements.len(),
         opts.method,
-        if report.converged { "converged" } else { "NOT converged" },
+        match (report.converged, failed) {
+            (false, _) => "NOT converged",
+            (true, true) => "FAILED its checks",
+            (true, false) => "converged",
+        },
         report.iterations,
         report.sigma0
     );
@@ -146,9 +188,17 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
     for p in report.params.iter().filter(|p| p.status == ParamStatus::Identified) {
         println!("{:<10} {:>12.5} {:>12.5} {}", p.name, p.value, p.std_dev, p.unit);
     }
+    if failed && !a.force {
+        println!("nothing written (pass --force to write the failed model and report anyway)");
+        return Err(super::FailedChecks(verdict()).into());
+    }
     println!("calibrated model → {}", a.out.display());
     if let Some(r) = &a.report {
         println!("report → {}", r.display());
+    }
+    println!("{}", verdict());
+    if failed {
+        return Err(super::FailedChecks(verdict()).into());
     }
     Ok(())
 }

@@ -213,7 +213,7 @@ pub fn run(args: Irb120Args) -> anyhow::Result<()> {
             Some((&format!("{} (idx ≥ {split})", args.data.display()), &test)),
         )?;
         let html = report.to_html().map_err(|e| anyhow::anyhow!("report: {e}"))?;
-        std::fs::write(path, html).map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", path.display()))?;
+        kinecal::io::write_atomic(path, html.as_bytes())?;
         eprintln!("report → {}", path.display());
     }
     let summary = DataSummary {

@@ -12,3 +12,40 @@ pub mod simulate;
 pub mod study;
 pub mod study_t3r1;
 pub mod validate;
+
+/// A result that was computed but failed its checks (not converged, implausible, residual far
+/// beyond the noise): the command exits with [`EXIT_FAILED_CHECKS`] instead of 1.
+#[derive(Debug)]
+pub struct FailedChecks(pub String);
+
+impl std::fmt::Display for FailedChecks {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for FailedChecks {}
+
+/// Exit code of a command whose input or options were wrong, or that could not compute.
+pub const EXIT_ERROR: u8 = 1;
+/// Exit code of a command that computed a result which failed its checks ([`FailedChecks`]).
+pub const EXIT_FAILED_CHECKS: u8 = 2;
+
+/// The current UTC date and time as ISO 8601 (`2026-11-24T13:05:00Z`), for provenance records.
+pub fn utc_now() -> String {
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs()) as i64;
+    let (days, rem) = (secs.div_euclid(86_400), secs.rem_euclid(86_400));
+    // Civil date from days since 1970-01-01 (H. Hinnant's algorithm).
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z.rem_euclid(146_097);
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + i64::from(m <= 2);
+    format!("{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}Z", rem / 3600, rem % 3600 / 60, rem % 60)
+}

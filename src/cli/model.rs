@@ -1,6 +1,7 @@
 //! `kinecal model list | export NAME`: the built-in models and their model files.
 use clap::{Args, Subcommand};
 use kinecal::io::model_file::{AngleUnit, LengthUnit, ModelFile};
+use kinecal::io::output::Outputs;
 use kinecal::model::builtin;
 use std::path::PathBuf;
 
@@ -32,6 +33,9 @@ enum ModelCommand {
         /// Write to this file instead of standard output.
         #[arg(long, short)]
         out: Option<PathBuf>,
+        /// Replace an existing output file.
+        #[arg(long)]
+        force: bool,
     },
 }
 
@@ -57,14 +61,26 @@ pub fn run(args: ModelArgs) -> anyhow::Result<()> {
                 }
             }
         }
-        ModelCommand::Export { name, length, angle, out } => {
+        ModelCommand::Export {
+            name,
+            length,
+            angle,
+            out,
+            force,
+        } => {
+            let mut outputs = Outputs::new(force);
+            outputs.input(std::path::Path::new(&name)).output_opt(out.as_deref())?;
             let mut file = ModelFile::load_or_builtin(&name)?;
             file.units.length =
                 LengthUnit::parse(&length).ok_or_else(|| anyhow::anyhow!("--length: unknown unit '{length}' (use mm or m)"))?;
             file.units.angle =
                 AngleUnit::parse(&angle).ok_or_else(|| anyhow::anyhow!("--angle: unknown unit '{angle}' (use deg or rad)"))?;
             match out {
-                Some(path) => file.save(&path)?,
+                Some(path) => {
+                    let text = file.to_toml().map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+                    outputs.stage(&path, text.as_bytes())?;
+                    outputs.commit()?;
+                }
                 None => print!("{}", file.to_toml().map_err(|e| anyhow::anyhow!("{name}: {e}"))?),
             }
         }

@@ -17,6 +17,7 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use kinecal::design::{self, Candidate, CandidateFilter, CandidateJacobians, Criterion, Sampling, SelectOptions, SelectionMethod};
 use kinecal::io::model_file::ModelFile;
+use kinecal::io::output::Outputs;
 use kinecal::measure::Noise;
 use kinecal::model::Mechanism;
 use kinecal::params::Unit;
@@ -120,6 +121,9 @@ pub struct PlanArgs {
     /// Print a JSON summary (indices, chosen candidates, timings) instead of text.
     #[arg(long)]
     pub json: bool,
+    /// Replace an existing output file.
+    #[arg(long)]
+    pub force: bool,
 }
 
 fn bar(len: u64, what: &str) -> ProgressBar {
@@ -348,6 +352,11 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         noise.position > 0.0 && noise.orientation > 0.0 && noise.position.is_finite() && noise.orientation.is_finite(),
         "--noise-position-mm / --noise-orientation-deg must be finite and > 0"
     );
+    let mut outputs = Outputs::new(args.force);
+    if let Some(m) = &args.model {
+        outputs.input(std::path::Path::new(m));
+    }
+    outputs.output(&args.output)?;
     let planned = match (&args.preset, &args.model) {
         (Some(p), _) if p == "pm5" => pm5_candidates(
             &args,
@@ -435,9 +444,11 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         ix.o5,
         ix.log_det
     );
-    let file = std::fs::File::create(&args.output).with_context(|| format!("cannot create {}", args.output.display()))?;
-    design::write_plan_csv(std::io::BufWriter::new(file), &mech.input_names(), &angle_inputs, &cands, &sel)
+    let mut text = Vec::new();
+    design::write_plan_csv(&mut text, &mech.input_names(), &angle_inputs, &cands, &sel)
         .with_context(|| format!("cannot write {}", args.output.display()))?;
+    outputs.stage(&args.output, &text)?;
+    outputs.commit()?;
     say!(
         "wrote {} (angle inputs in degrees, length inputs in mm, target tool poses in mm and degrees)",
         args.output.display()

@@ -23,8 +23,19 @@ pub struct QuickstartArgs {
     pub candidates: usize,
 }
 
-/// The command lines of the quickstart, with paths under `dir`.
+/// The command lines of the quickstart, with paths under `dir`. The quickstart owns its
+/// directory: the steps that write files pass `--force`, so a second run replaces the first's.
 pub fn command_lines(dir: &Path, seed: u64, candidates: usize) -> Vec<Vec<String>> {
+    let mut lines = steps(dir, seed, candidates);
+    for line in &mut lines {
+        if ["model", "plan", "simulate", "identify", "compensate"].contains(&line[0].as_str()) {
+            line.push("--force".into());
+        }
+    }
+    lines
+}
+
+fn steps(dir: &Path, seed: u64, candidates: usize) -> Vec<Vec<String>> {
     let p = |f: &str| dir.join(f).display().to_string();
     vec![
         vec!["model".into(), "export".into(), "pm5".into(), "--out".into(), p("pm5.toml")],

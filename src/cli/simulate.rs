@@ -2,8 +2,9 @@
 //! noise at random poses → a data file, and the true model written separately.
 use super::progress;
 use clap::{Args, ValueEnum};
-use kinecal::io::data_file::write_data;
+use kinecal::io::data_file::data_text;
 use kinecal::io::model_file::ModelFile;
+use kinecal::io::output::Outputs;
 use kinecal::measure::{Measurement, Noise, Observation};
 use kinecal::se3::{self, Pose};
 use kinecal::workflow::{random_configurations, reflector_centres, virtual_prototype};
@@ -11,7 +12,7 @@ use nalgebra::Vector3;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// What the simulated instrument measures.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -73,6 +74,9 @@ pub struct SimulateArgs {
     /// Print a JSON summary instead of text.
     #[arg(long)]
     pub json: bool,
+    /// Replace existing output files.
+    #[arg(long)]
+    pub force: bool,
 }
 
 struct Written {
@@ -91,6 +95,12 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
         anyhow::ensure!(v.is_finite() && v >= 0.0, "{name}: must be a finite value ≥ 0, got {v}");
     }
     anyhow::ensure!(a.poses > 0, "--poses: must be at least 1");
+    let mut outputs = Outputs::new(a.force);
+    outputs.input(Path::new(&a.model));
+    if let Some(p) = &a.at {
+        outputs.input(p);
+    }
+    outputs.output(&a.out)?.output(&a.truth)?.output_opt(a.validation_out.as_deref())?;
     let file = ModelFile::load_or_builtin(&a.model)?;
     let nominal = file.build();
     let inputs = file.inputs();
@@ -110,7 +120,8 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
         a.error_deg,
         free.len()
     ));
-    truth_file.save(&a.truth)?;
+    let truth_text = truth_file.to_toml().map_err(|e| anyhow::anyhow!("{}: {e}", a.truth.display()))?;
+    outputs.stage(&a.truth, truth_text.as_bytes())?;
 
     let planned: Option<Vec<Vec<f64>>> = match &a.at {
         Some(p) => {
@@ -166,9 +177,10 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
         pb.finish_and_clear();
         let ids: Vec<i64> = (0..n as i64).map(|i| first_id + i).collect();
         let r = (a.measure == MeasureKind::Reflectors).then_some(refl.as_slice());
-        write_data(&path, &inputs, &ids, &meas, r)?;
+        outputs.stage(&path, data_text(&path, &inputs, &ids, &meas, r)?.as_bytes())?;
         written.push(Written { path, poses: n });
     }
+    outputs.commit()?;
     if a.json {
         let files: Vec<_> = written
             .iter()

@@ -583,6 +583,18 @@ pub fn write_data(
     measurements: &[Measurement],
     reflectors: Option<&[[Vector3<f64>; 3]]>,
 ) -> Result<(), IoError> {
+    let text = data_text(path, inputs, ids, measurements, reflectors)?;
+    super::write_atomic(path, text.as_bytes())
+}
+
+/// The text [`write_data`] writes (`path` is only used in messages).
+pub fn data_text(
+    path: &Path,
+    inputs: &[InputSpec],
+    ids: &[i64],
+    measurements: &[Measurement],
+    reflectors: Option<&[[Vector3<f64>; 3]]>,
+) -> Result<String, IoError> {
     let mut header = vec!["id".to_string()];
     let with_inputs = measurements.first().is_some_and(|m| !m.q.is_empty());
     if with_inputs {
@@ -624,11 +636,17 @@ pub fn write_data(
         }
         rows.push(row);
     }
-    write_csv(path, &header, &rows)
+    Ok(csv_text(&header, &rows))
 }
 
 /// Write a numeric CSV with a header; values in full precision (integers without decimals).
+/// The file is written whole or not at all ([`super::write_atomic`]).
 pub fn write_csv(path: &Path, header: &[String], rows: &[Vec<f64>]) -> Result<(), IoError> {
+    super::write_atomic(path, csv_text(header, rows).as_bytes())
+}
+
+/// The text of [`write_csv`].
+pub fn csv_text(header: &[String], rows: &[Vec<f64>]) -> String {
     let mut out = header.join(",");
     out.push('\n');
     for row in rows {
@@ -644,10 +662,7 @@ pub fn write_csv(path: &Path, header: &[String], rows: &[Vec<f64>]) -> Result<()
             .collect();
         let _ = writeln!(out, "{}", fields.join(","));
     }
-    std::fs::write(path, out).map_err(|source| IoError::Write {
-        path: path.to_path_buf(),
-        source,
-    })
+    out
 }
 
 #[cfg(test)]

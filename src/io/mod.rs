@@ -1,6 +1,7 @@
 //! Files: numeric CSV tables with line-accurate errors, laser-tracker data sets.
 pub mod data_file;
 pub mod model_file;
+pub mod output;
 pub mod table;
 pub mod tracker;
 

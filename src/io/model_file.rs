@@ -79,7 +79,7 @@ use crate::model::Mechanism;
 use crate::params::{Param, Unit};
 use crate::se3::Pose;
 use nalgebra::{Translation3, UnitQuaternion, Vector3};
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
@@ -338,6 +338,27 @@ pub struct ModelFile {
     pub fixed: Vec<String>,
     /// Measurement noise, if given.
     pub noise: Option<Noise>,
+    /// Where a calibrated model came from (written by `kinecal identify`; kept on reading).
+    pub provenance: Option<Provenance>,
+}
+
+/// The record a calibrated model file keeps of how it was made: `[provenance]`.
+#[derive(Debug, Clone, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Provenance {
+    /// `"calibrated"`, `"usable with warnings"` or `"failed"` (written only with `--force`).
+    pub status: String,
+    /// Why, when the status is not `"calibrated"`.
+    #[serde(default)]
+    pub reasons: Vec<String>,
+    /// The command line that wrote the file.
+    pub command: String,
+    /// kinecal's version.
+    pub version: String,
+    /// UTC date and time, ISO 8601.
+    pub date: String,
+    /// The identification data file(s).
+    pub data: Vec<String>,
 }
 
 /// True when `name` matches the glob `pattern` (`*`: any run of characters, `?`: one character).
@@ -410,6 +431,7 @@ impl ModelFile {
             free: vec!["*".into()],
             fixed: Vec::new(),
             noise: None,
+            provenance: None,
         }
     }
 
@@ -476,6 +498,19 @@ impl ModelFile {
                 self.units.angle.symbol()
             );
         }
+        if let Some(p) = &self.provenance {
+            let list = |v: &[String]| v.iter().map(|s| quote(s)).collect::<Vec<_>>().join(", ");
+            let _ = write!(
+                out,
+                "\n[provenance]  # how this file was made\nstatus = {}\nreasons = [{}]\ncommand = {}\nversion = {}\ndate = {}\ndata = [{}]\n",
+                quote(&p.status),
+                list(&p.reasons),
+                quote(&p.command),
+                quote(&p.version),
+                quote(&p.date),
+                list(&p.data)
+            );
+        }
         Ok(out)
     }
 
@@ -485,10 +520,7 @@ impl ModelFile {
             path: path.to_path_buf(),
             message,
         })?;
-        std::fs::write(path, text).map_err(|source| IoError::Write {
-            path: path.to_path_buf(),
-            source,
-        })
+        super::write_atomic(path, text.as_bytes())
     }
 
     /// A model file path, or the name of a built-in model ([`crate::model::builtin`]) when no
@@ -610,6 +642,7 @@ struct RawFile<M> {
     mechanism: M,
     calibration: Option<RawCalibration>,
     noise: Option<Spanned<RawNoise>>,
+    provenance: Option<Provenance>,
 }
 
 #[derive(Deserialize)]
@@ -886,6 +919,7 @@ impl Ctx<'_> {
             free: free.into_iter().map(|s| s.into_inner()).collect(),
             fixed: fixed.into_iter().map(|s| s.into_inner()).collect(),
             noise,
+            provenance: raw.provenance,
         })
     }
 }

@@ -82,9 +82,53 @@ pub struct ParamRow {
     pub status: ParamStatus,
 }
 
+/// The overall judgement of a calibration, shown first in the report and deciding the exit code
+/// of `kinecal identify`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Status {
+    /// Converged, residual consistent with the noise, nothing flagged.
+    Calibrated,
+    /// Usable, but look at the reasons (residual above the noise, poorly determined parameters,
+    /// outliers).
+    UsableWithWarnings,
+    /// Not usable: not converged, or the residual is far beyond the stated noise.
+    Failed,
+}
+
+impl Status {
+    /// `"calibrated"`, `"usable with warnings"`, `"failed"`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Status::Calibrated => "calibrated",
+            Status::UsableWithWarnings => "usable with warnings",
+            Status::Failed => "failed",
+        }
+    }
+}
+
+/// A [`Status`] and the reasons for it, most serious first.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Verdict {
+    /// The judgement.
+    pub status: Status,
+    /// Why (empty when calibrated).
+    pub reasons: Vec<String>,
+}
+
+/// σ̂₀ above this fails a calibration: the residual is an order of magnitude beyond the stated
+/// noise, which a wrong unit, swapped columns, a wrong model or an unregistered frame gives, and
+/// real unmodelled errors of a sound setup do not.
+pub const SIGMA0_FAIL: f64 = 10.0;
+/// σ̂₀ above this (and up to [`SIGMA0_FAIL`]) is a warning: errors the model does not describe
+/// remain, or the stated noise is optimistic.
+pub const SIGMA0_WARN: f64 = 3.0;
+
 /// Everything an identification produced.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CalibrationReport {
+    /// The verdict (see [`CalibrationReport::assess`]).
+    pub verdict: Verdict,
     /// Model name.
     pub model: String,
     /// Identification method.
@@ -164,7 +208,11 @@ impl CalibrationReport {
             .collect();
         let names = |v: &[usize]| v.iter().map(|&i| params[i].name.clone()).collect::<Vec<_>>();
         let Noise { position, orientation } = result.noise;
-        Ok(CalibrationReport {
+        let mut report = CalibrationReport {
+            verdict: Verdict {
+                status: Status::Calibrated,
+                reasons: Vec::new(),
+            },
             model: nominal.name().to_string(),
             method: method.to_string(),
             converged: result.converged,
@@ -183,7 +231,85 @@ impl CalibrationReport {
                 Some((src, v)) => Some(SetErrors::compute(src, nominal, &result.model, v)?),
                 None => None,
             },
-        })
+        };
+        report.assess(&result.noise);
+        Ok(report)
+    }
+
+    /// Judge the calibration ([`CalibrationReport::verdict`]) against the noise the user stated
+    /// (`stated`; with re-estimated weights the estimate is compared with it).
+    pub fn assess(&mut self, stated: &Noise) {
+        let mut failed = Vec::new();
+        let mut warnings = Vec::new();
+        if !self.converged {
+            failed.push(format!(
+                "the identification did not converge after {} iterations (too few or badly spread poses, or a model that does not fit the data)",
+                self.iterations
+            ));
+        }
+        let ratio = [
+            self.noise_mm_deg.0 / stated.position,
+            self.noise_mm_deg.1.to_radians() / stated.orientation,
+        ]
+        .into_iter()
+        .filter(|r| r.is_finite())
+        .fold(1.0, f64::max);
+        let excess = self.sigma0 * ratio;
+        if !excess.is_finite() {
+            failed.push("the residual is not finite".into());
+        } else if excess > SIGMA0_FAIL {
+            failed.push(format!(
+                "the residual is {excess:.1}× the stated noise (σ̂₀ {:.2}{}): a wrong unit or column order, a model of another machine, or data in an unregistered frame",
+                self.sigma0,
+                if ratio > 1.0 { format!(", re-estimated weights {ratio:.1}× the stated noise") } else { String::new() }
+            ));
+        } else if excess > SIGMA0_WARN {
+            warnings.push(format!(
+                "the residual is {excess:.1}× the stated noise: errors the geometric model does not describe remain (see the residual plots), or the stated noise is optimistic"
+            ));
+        }
+        let poor: Vec<&str> = self
+            .params
+            .iter()
+            .filter(|p| p.status == ParamStatus::Identified && p.std_dev > p.value.abs())
+            .map(|p| p.name.as_str())
+            .collect();
+        if !poor.is_empty() {
+            warnings.push(format!(
+                "{} identified parameters have a standard deviation larger than their value (poorly determined): {}",
+                poor.len(),
+                poor.join(" ")
+            ));
+        }
+        if let Some(v) = &self.validation {
+            if v.after_stats.position_rms_mm > v.before_stats.position_rms_mm {
+                warnings.push(format!(
+                    "the validation error grew ({:.4} → {:.4} mm RMS)",
+                    v.before_stats.position_rms_mm, v.after_stats.position_rms_mm
+                ));
+            }
+        }
+        let flagged = self.identification.outliers.len() + self.validation.as_ref().map_or(0, |v| v.outliers.len());
+        if flagged > 0 {
+            warnings.push(format!("{flagged} poses flagged as outliers (residual beyond 3σ)"));
+        }
+        self.verdict = if !failed.is_empty() {
+            failed.extend(warnings);
+            Verdict {
+                status: Status::Failed,
+                reasons: failed,
+            }
+        } else if !warnings.is_empty() {
+            Verdict {
+                status: Status::UsableWithWarnings,
+                reasons: warnings,
+            }
+        } else {
+            Verdict {
+                status: Status::Calibrated,
+                reasons: Vec::new(),
+            }
+        };
     }
 
     /// The report as one self-contained HTML page (inline CSS and SVG, no external resources).
@@ -198,7 +324,24 @@ impl CalibrationReport {
              th{background:#f0f0f0}td.l,th.l{text-align:left}.plots{display:flex;flex-wrap:wrap;gap:8px}\
              .plots svg{border:1px solid #ddd}.muted{color:#888}.warn{color:#b00}</style></head><body>\n",
         );
-        let _ = write!(h, "<h1>Calibration report: {}</h1>\n<h2>Summary</h2>\n<table>", esc(&self.model));
+        let _ = writeln!(h, "<h1>Calibration report: {}</h1>", esc(&self.model));
+        let (colour, label) = match self.verdict.status {
+            Status::Calibrated => ("#1a7f37", "Calibrated"),
+            Status::UsableWithWarnings => ("#9a6700", "Usable with warnings"),
+            Status::Failed => ("#b00", "FAILED — do not use this model"),
+        };
+        let _ = write!(
+            h,
+            "<div id=\"verdict\" style=\"border:2px solid {colour};padding:8px 12px;margin:8px 0\"><b style=\"color:{colour};font-size:18px\">Verdict: {label}</b>"
+        );
+        if !self.verdict.reasons.is_empty() {
+            h.push_str("<ul>");
+            for r in &self.verdict.reasons {
+                let _ = write!(h, "<li>{}</li>", esc(r));
+            }
+            h.push_str("</ul>");
+        }
+        h.push_str("</div>\n<h2>Summary</h2>\n<table>");
         let kv = |h: &mut String, k: &str, v: String| {
             let _ = write!(h, "<tr><th class=\"l\">{k}</th><td class=\"l\">{v}</td></tr>");
         };

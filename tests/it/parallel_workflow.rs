@@ -231,7 +231,7 @@ fn pm5_model_file_through_the_whole_workflow() {
     assert_eq!(c["count"], 20);
     assert_eq!(c["commanded"], "position and tool axis");
     assert!(c["rotation_about_tool_axis_max_deg"].as_f64().unwrap() > 0.0);
-    let text = ok(d, &["compensate", "cal.toml", "targets.csv", "--out", "cmd.csv"]);
+    let text = ok(d, &["compensate", "cal.toml", "targets.csv", "--out", "cmd.csv", "--force"]);
     assert!(text.contains("5-DOF machine"), "{text}");
     ok(d, &["compensate", "pm5.toml", "targets.csv", "--out", "nom.csv"]);
     let inputs = model.inputs();

@@ -107,3 +107,163 @@ fn plan_options_that_cannot_work_are_refused() {
     let e = kinecal::design::select::sffs(&blocks, &opts, &mut |_| {}).unwrap_err().to_string();
     assert!(e.contains("pool must be at least 1"), "{e}");
 }
+
+/// A directory with the exported IRB 120 model and simulated data with 0.05 mm / 0.05° noise.
+fn noisy_irb120() -> tempfile::TempDir {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    crate::cli::ok(d, &["model", "export", "irb120", "--out", "m.toml"]);
+    crate::cli::ok(
+        d,
+        &[
+            "simulate",
+            "m.toml",
+            "--poses",
+            "40",
+            "--seed",
+            "3",
+            "--noise-mm",
+            "0.05",
+            "--noise-deg",
+            "0.05",
+            "--out",
+            "d.csv",
+            "--truth",
+            "t.toml",
+            "--validation-poses",
+            "10",
+            "--validation-out",
+            "v.csv",
+        ],
+    );
+    tmp
+}
+
+/// Every file of `dir` with its contents.
+fn snapshot(dir: &Path) -> Vec<(std::path::PathBuf, Vec<u8>)> {
+    let mut v: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| {
+            let p = e.unwrap().path();
+            let c = std::fs::read(&p).unwrap_or_default();
+            (p, c)
+        })
+        .collect();
+    v.sort();
+    v
+}
+
+#[test]
+fn outputs_never_replace_inputs_each_other_or_existing_files() {
+    let tmp = noisy_irb120();
+    let d = tmp.path();
+    let before = snapshot(d);
+    let cases: [(&[&str], &str); 5] = [
+        (&["identify", "m.toml", "d.csv", "--out", "d.csv"], "would replace the input"),
+        (
+            &["identify", "m.toml", "d.csv", "--out", "c.toml", "--report", "c.toml"],
+            "two outputs",
+        ),
+        (
+            &["identify", "m.toml", "d.csv", "--out", "c.toml", "--report", "nodir/r.html"],
+            "does not exist",
+        ),
+        (&["identify", "m.toml", "d.csv", "--out", "t.toml"], "--force"),
+        (
+            &["simulate", "m.toml", "--out", "nodir/x.csv", "--truth", "t2.toml"],
+            "does not exist",
+        ),
+    ];
+    for (args, expect) in cases {
+        let e = crate::cli::fails(d, args);
+        assert!(e.contains(expect), "{args:?}: {e}");
+        assert_eq!(snapshot(d), before, "{args:?} changed a file");
+    }
+}
+
+#[test]
+fn a_fit_far_beyond_the_stated_noise_exits_2_and_writes_nothing_without_force() {
+    let tmp = noisy_irb120();
+    let d = tmp.path();
+    let before = snapshot(d);
+    // 0.05 mm noise stated as 1 µm: σ̂₀ ≈ 50.
+    let args = [
+        "identify",
+        "m.toml",
+        "d.csv",
+        "--noise-mm",
+        "0.001",
+        "--noise-deg",
+        "0.001",
+        "--out",
+        "c.toml",
+        "--report",
+        "r.html",
+    ];
+    let out = crate::cli::kinecal(d, &args);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert!(err.starts_with("kinecal: failed: verdict: failed: the residual is"), "{err}");
+    assert!(
+        !String::from_utf8(out.stdout).unwrap().contains(" converged after"),
+        "a failed fit must not say converged"
+    );
+    assert_eq!(snapshot(d), before);
+    // --force writes both, marked failed; compensating with it needs --force too.
+    let mut forced = args.to_vec();
+    forced.push("--force");
+    assert_eq!(crate::cli::kinecal(d, &forced).status.code(), Some(2));
+    let text = std::fs::read_to_string(d.join("c.toml")).unwrap();
+    assert!(text.contains("[provenance]") && text.contains("status = \"failed\""), "{text}");
+    assert!(std::fs::read_to_string(d.join("r.html")).unwrap().contains("FAILED"));
+    let e = crate::cli::fails(d, &["compensate", "c.toml", "v.csv", "--out", "cmd.csv"]);
+    assert!(e.contains("marked failed"), "{e}");
+}
+
+#[test]
+fn a_good_fit_records_its_provenance_and_verdict() {
+    let tmp = noisy_irb120();
+    let d = tmp.path();
+    let args = [
+        "identify",
+        "m.toml",
+        "d.csv",
+        "--validation",
+        "v.csv",
+        "--noise-mm",
+        "0.05",
+        "--noise-deg",
+        "0.05",
+        "--out",
+        "c.toml",
+    ];
+    let text = crate::cli::ok(d, &args);
+    assert!(text.contains("verdict: "), "{text}");
+    let model = ModelFile::load(&d.join("c.toml")).unwrap();
+    let p = model.provenance.expect("provenance");
+    assert_ne!(p.status, "failed");
+    assert_eq!(p.version, env!("CARGO_PKG_VERSION"));
+    assert!(
+        p.command.contains("identify") && p.data[0] == "d.csv" && p.date.ends_with('Z'),
+        "{p:?}"
+    );
+}
+
+#[test]
+fn a_utf8_bom_is_accepted_and_a_header_only_file_refused() {
+    let tmp = noisy_irb120();
+    let d = tmp.path();
+    let mut bytes = b"\xEF\xBB\xBF".to_vec();
+    bytes.extend(std::fs::read(d.join("v.csv")).unwrap());
+    std::fs::write(d.join("bom.csv"), bytes).unwrap();
+    crate::cli::ok(d, &["validate", "m.toml", "bom.csv"]);
+    let header = std::fs::read_to_string(d.join("v.csv"))
+        .unwrap()
+        .lines()
+        .next()
+        .unwrap()
+        .to_string();
+    std::fs::write(d.join("empty.csv"), header + "\n").unwrap();
+    let e = crate::cli::fails(d, &["validate", "m.toml", "empty.csv"]);
+    assert!(e.contains("no data rows"), "{e}");
+}
