@@ -5,6 +5,7 @@
 //! Units inside the library: millimetres and radians. Twists are ordered (v, ω) (see [`se3`]).
 #![warn(missing_docs)]
 
+pub mod calibrate;
 pub mod design;
 pub mod error;
 pub mod identifiability;
@@ -13,6 +14,7 @@ pub mod io;
 pub mod measure;
 pub mod model;
 pub mod params;
+pub mod register;
 pub mod report;
 pub mod se3;
 pub mod simulate;

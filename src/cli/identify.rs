@@ -1,12 +1,13 @@
 //! `kinecal identify MODEL DATA`: identify the free parameters → calibrated model file + report.
 use super::progress;
 use clap::{Args, ValueEnum};
-use kinecal::identify::{identify, Method, Options};
+use kinecal::calibrate::{calibrate, CalibrationOptions, FrameMode};
+use kinecal::identify::Method;
 use kinecal::io::data_file::{read_data, InputColumns};
 use kinecal::io::model_file::{ModelFile, Provenance};
 use kinecal::io::output::Outputs;
 use kinecal::measure::Noise;
-use kinecal::report::{CalibrationReport, ParamStatus, Status};
+use kinecal::report::{ParamStatus, Status};
 use kinecal::workflow::default_noise;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -20,6 +21,15 @@ pub enum MethodArg {
     Linear,
     /// One linearisation, recursive least squares pose by pose.
     Recursive,
+}
+
+/// Where the data's frames come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum FramesArg {
+    /// Find them from the data (frame registration), then identify them with the geometry.
+    Estimate,
+    /// The data are in the model file's frames.
+    Model,
 }
 
 /// Arguments of `kinecal identify`.
@@ -54,6 +64,11 @@ pub struct IdentifyArgs {
     /// Print the report as JSON instead of text.
     #[arg(long)]
     pub json: bool,
+    /// Where the data's frames come from: `estimate` finds the measurement (tracker) frame and the
+    /// tool / reflector offset from the data and identifies them with the geometry (data in any
+    /// frame); `model` takes the data to be in the model file's own frames.
+    #[arg(long, value_enum, default_value_t = FramesArg::Estimate)]
+    pub frames: FramesArg,
     /// Replace existing output files; and write the model and report even when the calibration
     /// failed its checks (marked failed in both; the exit code is still 2).
     #[arg(long)]
@@ -83,15 +98,13 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
     }
     outputs.output(&a.out)?.output_opt(a.report.as_deref())?;
     let file = ModelFile::load_or_builtin(&a.model)?;
-    let nominal = file.build();
     let inputs = file.inputs();
-    let free = file.free_indices()?;
     let data = read_data(&a.data, &inputs, InputColumns::Required)?;
     let validation = match &a.validation {
         Some(p) => Some(read_data(p, &inputs, InputColumns::Required)?),
         None => None,
     };
-    let opts = Options {
+    let opts = CalibrationOptions {
         method: match a.method {
             MethodArg::GaussNewton => Method::GaussNewton,
             MethodArg::Linear => Method::Linear,
@@ -99,27 +112,16 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         },
         noise: resolve_noise(&file, a.noise_mm, a.noise_deg)?,
         reweight: a.reweight,
-        free: Some(free.clone()),
-        ..Options::default()
+        frames: match a.frames {
+            FramesArg::Estimate => FrameMode::Estimate,
+            FramesArg::Model => FrameMode::Model,
+        },
     };
     let sp = progress::spinner(&format!("identifying {} on {} poses", file.name, data.measurements.len()), a.json);
-    let result = identify(&nominal, &data.measurements, &opts).map_err(|e| data.locate(e))?;
+    let cal = calibrate(&file, &data, validation.as_ref(), &opts)?;
     sp.finish_and_clear();
-    let mut calibrated = file.with_geometry_of(&*result.model).map_err(|e| anyhow::anyhow!(e))?;
-    calibrated.description = Some(format!("calibrated from '{}' on {}", file.name, a.data.display()));
-    calibrated.noise = Some(result.noise);
-    let mut report = CalibrationReport::new(
-        &nominal,
-        &result,
-        &free,
-        &format!("{:?}", opts.method),
-        &a.data.display().to_string(),
-        &data.measurements,
-        validation
-            .as_ref()
-            .map(|v| (v.path.to_str().unwrap_or("validation"), v.measurements.as_slice())),
-    )?;
-    report.assess(&opts.noise);
+    let report = &cal.report;
+    let mut calibrated = cal.model_file.clone();
     let failed = report.verdict.status == Status::Failed;
     let mut data_files = vec![a.data.display().to_string()];
     data_files.extend(a.validation.iter().map(|v| format!("{} (validation)", v.display())));

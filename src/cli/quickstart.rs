@@ -81,6 +81,8 @@ fn steps(dir: &Path, seed: u64, candidates: usize) -> Vec<Vec<String>> {
             "identify".into(),
             p("pm5.toml"),
             p("measurements.csv"),
+            "--frames".into(),
+            "model".into(),
             "--validation".into(),
             p("validation.csv"),
             "--noise-mm".into(),

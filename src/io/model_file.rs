@@ -73,6 +73,7 @@ use super::IoError;
 use crate::measure::Noise;
 use crate::model::chain::{ChainJoint, JointKind, SerialChain};
 use crate::model::closed::{ClosedLoop, ConstraintSystem};
+use crate::model::framed::Framed;
 use crate::model::presets::pm5::Pm5;
 use crate::model::presets::stewart::Stewart;
 use crate::model::Mechanism;
@@ -336,10 +337,47 @@ pub struct ModelFile {
     pub free: Vec<String>,
     /// Fixed parameter patterns.
     pub fixed: Vec<String>,
+    /// Largest plausible corrections of the geometric parameters (`[calibration] tolerance_mm`,
+    /// `tolerance_deg`).
+    pub tolerances: Tolerances,
     /// Measurement noise, if given.
     pub noise: Option<Noise>,
     /// Where a calibrated model came from (written by `kinecal identify`; kept on reading).
     pub provenance: Option<Provenance>,
+    /// The measurement frame and the tool frame (`[frames]`), found by frame registration: the
+    /// built mechanism is then [`Framed`] (`T = X · M(q) · Y`) and its data live in the
+    /// measurement (tracker) frame.
+    pub frames: Option<Frames>,
+}
+
+/// `[frames]` of a model file: `measurement` is the mechanism's base in the measurement (tracker)
+/// frame, `tool` the measured tool frame in the flange/platform frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Frames {
+    /// `X`.
+    pub measurement: Pose,
+    /// `Y`.
+    pub tool: Pose,
+}
+
+/// The largest plausible correction of a geometric parameter. A calibration that moves a
+/// parameter further fails its checks: the model describes another machine, or the data are
+/// wrong. Defaults: 5 mm and 2°, far above machining and assembly errors, far below a wrong link.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Tolerances {
+    /// Lengths (mm).
+    pub length_mm: f64,
+    /// Angles (degrees).
+    pub angle_deg: f64,
+}
+
+impl Default for Tolerances {
+    fn default() -> Self {
+        Tolerances {
+            length_mm: 5.0,
+            angle_deg: 2.0,
+        }
+    }
 }
 
 /// The record a calibrated model file keeps of how it was made: `[provenance]`.
@@ -430,14 +468,19 @@ impl ModelFile {
             mechanism,
             free: vec!["*".into()],
             fixed: Vec::new(),
+            tolerances: Tolerances::default(),
             noise: None,
             provenance: None,
+            frames: None,
         }
     }
 
-    /// The mechanism, ready to compute with.
+    /// The mechanism, ready to compute with: seen through its [`Frames`] when the file has them.
     pub fn build(&self) -> Box<dyn Mechanism> {
-        self.mechanism.build()
+        match &self.frames {
+            Some(f) => Box::new(Framed::new(self.mechanism.build(), f.measurement, f.tool)),
+            None => self.mechanism.build(),
+        }
     }
 
     /// Inputs with units and limits.
@@ -453,8 +496,19 @@ impl ModelFile {
         })
     }
 
-    /// A copy with the geometry of `model` (a calibrated mechanism of the same kind).
+    /// A copy with the geometry of `model` (a calibrated mechanism of the same kind, or such a
+    /// mechanism seen through frames, [`Framed`], whose frames are then kept too).
     pub fn with_geometry_of(&self, model: &dyn Mechanism) -> Result<ModelFile, String> {
+        if let Some(f) = model.as_any().and_then(|a| a.downcast_ref::<Framed<Box<dyn Mechanism>>>()) {
+            return Ok(ModelFile {
+                mechanism: self.mechanism.with_geometry_of(&*f.inner)?,
+                frames: Some(Frames {
+                    measurement: f.measurement,
+                    tool: f.tool,
+                }),
+                ..self.clone()
+            });
+        }
         Ok(ModelFile {
             mechanism: self.mechanism.with_geometry_of(model)?,
             ..self.clone()
@@ -488,6 +542,12 @@ impl ModelFile {
         out.push_str("\n[calibration]\n# Parameter names or globs ('*', '?'); free in priority order, fixed removed from them.\n");
         let list = |v: &[String]| v.iter().map(|s| quote(s)).collect::<Vec<_>>().join(", ");
         let _ = writeln!(out, "free = [{}]\nfixed = [{}]", list(&self.free), list(&self.fixed));
+        let _ = writeln!(
+            out,
+            "# Largest plausible correction of a geometric parameter: a larger one fails the calibration\n# (a model of another machine, or wrong data). Frame parameters are not limited.\ntolerance_mm = {}\ntolerance_deg = {}",
+            num(self.tolerances.length_mm),
+            num(self.tolerances.angle_deg)
+        );
         if let Some(n) = &self.noise {
             let _ = write!(
                 out,
@@ -497,6 +557,15 @@ impl ModelFile {
                 num(n.orientation / self.units.angle.to_rad()),
                 self.units.angle.symbol()
             );
+        }
+        if let Some(f) = &self.frames {
+            out.push_str("\n[frames]  # found by frame registration (kinecal identify): T = measurement · mechanism(q) · tool\n");
+            out.push_str("# measurement: the mechanism's base in the measurement (tracker) frame; tool: the measured tool\n");
+            out.push_str("# frame in the flange/platform frame. rpy = [roll, pitch, yaw], R = Rz(yaw)·Ry(pitch)·Rx(roll).\n");
+            out.push_str("[frames.measurement]\n");
+            write_pose(&f.measurement, &self.units, &mut out);
+            out.push_str("[frames.tool]\n");
+            write_pose(&f.tool, &self.units, &mut out);
         }
         if let Some(p) = &self.provenance {
             let list = |v: &[String]| v.iter().map(|s| quote(s)).collect::<Vec<_>>().join(", ");
@@ -643,6 +712,14 @@ struct RawFile<M> {
     calibration: Option<RawCalibration>,
     noise: Option<Spanned<RawNoise>>,
     provenance: Option<Provenance>,
+    frames: Option<RawFrames>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawFrames {
+    measurement: Spanned<RawPose>,
+    tool: Spanned<RawPose>,
 }
 
 #[derive(Deserialize)]
@@ -657,6 +734,8 @@ struct RawUnits {
 struct RawCalibration {
     free: Option<Vec<Spanned<String>>>,
     fixed: Option<Vec<Spanned<String>>>,
+    tolerance_mm: Option<Spanned<f64>>,
+    tolerance_deg: Option<Spanned<f64>>,
 }
 
 #[derive(Deserialize)]
@@ -898,6 +977,33 @@ impl Ctx<'_> {
                 }
             }
         }
+        let mut tolerances = Tolerances::default();
+        if let Some(c) = &raw.calibration {
+            for (key, given, slot) in [
+                ("tolerance_mm", &c.tolerance_mm, &mut tolerances.length_mm),
+                ("tolerance_deg", &c.tolerance_deg, &mut tolerances.angle_deg),
+            ] {
+                if let Some(v) = given {
+                    if !(v.get_ref().is_finite() && *v.get_ref() > 0.0) {
+                        return Err(self.at(&v.span(), format!("calibration.{key}: must be finite and > 0")));
+                    }
+                    *slot = *v.get_ref();
+                }
+            }
+        }
+        let frames = match &raw.frames {
+            Some(f) => {
+                let pose = |p: &Spanned<RawPose>, what: &str| {
+                    let r = p.get_ref();
+                    self.pose(&p.span(), what, r.position, r.rpy, r.rotvec, &units)
+                };
+                Some(Frames {
+                    measurement: pose(&f.measurement, "frames.measurement")?,
+                    tool: pose(&f.tool, "frames.tool")?,
+                })
+            }
+            None => None,
+        };
         let noise = match &raw.noise {
             Some(n) => {
                 let r = n.get_ref();
@@ -918,8 +1024,10 @@ impl Ctx<'_> {
             mechanism,
             free: free.into_iter().map(|s| s.into_inner()).collect(),
             fixed: fixed.into_iter().map(|s| s.into_inner()).collect(),
+            tolerances,
             noise,
             provenance: raw.provenance,
+            frames,
         })
     }
 }

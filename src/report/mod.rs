@@ -5,6 +5,7 @@ pub mod plot;
 
 use crate::error::CalibError;
 use crate::identify::Identification;
+use crate::io::model_file::Tolerances;
 use crate::measure::{Measurement, Noise};
 use crate::model::Mechanism;
 use crate::params::Unit;
@@ -232,15 +233,42 @@ impl CalibrationReport {
                 None => None,
             },
         };
-        report.assess(&result.noise);
+        report.assess(&result.noise, &Tolerances::default());
         Ok(report)
     }
 
     /// Judge the calibration ([`CalibrationReport::verdict`]) against the noise the user stated
     /// (`stated`; with re-estimated weights the estimate is compared with it).
-    pub fn assess(&mut self, stated: &Noise) {
+    pub fn assess(&mut self, stated: &Noise, tolerances: &Tolerances) {
         let mut failed = Vec::new();
         let mut warnings = Vec::new();
+        let short = |names: &[&str]| {
+            if names.len() > 6 {
+                format!("{} … ({} in all)", names[..6].join(" "), names.len())
+            } else {
+                names.join(" ")
+            }
+        };
+        let beyond: Vec<String> = self
+            .params
+            .iter()
+            .filter(|p| p.status == ParamStatus::Identified && !p.group.ends_with(" frame"))
+            .filter(|p| match p.unit.as_str() {
+                "mm" => p.value.abs() > tolerances.length_mm,
+                "deg" => p.value.abs() > tolerances.angle_deg,
+                _ => false,
+            })
+            .map(|p| format!("{} {:+.3} {}", p.name, p.value, p.unit))
+            .collect();
+        if !beyond.is_empty() {
+            let names: Vec<&str> = beyond.iter().map(String::as_str).collect();
+            failed.push(format!(
+                "corrections beyond the model's tolerances ({} mm, {} deg): {}: is the model of this machine, and are the joint columns in the right order and unit?",
+                tolerances.length_mm,
+                tolerances.angle_deg,
+                short(&names)
+            ));
+        }
         if !self.converged {
             failed.push(format!(
                 "the identification did not converge after {} iterations (too few or badly spread poses, or a model that does not fit the data)",
@@ -278,7 +306,7 @@ impl CalibrationReport {
             warnings.push(format!(
                 "{} identified parameters have a standard deviation larger than their value (poorly determined): {}",
                 poor.len(),
-                poor.join(" ")
+                short(&poor)
             ));
         }
         if let Some(v) = &self.validation {

@@ -9,6 +9,7 @@ mod model_file;
 mod parallel_workflow;
 mod plan_pm5;
 mod quickstart;
+mod registration;
 mod robustness;
 mod se3_props;
 mod study;

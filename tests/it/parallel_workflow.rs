@@ -186,6 +186,8 @@ fn pm5_model_file_through_the_whole_workflow() {
         d,
         &[
             "identify",
+            "--frames",
+            "model",
             "pm5.toml",
             "ident.csv",
             "--validation",

@@ -59,6 +59,8 @@ fn simulate_identify_validate_compensate_recovers_the_truth() {
         &d,
         &[
             "identify",
+            "--frames",
+            "model",
             "irb120.toml",
             "ident.csv",
             "--validation",

@@ -1,0 +1,276 @@
+//! Frame registration: where the measurement frame and the tool stand, found from the data.
+//!
+//! A laser tracker measures in its own frame, anywhere around the machine, and the reflectors sit
+//! at unknown offsets from the flange or platform. Before the nonlinear identification, kinecal
+//! finds both frames of [`Framed`] (`T = X · M(q) · Y`) from the nominal model and the data alone:
+//!
+//! 1. **Correspondences.** Every observation gives points: a position observation its point; a pose
+//!    observation its origin and three points 100 mm along its axes; a point-set observation its
+//!    points. Point `k` of every pose is one fixed point `s_k` of the flange/platform frame.
+//! 2. **Alternation** (closed form at each step): with the flange points `s_k` fixed, the frame `X`
+//!    is the SVD registration of the predicted points `M(q_i)·s_k` onto the measured ones; with `X`
+//!    fixed, each `s_k` is the linear least-squares solution `mean_i R_iᵀ(X⁻¹·m_ik − p_i)`.
+//!    It starts from two guesses (the points on the flange, and the model file's tool frame) and
+//!    keeps the better.
+//! 3. `Y` is the rigid frame of the points `s_k`; then a Gauss–Newton refinement on the 12 frame
+//!    parameters only ([`crate::identify::identify`] with the frame columns free).
+//!
+//! Nothing depends on where the tracker stood: data in any rigid frame (any rotation, kilometres
+//! away) gives the same frames relative to the data, so the same identified geometry.
+use crate::error::CalibError;
+use crate::identify::{identify, Options};
+use crate::measure::{register_points, Measurement, Noise, Observation};
+use crate::model::framed::{Framed, FRAME_PARAMS};
+use crate::model::Mechanism;
+use crate::se3::Pose;
+use nalgebra::{Point3, Vector3};
+
+/// Length (mm) of the axis points a pose observation contributes: rotations then weigh like
+/// position errors at 100 mm from the tool origin.
+const AXIS_POINT_MM: f64 = 100.0;
+/// Alternation steps before the Gauss–Newton refinement.
+const ALTERNATION_STEPS: usize = 200;
+
+/// The frames found from the data.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Registration {
+    /// `X`: the mechanism's base in the measurement frame.
+    pub measurement: Pose,
+    /// `Y`: the measured tool frame in the flange/platform frame (for position data only its
+    /// translation is meaningful).
+    pub tool: Pose,
+    /// RMS of the point residuals after registration on the nominal geometry (mm).
+    pub rms_mm: f64,
+    /// RMS of the other start's registration (mm): a large disagreement with `rms_mm` means the
+    /// data or the model is suspect.
+    pub other_start_rms_mm: f64,
+}
+
+/// The point correspondences of one pose: `(k, measured point)`, `k` the index of the fixed
+/// flange point it belongs to.
+fn correspondences(obs: &Observation, classes: &mut Vec<Vector3<f64>>) -> Vec<(usize, Vector3<f64>)> {
+    let axis = |t: &Pose, e: Vector3<f64>| t.transform_point(&Point3::from(e)).coords;
+    match obs {
+        Observation::Position(p) => vec![(0, *p)],
+        Observation::Pose(t) => {
+            let e = [
+                Vector3::zeros(),
+                Vector3::x() * AXIS_POINT_MM,
+                Vector3::y() * AXIS_POINT_MM,
+                Vector3::z() * AXIS_POINT_MM,
+            ];
+            e.iter().enumerate().map(|(k, v)| (k, axis(t, *v))).collect()
+        }
+        Observation::Points(pts) => pts
+            .iter()
+            .map(|(r, m)| {
+                let k = match classes.iter().position(|c| (c - r).norm() < 1e-9) {
+                    Some(k) => k,
+                    None => {
+                        classes.push(*r);
+                        classes.len() - 1
+                    }
+                };
+                (k, *m)
+            })
+            .collect(),
+    }
+}
+
+/// The nominal tool points of each class for a tool frame `y` (what the alternation starts from).
+fn class_points(obs: &Observation, classes: &[Vector3<f64>], y: &Pose) -> Vec<Vector3<f64>> {
+    let at = |e: Vector3<f64>| y.transform_point(&Point3::from(e)).coords;
+    match obs {
+        Observation::Position(_) => vec![at(Vector3::zeros())],
+        Observation::Pose(_) => [
+            Vector3::zeros(),
+            Vector3::x() * AXIS_POINT_MM,
+            Vector3::y() * AXIS_POINT_MM,
+            Vector3::z() * AXIS_POINT_MM,
+        ]
+        .map(at)
+        .to_vec(),
+        Observation::Points(_) => classes.iter().map(|c| at(*c)).collect(),
+    }
+}
+
+struct Problem {
+    /// Flange poses of the nominal model, one per measurement.
+    flange: Vec<Pose>,
+    /// `(pose, class, measured point)`.
+    points: Vec<(usize, usize, Vector3<f64>)>,
+    classes: usize,
+}
+
+impl Problem {
+    fn rms(&self, x: &Pose, s: &[Vector3<f64>]) -> f64 {
+        let sum: f64 = self
+            .points
+            .iter()
+            .map(|(i, k, m)| {
+                (x.transform_point(&Point3::from(self.flange[*i].transform_point(&Point3::from(s[*k])).coords))
+                    .coords
+                    - m)
+                    .norm_squared()
+            })
+            .sum();
+        (sum / self.points.len().max(1) as f64).sqrt()
+    }
+
+    /// Alternate SVD registration and the linear solve for the flange points from `s`.
+    fn alternate(&self, mut s: Vec<Vector3<f64>>) -> Option<(Pose, Vec<Vector3<f64>>, f64)> {
+        let mut x = Pose::identity();
+        let mut last = f64::INFINITY;
+        for _ in 0..ALTERNATION_STEPS {
+            let src: Vec<Vector3<f64>> = self
+                .points
+                .iter()
+                .map(|(i, k, _)| self.flange[*i].transform_point(&Point3::from(s[*k])).coords)
+                .collect();
+            let dst: Vec<Vector3<f64>> = self.points.iter().map(|(_, _, m)| *m).collect();
+            x = register_points(&src, &dst)?;
+            let xinv = x.inverse();
+            let mut sum = vec![Vector3::zeros(); self.classes];
+            let mut count = vec![0usize; self.classes];
+            for (i, k, m) in &self.points {
+                let f = &self.flange[*i];
+                let local = f.rotation.inverse() * (xinv.transform_point(&Point3::from(*m)).coords - f.translation.vector);
+                sum[*k] += local;
+                count[*k] += 1;
+            }
+            for k in 0..self.classes {
+                if count[k] > 0 {
+                    s[k] = sum[k] / count[k] as f64;
+                }
+            }
+            let rms = self.rms(&x, &s);
+            if (last - rms).abs() <= 1e-12 * (1.0 + rms) {
+                break;
+            }
+            last = rms;
+        }
+        let rms = self.rms(&x, &s);
+        rms.is_finite().then_some((x, s, rms))
+    }
+}
+
+/// The tool frame `Y` of the flange points `s` (the classes of `obs`'s kind).
+fn tool_frame(obs: &Observation, classes: &[Vector3<f64>], s: &[Vector3<f64>]) -> Pose {
+    let nominal = class_points(obs, classes, &Pose::identity());
+    if s.len() >= 3 {
+        if let Some(y) = register_points(&nominal, s) {
+            return y;
+        }
+    }
+    // One point (a single reflector): only the offset is defined.
+    Pose::translation(s[0].x - nominal[0].x, s[0].y - nominal[0].y, s[0].z - nominal[0].z)
+}
+
+/// Find the measurement frame and the tool frame of `model` from `data` (see the module docs).
+/// `initial_tool` is the model file's guess of `Y` (the identity when it has none).
+///
+/// Errors: kinematics failing at a pose, mixed observation kinds, or poses that do not span
+/// enough space to fix a frame (all tool points on a line).
+pub fn register<M: Mechanism + Clone + 'static>(model: &M, data: &[Measurement], initial_tool: &Pose) -> Result<Registration, CalibError> {
+    if data.is_empty() {
+        return Err(CalibError::TooFewMeasurements {
+            poses: 0,
+            rows: 0,
+            params: FRAME_PARAMS,
+            needed: 3,
+        });
+    }
+    let kind = std::mem::discriminant(&data[0].obs);
+    if data.iter().any(|m| std::mem::discriminant(&m.obs) != kind) {
+        return Err(CalibError::InvalidOption(
+            "frame registration needs one observation kind for every pose".into(),
+        ));
+    }
+    let mut classes = Vec::new();
+    let mut points = Vec::new();
+    let mut flange = Vec::with_capacity(data.len());
+    for (i, m) in data.iter().enumerate() {
+        flange.push(model.forward(&m.q).map_err(|source| CalibError::Kinematics { pose: i, source })?);
+        for (k, p) in correspondences(&m.obs, &mut classes) {
+            points.push((i, k, p));
+        }
+    }
+    let n_classes = points.iter().map(|p| p.1 + 1).max().unwrap_or(1);
+    let problem = Problem {
+        flange,
+        points,
+        classes: n_classes,
+    };
+    plausible_scale(&problem)?;
+    let starts = [
+        class_points(&data[0].obs, &classes, &Pose::identity()),
+        class_points(&data[0].obs, &classes, initial_tool),
+    ];
+    let mut results: Vec<(Pose, Vec<Vector3<f64>>, f64)> = starts.into_iter().filter_map(|s| problem.alternate(s)).collect();
+    if results.is_empty() {
+        return Err(CalibError::Numerical(
+            "frame registration: the measured points do not span a plane (poses on a line?); measure poses spread in all directions".into(),
+        ));
+    }
+    results.sort_by(|a, b| a.2.total_cmp(&b.2));
+    let other_start_rms_mm = results.last().map_or(f64::NAN, |r| r.2);
+    let (x, s, _) = results.swap_remove(0);
+    let y = tool_frame(&data[0].obs, &classes, &s);
+
+    // Gauss–Newton on the frame parameters only, from the closed-form frames.
+    let framed = Framed::new(model.clone(), x, y);
+    let free: Vec<usize> = (0..FRAME_PARAMS).collect();
+    let opts = Options {
+        noise: Noise::default(),
+        free: Some(free),
+        max_iterations: 50,
+        ..Options::default()
+    };
+    let (measurement, tool) = match identify(&framed, data, &opts) {
+        Ok(r) => (r.model.measurement, r.model.tool),
+        Err(_) => (framed.measurement, framed.tool),
+    };
+    let refined = Framed::new(model.clone(), measurement, tool);
+    let mut sum = 0.0;
+    let mut n = 0usize;
+    for (i, m) in data.iter().enumerate() {
+        let t = refined.forward(&m.q).map_err(|source| CalibError::Kinematics { pose: i, source })?;
+        let (p, _) = crate::measure::errors(&m.obs, &t);
+        sum += p * p;
+        n += 1;
+    }
+    Ok(Registration {
+        measurement,
+        tool,
+        rms_mm: (sum / n.max(1) as f64).sqrt(),
+        other_start_rms_mm,
+    })
+}
+
+/// The measured points and the model's predicted flange points must span comparable distances;
+/// a factor of ~1000 is metres in millimetre columns, a tiny model spread is joint values in the
+/// wrong unit.
+fn plausible_scale(p: &Problem) -> Result<(), CalibError> {
+    let spread = |pts: &[Vector3<f64>]| {
+        let c = pts.iter().sum::<Vector3<f64>>() / pts.len().max(1) as f64;
+        (pts.iter().map(|v| (v - c).norm_squared()).sum::<f64>() / pts.len().max(1) as f64).sqrt()
+    };
+    let measured: Vec<Vector3<f64>> = p.points.iter().filter(|q| q.1 == 0).map(|q| q.2).collect();
+    let model: Vec<Vector3<f64>> = p.flange.iter().map(|f| f.translation.vector).collect();
+    let (sm, sp) = (spread(&measured), spread(&model));
+    if measured.len() < 3 || sp <= 0.0 || !sm.is_finite() {
+        return Ok(());
+    }
+    let ratio = sm / sp;
+    if ratio < 0.02 {
+        return Err(CalibError::InvalidOption(format!(
+            "the measured positions spread over {sm:.4} while the model's tool moves over {sp:.1} mm for these joint values: are the x,y,z columns in metres? (name them x_m, y_m, z_m)"
+        )));
+    }
+    if ratio > 50.0 {
+        return Err(CalibError::InvalidOption(format!(
+            "the model's tool moves over only {sp:.2} mm for these joint values while the measurements spread over {sm:.1} mm: are angle columns in radians named _deg, or is this the wrong model?"
+        )));
+    }
+    Ok(())
+}
