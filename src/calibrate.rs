@@ -5,11 +5,11 @@
 //! the calibrated model file (with its `[frames]` and `[provenance]`), the report with its verdict
 //! ([`CalibrationReport`]), from which the command line, the JSON output and the HTML are written.
 use crate::error::CalibError;
-use crate::identify::{identify, Identification, Method, Options};
+use crate::identify::{identify, Identification, Loss, Method, Options};
 use crate::io::data_file::DataSet;
 use crate::io::model_file::{select_params, ModelFile};
 use crate::io::IoError;
-use crate::measure::Noise;
+use crate::measure::{Measurement, Noise};
 use crate::model::framed::{Framed, FRAME_PARAMS};
 use crate::model::Mechanism;
 use crate::params::Unit;
@@ -31,6 +31,13 @@ pub enum FrameMode {
     Model,
 }
 
+/// Default Huber threshold of [`calibrate`], in robust standard deviations of the per-pose
+/// residuals: Gaussian data are untouched, blunders of many standard deviations lose their pull.
+pub const DEFAULT_HUBER_K: f64 = 5.0;
+
+/// Rounds of setting blunders aside and fitting again.
+const MAX_REJECTION_ROUNDS: usize = 5;
+
 /// Options of [`calibrate`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct CalibrationOptions {
@@ -42,6 +49,8 @@ pub struct CalibrationOptions {
     pub reweight: bool,
     /// Where the frames come from.
     pub frames: FrameMode,
+    /// Loss on each pose's residual (Huber against blunders).
+    pub loss: Loss,
 }
 
 impl Default for CalibrationOptions {
@@ -51,6 +60,7 @@ impl Default for CalibrationOptions {
             noise: Noise::default(),
             reweight: false,
             frames: FrameMode::Estimate,
+            loss: Loss::Huber { k: DEFAULT_HUBER_K },
         }
     }
 }
@@ -81,6 +91,9 @@ pub struct Calibration {
     pub free: Vec<usize>,
     /// The report (statistics, parameter table, verdict).
     pub report: CalibrationReport,
+    /// Ids of the poses set aside as blunders: beyond the Huber threshold of the robust loss at
+    /// the solution, then left out of the final fit.
+    pub blunders: Vec<i64>,
 }
 
 /// Calibrate `model` from `data` (and judge it on `validation`): see the module docs.
@@ -112,9 +125,33 @@ pub fn calibrate(
         noise: opts.noise,
         reweight: opts.reweight,
         free: Some(free.clone()),
+        loss: opts.loss,
         ..Options::default()
     };
-    let identification = identify(&start, &data.measurements, &id_opts).map_err(|e| data.locate(e))?;
+    let mut identification = identify(&start, &data.measurements, &id_opts).map_err(|e| data.locate(e))?;
+    // Blunders: poses the robust loss down-weighted are set aside and the fit repeated on the rest,
+    // until the set is stable (a Huber fit alone still lets many blunders pull together).
+    let mut kept: Vec<usize> = (0..data.measurements.len()).collect();
+    for _ in 0..MAX_REJECTION_ROUNDS {
+        let rejected: Vec<usize> = kept
+            .iter()
+            .zip(&identification.pose_weights)
+            .filter(|(_, w)| **w < 1.0)
+            .map(|(i, _)| *i)
+            .collect();
+        if rejected.is_empty() {
+            break;
+        }
+        kept.retain(|i| !rejected.contains(i));
+        let subset: Vec<Measurement> = kept.iter().map(|&i| data.measurements[i].clone()).collect();
+        let again = identify(&identification.model, &subset, &id_opts).map_err(|e| match e {
+            CalibError::Kinematics { pose, source } => data.locate(CalibError::Kinematics { pose: kept[pose], source }),
+            other => data.locate(other),
+        })?;
+        let delta = identification.delta.clone() + &again.delta;
+        identification = Identification { delta, ..again };
+    }
+    let set_aside: Vec<usize> = (0..data.measurements.len()).filter(|i| !kept.contains(i)).collect();
     let mut calibrated = model.with_geometry_of(&*identification.model).map_err(|message| IoError::Invalid {
         path: format!("model '{}'", model.name).into(),
         message,
@@ -132,7 +169,9 @@ pub fn calibrate(
         validation.map(|v| (validation_name.as_deref().unwrap_or("validation"), v.measurements.as_slice())),
     )?;
     report.assess(&opts.noise, &model.tolerances);
+    let blunders = set_aside.iter().map(|&i| data.ids[i]).collect();
     Ok(Calibration {
+        blunders,
         model_file: calibrated,
         identification,
         start,

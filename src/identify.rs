@@ -53,6 +53,65 @@ pub struct Options {
     pub step_tolerance: f64,
     /// Relative rank tolerance for the identifiable subset.
     pub rank_tolerance: f64,
+    /// Loss on each pose's residual: least squares, or Huber against gross blunders.
+    pub loss: Loss,
+}
+
+/// The loss applied to each pose's weighted residual.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Default)]
+pub enum Loss {
+    /// Plain (weighted) least squares: the maximum-likelihood estimate under Gaussian noise.
+    #[default]
+    Squares,
+    /// Huber's loss on the per-pose RMS residual `s_i` (in units of the stated noise): quadratic
+    /// up to `k` robust standard deviations of the set (1.4826 × the median of `s_i`, re-estimated
+    /// at every linearisation), linear beyond. A blunder of millimetres then pulls on the fit like
+    /// a residual of `k` standard deviations, not like its square.
+    Huber {
+        /// Threshold in robust standard deviations (5 keeps Gaussian data untouched).
+        k: f64,
+    },
+}
+
+/// Scale rows of `lin` by the square root of each pose's Huber weight and return the robust cost
+/// `Σ ρ(s_i)·rows_i` (equal to `½|r|²` for [`Loss::Squares`]). The weights of the poses are
+/// returned too (1 = full weight).
+pub fn apply_loss(lin: &mut Linearization, loss: Loss) -> (f64, Vec<f64>) {
+    let n = lin.offsets.len();
+    let rows = lin.residual.len();
+    let end = |i: usize| if i + 1 < n { lin.offsets[i + 1] } else { rows };
+    let Loss::Huber { k } = loss else {
+        return (0.5 * lin.residual.norm_squared(), vec![1.0; n]);
+    };
+    let s: Vec<f64> = (0..n)
+        .map(|i| {
+            let (a, b) = (lin.offsets[i], end(i));
+            (lin.residual.rows(a, b - a).norm_squared() / (b - a).max(1) as f64).sqrt()
+        })
+        .collect();
+    let mut sorted = s.clone();
+    sorted.sort_by(f64::total_cmp);
+    let median = if sorted.is_empty() { 0.0 } else { sorted[sorted.len() / 2] };
+    let threshold = k * 1.4826 * median;
+    let mut cost = 0.0;
+    let mut weights = Vec::with_capacity(n);
+    for (i, &si) in s.iter().enumerate() {
+        let (a, b) = (lin.offsets[i], end(i));
+        let m = (b - a) as f64;
+        let w = if threshold > 0.0 && si > threshold { threshold / si } else { 1.0 };
+        cost += if w < 1.0 {
+            m * (threshold * si - 0.5 * threshold * threshold)
+        } else {
+            0.5 * m * si * si
+        };
+        if w < 1.0 {
+            let r = w.sqrt();
+            lin.residual.rows_mut(a, b - a).scale_mut(r);
+            lin.jacobian.rows_mut(a, b - a).scale_mut(r);
+        }
+        weights.push(w);
+    }
+    (cost, weights)
 }
 
 impl Default for Options {
@@ -65,6 +124,7 @@ impl Default for Options {
             max_iterations: 100,
             step_tolerance: 1e-12,
             rank_tolerance: identifiability::DEFAULT_RANK_TOLERANCE,
+            loss: Loss::Squares,
         }
     }
 }
@@ -100,6 +160,9 @@ pub struct Identification<M> {
     pub sigma0: f64,
     /// Noise model used for the final weights (after re-estimation when asked).
     pub noise: Noise,
+    /// Weight of each pose under the loss (1: full weight; below 1: a pose the robust loss
+    /// treated as a blunder).
+    pub pose_weights: Vec<f64>,
 }
 
 /// Weighted residual vector and weighted Jacobian of a data set at a model.
@@ -287,6 +350,7 @@ pub fn identify<M: Mechanism + Clone>(initial: &M, data: &[Measurement], opts: &
         });
     }
     let dof_ratio = (rows - cols.len()) as f64 / rows as f64;
+    let (mut cur_cost, mut pose_weights) = apply_loss(&mut lin, opts.loss);
     let mut delta_total = DVector::zeros(p);
     let mut iterations = Vec::new();
     let mut converged = false;
@@ -320,14 +384,15 @@ pub fn identify<M: Mechanism + Clone>(initial: &M, data: &[Measurement], opts: &
                 if opts.reweight {
                     noise = reestimate_noise(&lin, &noise, dof_ratio);
                     lin = linearize(&model, data, &noise)?;
+                    (cur_cost, pose_weights) = apply_loss(&mut lin, opts.loss);
                 }
-                let cost = 0.5 * lin.residual.norm_squared();
+                let cost = cur_cost;
                 let step = solve_subset(&lin.jacobian, &lin.residual, &effective, damping, Some(ident.rank))?;
                 let pred = (&lin.jacobian * &step).norm();
                 let mut trial = model.clone();
                 trial.retract(&step);
-                let trial_lin = linearize(&trial, data, &noise)?;
-                let trial_cost = 0.5 * trial_lin.residual.norm_squared();
+                let mut trial_lin = linearize(&trial, data, &noise)?;
+                let (trial_cost, trial_weights) = apply_loss(&mut trial_lin, opts.loss);
                 iterations.push(Iteration { cost, step: pred, damping });
                 let tiny = pred <= opts.step_tolerance * (1.0 + lin.residual.norm());
                 // At round-off level the cost no longer decreases; a step that small is converged.
@@ -335,6 +400,8 @@ pub fn identify<M: Mechanism + Clone>(initial: &M, data: &[Measurement], opts: &
                 if trial_cost <= cost {
                     model = trial;
                     lin = trial_lin;
+                    cur_cost = trial_cost;
+                    pose_weights = trial_weights;
                     delta_total += step;
                     damping = if damping > 1e-9 { damping / 3.0 } else { 0.0 };
                 } else if !negligible {
@@ -356,6 +423,7 @@ pub fn identify<M: Mechanism + Clone>(initial: &M, data: &[Measurement], opts: &
             if opts.reweight {
                 noise = reestimate_noise(&lin, &noise, dof_ratio);
                 lin = linearize(&model, data, &noise)?;
+                (_, pose_weights) = apply_loss(&mut lin, opts.loss);
             }
         }
     }
@@ -370,6 +438,7 @@ pub fn identify<M: Mechanism + Clone>(initial: &M, data: &[Measurement], opts: &
         converged,
         sigma0,
         noise,
+        pose_weights,
     })
 }
 

@@ -2,7 +2,7 @@
 use super::progress;
 use clap::{Args, ValueEnum};
 use kinecal::calibrate::{calibrate, CalibrationOptions, FrameMode};
-use kinecal::identify::Method;
+use kinecal::identify::{Loss, Method};
 use kinecal::io::data_file::{read_data, InputColumns};
 use kinecal::io::model_file::{ModelFile, Provenance};
 use kinecal::io::output::Outputs;
@@ -69,6 +69,10 @@ pub struct IdentifyArgs {
     /// frame); `model` takes the data to be in the model file's own frames.
     #[arg(long, value_enum, default_value_t = FramesArg::Estimate)]
     pub frames: FramesArg,
+    /// Huber threshold against gross blunders, in robust standard deviations of the per-pose
+    /// residuals (poses beyond it are down-weighted and listed); 0 = plain least squares.
+    #[arg(long, default_value_t = kinecal::calibrate::DEFAULT_HUBER_K)]
+    pub huber: f64,
     /// Replace existing output files; and write the model and report even when the calibration
     /// failed its checks (marked failed in both; the exit code is still 2).
     #[arg(long)]
@@ -116,7 +120,21 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
             FramesArg::Estimate => FrameMode::Estimate,
             FramesArg::Model => FrameMode::Model,
         },
+        loss: if a.huber > 0.0 {
+            anyhow::ensure!(
+                a.huber.is_finite(),
+                "--huber: must be a finite number of standard deviations (0 = off)"
+            );
+            Loss::Huber { k: a.huber }
+        } else {
+            Loss::Squares
+        },
     };
+    for d in std::iter::once(&data).chain(validation.as_ref()) {
+        if let Some(note) = d.dropped_note() {
+            eprintln!("{note}");
+        }
+    }
     let sp = progress::spinner(&format!("identifying {} on {} poses", file.name, data.measurements.len()), a.json);
     let cal = calibrate(&file, &data, validation.as_ref(), &opts)?;
     sp.finish_and_clear();
@@ -181,6 +199,15 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
     if let Some(v) = &report.validation {
         println!("validation set before:     {}", v.before_stats);
         println!("validation set after:      {}", v.after_stats);
+    }
+    if !cal.blunders.is_empty() {
+        let ids: Vec<String> = cal.blunders.iter().map(|id| id.to_string()).collect();
+        println!(
+            "{} poses set aside as blunders (beyond {} robust σ of the per-pose residuals): ids {}",
+            ids.len(),
+            a.huber,
+            ids.join(" ")
+        );
     }
     let flagged: usize = report.identification.outliers.len() + report.validation.as_ref().map_or(0, |v| v.outliers.len());
     if flagged > 0 {

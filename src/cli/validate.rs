@@ -23,6 +23,9 @@ pub fn run(a: ValidateArgs) -> anyhow::Result<()> {
     let file = ModelFile::load_or_builtin(&a.model)?;
     let model = file.build();
     let data = read_data(&a.data, &file.inputs(), InputColumns::Required)?;
+    if let Some(note) = data.dropped_note() {
+        eprintln!("{note}");
+    }
     let errors = pose_errors(&*model, &data.measurements).map_err(|e| data.locate(e))?;
     let stats = ErrorStats::of(&errors);
     let flagged = outliers(&*model, &data.measurements, 3.0).map_err(|e| data.locate(e))?;

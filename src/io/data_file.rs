@@ -70,9 +70,28 @@ pub struct DataSet {
     pub format: MeasurementFormat,
     /// Whether the file had the input columns.
     pub has_inputs: bool,
+    /// Lines of rows dropped as lost measurements (an empty measurement cell, or all measurement
+    /// values exactly zero: what trackers write when the beam was lost).
+    pub dropped: Vec<usize>,
 }
 
 impl DataSet {
+    /// A line saying which rows were dropped as lost measurements, if any:
+    /// `d.csv: 3 rows dropped as lost measurements (empty or all-zero cells): lines 4, 17, 90`.
+    pub fn dropped_note(&self) -> Option<String> {
+        if self.dropped.is_empty() {
+            return None;
+        }
+        let shown: Vec<String> = self.dropped.iter().take(20).map(|l| l.to_string()).collect();
+        let more = if self.dropped.len() > 20 { ", …" } else { "" };
+        Some(format!(
+            "{}: {} rows dropped as lost measurements (empty or all-zero measurement cells): lines {}{more}",
+            self.path.display(),
+            self.dropped.len(),
+            shown.join(", ")
+        ))
+    }
+
     /// An error of a computation on this data set, located: a failure at one pose names the
     /// file and that pose's line; any other error names the file.
     pub fn locate(&self, e: CalibError) -> IoError {
@@ -305,7 +324,7 @@ pub fn join_files(inputs_path: &Path, measurements_path: &Path, inputs: &[InputS
 
 /// Read a measurement data file for a mechanism with `inputs` (see the module docs for columns).
 pub fn read_data(path: &Path, inputs: &[InputSpec], input_columns: InputColumns) -> Result<DataSet, IoError> {
-    let table = read_table(path)?;
+    let table = super::table::read_table_with_gaps(path)?;
     data_from_table(&table, inputs, input_columns)
 }
 
@@ -446,8 +465,33 @@ pub fn data_from_table(table: &Table, inputs: &[InputSpec], input_columns: Input
     let mut measurements = Vec::with_capacity(table.len());
     let mut ids = Vec::with_capacity(table.len());
     let mut first_line_of_id = std::collections::HashMap::new();
+    let mut dropped = Vec::new();
+    let mut kept_lines = Vec::with_capacity(table.len());
     for (r, row) in table.rows.iter().enumerate() {
         let line = table.lines[r];
+        // Empty cells: an error in the id or an input column; a lost measurement elsewhere.
+        let mut lost = false;
+        let mut all_zero = true;
+        for ((slot, _), (v, col)) in slots.iter().zip(row.iter().zip(&table.columns)) {
+            let measured = !matches!(slot, Slot::Id | Slot::Input(_));
+            if v.is_nan() {
+                if !measured {
+                    return Err(IoError::AtLine {
+                        path: path.clone(),
+                        line,
+                        message: format!("column '{col}': empty cell; every pose needs its id and input values"),
+                    });
+                }
+                lost = true;
+            } else if measured && *v != 0.0 {
+                all_zero = false;
+            }
+        }
+        if lost || (all_zero && slots.iter().any(|(s, _)| !matches!(s, Slot::Id | Slot::Input(_)))) {
+            dropped.push(line);
+            continue;
+        }
+        kept_lines.push(line);
         let mut q = vec![0.0; if has_inputs { inputs.len() } else { 0 }];
         let (mut p, mut quat, mut rpy) = (Vector3::zeros(), [0.0; 4], [0.0; 3]);
         let mut refl = [Vector3::zeros(); 3];
@@ -510,13 +554,23 @@ pub fn data_from_table(table: &Table, inputs: &[InputSpec], input_columns: Input
         measurements.push(Measurement { q, obs });
         ids.push(id);
     }
+    if measurements.is_empty() {
+        return Err(IoError::Invalid {
+            path: path.clone(),
+            message: format!(
+                "all {} rows are lost measurements (empty or all-zero measurement cells)",
+                dropped.len()
+            ),
+        });
+    }
     Ok(DataSet {
         path: path.clone(),
         measurements,
-        lines: table.lines.clone(),
+        lines: kept_lines,
         ids,
         format,
         has_inputs,
+        dropped,
     })
 }
 

@@ -50,8 +50,24 @@ pub fn read_table(path: &Path) -> Result<Table, IoError> {
     parse_table(path, &text)
 }
 
+/// [`read_table`], except that an empty field is read as NaN (a tracker's lost beam): the caller
+/// decides what an empty cell means.
+pub fn read_table_with_gaps(path: &Path) -> Result<Table, IoError> {
+    let text = super::read_text(path)?;
+    parse(path, &text, true)
+}
+
 /// [`read_table`] on text already in memory (`path` is only used in messages).
 pub fn parse_table(path: &Path, text: &str) -> Result<Table, IoError> {
+    parse(path, text, false)
+}
+
+/// [`read_table_with_gaps`] on text already in memory.
+pub fn parse_table_with_gaps(path: &Path, text: &str) -> Result<Table, IoError> {
+    parse(path, text, true)
+}
+
+fn parse(path: &Path, text: &str, gaps: bool) -> Result<Table, IoError> {
     let mut lines = text
         .lines()
         .enumerate()
@@ -76,6 +92,10 @@ pub fn parse_table(path: &Path, text: &str) -> Result<Table, IoError> {
         }
         let mut row = Vec::with_capacity(fields.len());
         for (f, col) in fields.iter().zip(&columns) {
+            if gaps && f.is_empty() {
+                row.push(f64::NAN);
+                continue;
+            }
             let v: f64 = f.parse().map_err(|_| IoError::NotANumber {
                 path: path.to_path_buf(),
                 line: lineno,
