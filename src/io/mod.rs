@@ -1,7 +1,9 @@
 //! Files: numeric CSV tables with line-accurate errors, laser-tracker data sets.
 pub mod data_file;
+pub mod exports;
 pub mod model_file;
 pub mod output;
+pub mod split;
 pub mod table;
 pub mod tracker;
 

@@ -340,6 +340,12 @@ impl CalibrationReport {
         };
     }
 
+    /// Fail the verdict for `reason` (put first among the reasons), whatever it was.
+    pub fn fail(&mut self, reason: String) {
+        self.verdict.status = Status::Failed;
+        self.verdict.reasons.insert(0, reason);
+    }
+
     /// The report as one self-contained HTML page (inline CSS and SVG, no external resources).
     pub fn to_html(&self) -> Result<String, String> {
         let mut h = String::new();
