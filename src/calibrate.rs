@@ -306,6 +306,8 @@ pub fn calibrate(
         &data.measurements,
         validation.map(|v| (validation_name.as_deref().unwrap_or("validation"), v.measurements.as_slice())),
     )?;
+    report.set_ids(&data.ids, validation.map(|v| v.ids.as_slice()));
+    report.set_inputs(&model.inputs());
     report.assess(&opts.noise, &model.tolerances);
     let spread = starts.iter().map(|s| s.max_difference_mm).fold(0.0, f64::max);
     if spread > opts.noise.position {

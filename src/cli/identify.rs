@@ -179,6 +179,9 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         date: super::utc_now(),
         data: data_files,
     });
+    let mut report = cal.report.clone();
+    report.provenance = calibrated.provenance.clone();
+    let report = &report;
     if !failed || a.force {
         let text = calibrated.to_toml().map_err(|e| anyhow::anyhow!("{}: {e}", a.out.display()))?;
         outputs.stage(&a.out, text.as_bytes())?;

@@ -11,6 +11,7 @@ mod parallel_workflow;
 mod plan_pm5;
 mod quickstart;
 mod registration;
+mod report_render;
 mod robustness;
 mod se3_props;
 mod study;

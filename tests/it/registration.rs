@@ -258,7 +258,10 @@ fn wrong_units_and_wrong_models_are_named() {
     let out = crate::cli::kinecal(d, &["identify", "m.toml", "swapped.csv", "--out", "c.toml"]);
     let err = String::from_utf8(out.stderr).unwrap();
     assert!(!out.status.success(), "{err}");
-    assert!(err.contains("joint order") || err.contains("beyond the model's tolerances"), "{err}");
+    assert!(
+        err.contains("joint order") || err.contains("beyond the model's tolerances"),
+        "{err}"
+    );
     assert!(!String::from_utf8(out.stdout).unwrap().contains(" converged after"));
     // A model of another machine: a link 120 mm longer.
     let model = std::fs::read_to_string(d.join("m.toml")).unwrap().replacen("270.0", "390.0", 1);
