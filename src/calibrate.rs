@@ -306,6 +306,9 @@ pub fn calibrate(
         &data.measurements,
         validation.map(|v| (validation_name.as_deref().unwrap_or("validation"), v.measurements.as_slice())),
     )?;
+    // Blunders are reported as such, not again as outliers of the identification set.
+    report.identification.outliers.retain(|o| !set_aside.contains(&o.pose));
+    report.blunders = set_aside.iter().map(|&i| data.ids[i]).collect();
     report.set_ids(&data.ids, validation.map(|v| v.ids.as_slice()));
     report.set_inputs(&model.inputs());
     report.assess(&opts.noise, &model.tolerances);

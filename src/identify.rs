@@ -206,6 +206,10 @@ pub fn linearize<M: Mechanism + ?Sized>(model: &M, data: &[Measurement], noise: 
             let w = measure::row_weights(&m.obs, noise);
             Ok((a, r, w))
         })
+        .collect::<Vec<Result<_, CalibError>>>()
+        // The first failing pose in data order (not whichever thread failed first): the same
+        // inputs give the same message.
+        .into_iter()
         .collect::<Result<Vec<_>, CalibError>>()?;
     let rows: usize = blocks.iter().map(|b| b.1.len()).sum();
     let p = model.n_params();
@@ -426,8 +430,16 @@ pub fn identify<M: Mechanism + Clone>(initial: &M, data: &[Measurement], opts: &
                 let pred = (&lin.jacobian * &step).norm();
                 let mut trial = model.clone();
                 trial.retract(&step);
-                let mut trial_lin = linearize(&trial, data, &noise)?;
-                let (trial_cost, trial_weights) = apply_loss(&mut trial_lin, opts.loss);
+                // A step into geometry where a pose no longer assembles (closed loops) is a step
+                // too long: rejected like one that raises the cost.
+                let (trial_lin, trial_cost, trial_weights) = match linearize(&trial, data, &noise) {
+                    Ok(mut l) => {
+                        let (c, w) = apply_loss(&mut l, opts.loss);
+                        (l, c, w)
+                    }
+                    Err(CalibError::Kinematics { .. }) => (lin.clone(), f64::INFINITY, pose_weights.clone()),
+                    Err(e) => return Err(e),
+                };
                 iterations.push(Iteration { cost, step: pred, damping });
                 let tiny = pred <= opts.step_tolerance * (1.0 + lin.residual.norm());
                 // At round-off level the cost no longer decreases; a step that small is converged.

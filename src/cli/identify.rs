@@ -249,7 +249,7 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         println!(
             "{} poses set aside as blunders (beyond {} robust σ of the per-pose residuals): ids {}",
             ids.len(),
-            a.huber,
+            a.huber / kinecal::calibrate::BLUNDER_WEIGHT,
             ids.join(" ")
         );
     }

@@ -149,7 +149,19 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
         let mut meas = Vec::with_capacity(n);
         let mut refl = Vec::new();
         for (k, q) in qs.into_iter().enumerate() {
-            let t = truth.forward(&q).map_err(|e| anyhow::anyhow!("pose {k}: {e}"))?;
+            let t = truth.forward(&q).map_err(|e| {
+                anyhow::anyhow!(
+                    "pose {k}: the virtual prototype (errors ±{} mm / ±{} deg, seed {}) does not reach this configuration: {e}{}",
+                    a.error_mm,
+                    a.error_deg,
+                    a.seed,
+                    if a.error_mm > 5.0 || a.error_deg > 2.0 {
+                        "; errors this large make another machine: geometric errors are of the order of machining tolerances (e.g. --error-mm 0.5 --error-deg 0.1)"
+                    } else {
+                        ""
+                    }
+                )
+            })?;
             let mut draw = |d: &Normal<f64>, s: f64| {
                 if s > 0.0 {
                     Vector3::new(d.sample(&mut rng), d.sample(&mut rng), d.sample(&mut rng))

@@ -606,7 +606,19 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
                 condition: f64::INFINITY,
             });
         }
-        let x0 = self.platform_of_tool(target);
+        // A 5-DOF task leaves the rotation about the tool axis to the constraints: the seed takes
+        // the target's axis without its twist (a yaw of ±90° in the targets file then starts
+        // Newton where the machine is, not in a singular corner of its platform coordinates).
+        let seed = match task {
+            Task::Full => *target,
+            Task::PositionAndAxis => {
+                let axis = target.rotation * nalgebra::Vector3::z();
+                let swing = nalgebra::UnitQuaternion::rotation_between(&nalgebra::Vector3::z(), &axis)
+                    .unwrap_or_else(|| nalgebra::UnitQuaternion::from_axis_angle(&nalgebra::Vector3::x_axis(), std::f64::consts::PI));
+                Pose::from_parts(target.translation, swing)
+            }
+        };
+        let x0 = self.platform_of_tool(&seed);
         let q0 = self.system.inputs_for_pose(&x0, &self.geometry)?;
         let n = 6 + nq;
         let mut z: Vec<f64> = x0.iter().copied().chain(q0.iter().copied()).collect();

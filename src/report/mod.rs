@@ -182,6 +182,8 @@ pub struct CalibrationReport {
     pub inputs: Vec<(String, String)>,
     /// Where the calibration came from (command line, version, date, data), when known.
     pub provenance: Option<crate::io::model_file::Provenance>,
+    /// Ids of the identification poses set aside as gross blunders (not in the final fit).
+    pub blunders: Vec<i64>,
 }
 
 /// Identified parameters correlated beyond this (in absolute value) are flagged.
@@ -264,6 +266,7 @@ impl CalibrationReport {
             absorbed: Vec::new(),
             inputs: nominal.input_names().into_iter().map(|n| (n, String::new())).collect(),
             provenance: None,
+            blunders: Vec::new(),
         };
         report.correlations(result, &params);
         report.absorbed = absorbed(result, &params, data);
@@ -360,6 +363,15 @@ impl CalibrationReport {
                     v.before_stats.position_rms_mm, v.after_stats.position_rms_mm
                 ));
             }
+        }
+        if !self.blunders.is_empty() {
+            let ids: Vec<String> = self.blunders.iter().map(|i| i.to_string()).collect();
+            let ids: Vec<&str> = ids.iter().map(String::as_str).collect();
+            warnings.push(format!(
+                "{} poses set aside as gross blunders (ids {}): check those readings",
+                self.blunders.len(),
+                short(&ids)
+            ));
         }
         // A residual component beyond 3σ happens to ~0.3 % of components by chance: only more
         // flagged poses than 2 + 1 % of the poses is a warning.

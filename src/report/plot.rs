@@ -452,4 +452,3 @@ mod tests {
         assert!(h.contains("<rect") && h.contains(">after</text>"));
     }
 }
-

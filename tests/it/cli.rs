@@ -38,3 +38,17 @@ pub fn fails(dir: &Path, args: &[&str]) -> String {
         .unwrap_or_else(|| panic!("prefix: {err}"))
         .to_string()
 }
+
+/// Run `kinecal ARGS` in `dir`, killed after `seconds` (a watchdog against hangs: the test fails
+/// with the command line rather than running forever).
+pub fn kinecal_within(dir: &Path, args: &[&str], seconds: u64) -> std::process::Output {
+    let out = Command::cargo_bin("kinecal")
+        .unwrap()
+        .current_dir(dir)
+        .args(args)
+        .timeout(std::time::Duration::from_secs(seconds))
+        .output()
+        .unwrap();
+    assert!(out.status.code().is_some(), "kinecal {args:?} did not answer within {seconds} s");
+    out
+}

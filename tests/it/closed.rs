@@ -153,6 +153,26 @@ fn fk_ik_round_trips_over_the_workspace() {
     round_trip(&simulate::perturbed(&nominal, &d), 9, false);
 }
 
+/// The rotation about the tool axis of a 5-DOF target does not change its commands, whatever
+/// its size (a yaw of ±90° or more once failed as a singular seed).
+#[test]
+fn pm5_commands_ignore_the_rotation_about_the_tool_axis() {
+    let m = Pm5::mechanism(Parasitic::Physical);
+    let mut rng = ChaCha8Rng::seed_from_u64(12);
+    let ws = m.system().workspace();
+    for _ in 0..10 {
+        let target = m.tool_pose_of(&ws.sample(&mut rng));
+        let q = m.inverse(&target, None).unwrap();
+        for yaw in [89.9f64, -89.99, 120.0, 179.9] {
+            let turned = target * se3::pose_from_parts(nalgebra::Vector3::zeros(), nalgebra::Vector3::z() * yaw.to_radians());
+            let q2 = m.inverse(&turned, None).unwrap();
+            for (a, b) in q.iter().zip(&q2) {
+                assert!((a - b).abs() < 1e-8, "yaw {yaw}: {a} vs {b}");
+            }
+        }
+    }
+}
+
 #[test]
 fn pm5_rank_and_redundant_parameters() {
     let paper = pm5::identifiability(Parasitic::NominalGeometry, 40, 10, &pm5::paper_priority()).unwrap();

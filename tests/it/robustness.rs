@@ -267,3 +267,217 @@ fn a_utf8_bom_is_accepted_and_a_header_only_file_refused() {
     let e = crate::cli::fails(d, &["validate", "m.toml", "empty.csv"]);
     assert!(e.contains("no data rows"), "{e}");
 }
+
+/// Replace the first occurrence of `from` in `file` (in `dir`) and write the result to `to`.
+fn edited(dir: &Path, file: &str, from: &str, with: &str, to: &str) {
+    let text = std::fs::read_to_string(dir.join(file)).unwrap();
+    assert!(text.contains(from), "{file} has no '{from}'");
+    std::fs::write(dir.join(to), text.replacen(from, with, 1)).unwrap();
+}
+
+/// Every tenth pose's x moved by 5–50 mm.
+fn with_blunders(dir: &Path, file: &str, to: &str) {
+    let text = std::fs::read_to_string(dir.join(file)).unwrap();
+    let mut lines = text.lines();
+    let header = lines.next().unwrap();
+    let ix = header.split(',').position(|c| c == "x_mm").unwrap();
+    let mut out = header.to_string() + "\n";
+    for (i, l) in lines.enumerate() {
+        let mut v: Vec<String> = l.split(',').map(String::from).collect();
+        if i % 10 == 3 {
+            let shift = 5.0 + 45.0 * ((i * 7919) % 100) as f64 / 100.0;
+            v[ix] = (v[ix].parse::<f64>().unwrap() + if i % 20 == 3 { shift } else { -shift }).to_string();
+        }
+        out += &(v.join(",") + "\n");
+    }
+    std::fs::write(dir.join(to), out).unwrap();
+}
+
+/// The hostile cases of the closed-loop machines: each answers within a minute (in practice well
+/// under a second) with one clear line and the right exit code, and a failed command leaves no
+/// output behind and every input unchanged.
+#[test]
+fn hostile_cases_answer_at_once_with_one_line() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let ok = |args: &[&str]| crate::cli::ok(d, args);
+    ok(&["model", "export", "pm5", "--out", "pm5.toml"]);
+    ok(&["model", "export", "stewart", "--out", "st.toml"]);
+    for (m, data) in [("pm5.toml", "p.csv"), ("st.toml", "s.csv")] {
+        ok(&[
+            "simulate",
+            m,
+            "--poses",
+            "30",
+            "--seed",
+            "1",
+            "--noise-mm",
+            "0.02",
+            "--noise-deg",
+            "0.02",
+            "--out",
+            data,
+            "--truth",
+            &format!("t-{data}.toml"),
+        ]);
+    }
+    ok(&[
+        "simulate",
+        "pm5.toml",
+        "--poses",
+        "6",
+        "--seed",
+        "1",
+        "--noise-mm",
+        "0.02",
+        "--noise-deg",
+        "0.02",
+        "--out",
+        "p6.csv",
+        "--truth",
+        "t6.toml",
+    ]);
+    edited(d, "pm5.toml", "c = [0.0, 100.0, 0.0]", "c = [0.0, -100.0, 0.0]", "pm5-typo.toml");
+    edited(
+        d,
+        "st.toml",
+        "position = [0.0, 0.0, 300.0]",
+        "position = [0.0, 0.0, -300.0]",
+        "st-typo.toml",
+    );
+    with_blunders(d, "p.csv", "p-blunders.csv");
+    with_blunders(d, "s.csv", "s-blunders.csv");
+    std::fs::write(
+        d.join("header.csv"),
+        std::fs::read_to_string(d.join("p.csv"))
+            .unwrap()
+            .lines()
+            .next()
+            .unwrap()
+            .to_string()
+            + "\n",
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("yaw.csv"),
+        "x_mm,y_mm,z_mm,roll_deg,pitch_deg,yaw_deg\n0,0,400,0,0,89.95\n10,0,380,1,0,-89.99\n",
+    )
+    .unwrap();
+    let before = snapshot(d);
+    // (arguments, exit code, text expected in the one line of stderr, output files it may write)
+    let cases: Vec<(Vec<&str>, i32, &str, Vec<&str>)> = vec![
+        (
+            vec!["identify", "pm5-typo.toml", "p.csv", "--out", "c.toml"],
+            1,
+            "does not assemble at its home pose",
+            vec![],
+        ),
+        (
+            vec!["identify", "st-typo.toml", "s.csv", "--out", "c.toml"],
+            2,
+            "beyond the model's tolerances",
+            vec![],
+        ),
+        (
+            vec!["identify", "pm5.toml", "p-blunders.csv", "--out", "c.toml"],
+            0,
+            "set aside as blunders (beyond 10 robust σ of the per-pose residuals): ids 3 13 23",
+            vec!["c.toml"],
+        ),
+        (
+            vec!["identify", "st.toml", "s-blunders.csv", "--out", "c.toml"],
+            0,
+            "set aside as blunders (beyond 10 robust σ of the per-pose residuals): ids 3 13 23",
+            vec!["c.toml"],
+        ),
+        (
+            vec!["identify", "pm5.toml", "p6.csv", "--frames", "model", "--out", "c.toml"],
+            2,
+            "failed",
+            vec![],
+        ),
+        (vec!["validate", "pm5.toml", "header.csv"], 1, "no data rows", vec![]),
+        (
+            vec!["simulate", "pm5.toml", "--error-mm", "100", "--out", "x.csv", "--truth", "xt.toml"],
+            1,
+            "errors this large make another machine",
+            vec![],
+        ),
+        (
+            vec![
+                "plan",
+                "--model",
+                "pm5.toml",
+                "--candidates",
+                "2000",
+                "-n",
+                "5",
+                "--output",
+                "plan5.csv",
+            ],
+            1,
+            "choose at least 6",
+            vec![],
+        ),
+        (
+            vec![
+                "plan",
+                "--model",
+                "pm5.toml",
+                "--candidates",
+                "2000",
+                "-n",
+                "8",
+                "--pool",
+                "0",
+                "--output",
+                "plan5.csv",
+            ],
+            1,
+            "pool must be at least 1",
+            vec![],
+        ),
+        (
+            vec![
+                "plan",
+                "--model",
+                "pm5.toml",
+                "--z-mm",
+                "100,450",
+                "--candidates",
+                "3000",
+                "-n",
+                "30",
+                "--output",
+                "plan.csv",
+            ],
+            0,
+            "",
+            vec!["plan.csv"],
+        ),
+        (
+            vec!["compensate", "pm5.toml", "yaw.csv", "--out", "cmd.csv"],
+            0,
+            "",
+            vec!["cmd.csv"],
+        ),
+    ];
+    for (args, code, expect, writes) in cases {
+        let out = crate::cli::kinecal_within(d, &args, 60);
+        let err = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert_eq!(out.status.code(), Some(code), "{args:?}: {err}");
+        if code != 0 {
+            assert_eq!(err.lines().filter(|l| l.starts_with("kinecal: ")).count(), 1, "{args:?}: {err}");
+            assert!(err.contains(expect), "{args:?}: {err}");
+        } else {
+            let stdout = String::from_utf8_lossy(&out.stdout);
+            assert!(stdout.contains(expect), "{args:?}: {stdout}");
+        }
+        let mut after = snapshot(d);
+        after.retain(|(p, _)| !writes.iter().any(|w| p.ends_with(w)));
+        assert_eq!(after, before, "{args:?} changed or left a file");
+        for w in writes {
+            std::fs::remove_file(d.join(w)).unwrap();
+        }
+    }
+}
