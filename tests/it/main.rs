@@ -4,6 +4,7 @@ mod cli;
 mod closed;
 mod design;
 mod exports;
+mod fuzz;
 mod identify;
 mod irb120;
 mod model_file;
