@@ -3,6 +3,7 @@ mod chain;
 mod cli;
 mod closed;
 mod design;
+mod dh;
 mod identify;
 mod irb120;
 mod model_file;
