@@ -1,9 +1,11 @@
-//! Files: numeric CSV tables with line-accurate errors, laser-tracker data sets.
+//! Files: numeric CSV tables with line-accurate errors, laser-tracker data sets, model files,
+//! URDF.
 pub mod data_file;
 pub mod model_file;
 pub mod output;
 pub mod table;
 pub mod tracker;
+pub mod urdf;
 
 use std::path::PathBuf;
 use thiserror::Error;

@@ -726,17 +726,13 @@ fn fmt3(v: [f64; 3]) -> String {
     format!("[{}, {}, {}]", num(v[0]), num(v[1]), num(v[2]))
 }
 
-/// Writes `position` and `rpy`, or `rotvec` where roll/pitch/yaw would not give the rotation
-/// back to 1e-14 rad (at and near pitch = ±90°, where the decomposition loses half the digits).
+/// Writes `position` and `rpy` ([`crate::se3::rpy`]), or `rotvec` where roll/pitch/yaw would
+/// not give the rotation back to 1e-14 rad.
 fn write_pose(p: &Pose, units: &Units, out: &mut String) {
     let t = p.translation.vector / units.length.to_mm();
     let f = units.angle.to_rad();
     let _ = writeln!(out, "position = {}", fmt3([t.x, t.y, t.z]));
-    let m = p.rotation.to_rotation_matrix();
-    let m = m.matrix();
-    // Pitch from atan2 (well conditioned everywhere), roll and yaw as usual.
-    let pitch = (-m[(2, 0)]).atan2((m[(0, 0)] * m[(0, 0)] + m[(1, 0)] * m[(1, 0)]).sqrt());
-    let (roll, yaw) = (m[(2, 1)].atan2(m[(2, 2)]), m[(1, 0)].atan2(m[(0, 0)]));
+    let [roll, pitch, yaw] = crate::se3::rpy(&p.rotation);
     let back = UnitQuaternion::from_euler_angles(roll, pitch, yaw);
     if crate::se3::so3_log(&(back.inverse() * p.rotation)).norm() <= 1e-14 {
         let _ = writeln!(out, "rpy = {}", fmt3([roll / f, pitch / f, yaw / f]));

@@ -15,4 +15,5 @@ mod robustness;
 mod se3_props;
 mod study;
 mod t3r1;
+mod urdf;
 mod workflow;
