@@ -243,8 +243,8 @@ mod tests {
             1.0,
             std::f64::consts::FRAC_PI_2,
             -std::f64::consts::FRAC_PI_2,
-            1.5707963,
-            -1.57079632679,
+            std::f64::consts::FRAC_PI_2 - 3e-8,
+            -std::f64::consts::FRAC_PI_2 + 5e-12,
         ] {
             for (roll, yaw) in [(0.0, 0.0), (0.4, -1.1), (-2.9, 3.0)] {
                 let q = UnitQuaternion::from_euler_angles(roll, pitch, yaw);
