@@ -152,6 +152,9 @@ pub struct Identification<M> {
     pub delta: DVector<f64>,
     /// Standard deviation per parameter (0 for parameters not identified).
     pub std_dev: DVector<f64>,
+    /// Covariance of the parameters, `σ̂₀²·(JᵀWJ)⁻¹` on the identified ones (p × p, model units:
+    /// mm and rad; zero rows and columns for parameters not identified).
+    pub covariance: DMatrix<f64>,
     /// Solver history.
     pub iterations: Vec<Iteration>,
     /// Whether the convergence test was met.
@@ -278,14 +281,17 @@ fn solve_subset(a: &DMatrix<f64>, b: &DVector<f64>, cols: &[usize], damping: f64
     Ok(delta)
 }
 
-/// Standard deviations on the columns `cols` from `σ₀²·(AᵀA)⁻¹`.
-fn std_devs(a: &DMatrix<f64>, cols: &[usize], sigma0: f64) -> DVector<f64> {
+/// The covariance `σ₀²·(AᵀA)⁻¹` of the parameters on the columns `cols` (scaled for the
+/// inverse, unscaled back), as a full `p × p` matrix that is zero outside `cols`.
+fn covariance(a: &DMatrix<f64>, cols: &[usize], sigma0: f64) -> DMatrix<f64> {
     let (scaled, norms) = identifiability::scale_columns(a, cols);
-    let mut out = DVector::zeros(a.ncols());
+    let mut out = DMatrix::zeros(a.ncols(), a.ncols());
     let n = scaled.transpose() * &scaled;
     if let Some(inv) = n.try_inverse() {
         for (k, &c) in cols.iter().enumerate() {
-            out[c] = sigma0 * inv[(k, k)].max(0.0).sqrt() / norms[k];
+            for (l, &d) in cols.iter().enumerate() {
+                out[(c, d)] = sigma0 * sigma0 * inv[(k, l)] / (norms[k] * norms[l]);
+            }
         }
     }
     out
@@ -428,12 +434,14 @@ pub fn identify<M: Mechanism + Clone>(initial: &M, data: &[Measurement], opts: &
         }
     }
     let sigma0 = (lin.residual.norm_squared() / (rows - cols.len()) as f64).sqrt();
-    let std_dev = std_devs(&lin.jacobian, &cols, sigma0);
+    let covariance = covariance(&lin.jacobian, &cols, sigma0);
+    let std_dev = DVector::from_fn(covariance.nrows(), |i, _| covariance[(i, i)].max(0.0).sqrt());
     Ok(Identification {
         model,
         identifiability: ident,
         delta: delta_total,
         std_dev,
+        covariance,
         iterations,
         converged,
         sigma0,
