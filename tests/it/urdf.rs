@@ -208,6 +208,7 @@ fn irb120_urdf_equals_the_builtin_irb120() {
     }
     let qs = configurations(&builtin, 1000, 11);
     let gap = fk_gap(&*at_flange.build(), &Pose::identity(), &*builtin.build(), &qs);
+    eprintln!("IRB 120 URDF vs built-in, 1000 configurations: max {gap:.1e} mm");
     assert!(gap < 1e-9, "{gap:e} mm");
     // By default the chain ends at the only leaf behind six joints, tool0: the flange turned by
     // 90° about y. The fixed base-link → base leaf (no movable joint) is not a candidate.
@@ -228,6 +229,7 @@ fn ur5e_as_dh_equals_ur5e_as_urdf() {
     assert_eq!(dh.build().input_names(), from_urdf.build().input_names());
     let qs = configurations(&dh, 1000, 12);
     let gap = fk_gap(&*dh.build(), &Pose::identity(), &*from_urdf.build(), &qs);
+    eprintln!("UR5e DH vs URDF, 1000 configurations: max {gap:.1e} mm");
     assert!(gap < 1e-9, "{gap:e} mm");
     // From the URDF's own root the base is turned by π about z (ROS's base_link convention).
     let from_root = urdf::import(&ur5e_urdf(), None, Some("tool0")).unwrap();
@@ -254,6 +256,7 @@ fn urdf_model_urdf_round_trip_reproduces_the_kinematics() {
         let qs = configurations(&first, 1000, 13);
         for other in [&second, &third] {
             let gap = fk_gap(&*first.build(), &Pose::identity(), &*other.build(), &qs);
+            eprintln!("{tip} of {}: URDF → model → URDF, 1000 configurations: max {gap:.1e} mm", first.name);
             assert!(gap < 1e-9, "{gap:e} mm");
         }
     }
@@ -482,6 +485,7 @@ fn calibrated_irb120_through_urdf_and_back() {
     let back = urdf::import(&written, None, None).unwrap();
     let qs = configurations(&file, 1000, 24);
     let gap = fk_gap(&*calibrated.build(), &Pose::identity(), &*back.build(), &qs);
+    eprintln!("calibrated IRB 120 → URDF → model, 1000 configurations: max {gap:.1e} mm");
     assert!(gap < 1e-9, "{gap:e} mm");
     let before = pose_errors(&*calibrated.build(), &valid.measurements).unwrap();
     let after = pose_errors(&*back.build(), &valid.measurements).unwrap();
@@ -498,5 +502,6 @@ fn calibrated_irb120_through_urdf_and_back() {
     let dh = calibrated.to_toml_dh(DhConvention::Standard, DhOptions { hayati: true }).unwrap();
     let dh = ModelFile::load_str(Path::new("cal-dh.toml"), &dh).unwrap();
     let gap = fk_gap(&*calibrated.build(), &Pose::identity(), &*dh.build(), &qs);
+    eprintln!("calibrated IRB 120 → DH with Hayati β → model, 1000 configurations: max {gap:.1e} mm; held-out RMS {:.4} mm both", sa.position_rms_mm);
     assert!(gap < 1e-9, "Hayati DH: {gap:e} mm");
 }
