@@ -31,9 +31,29 @@ pub enum FrameMode {
     Model,
 }
 
+/// How three reflector centres per pose (`m1x_mm … m3z_mm`) enter the identification.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ReflectorFit {
+    /// As the frame they define (6 residual rows per pose; the default).
+    #[default]
+    Frame,
+    /// As three measured points (9 rows per pose, each reflector at its mean position in the
+    /// reflector frame): the tracker's own measurement model. Validation stays on the frame.
+    Points,
+}
+
 /// Default Huber threshold of [`calibrate`], in robust standard deviations of the per-pose
 /// residuals: Gaussian data are untouched, blunders of many standard deviations lose their pull.
 pub const DEFAULT_HUBER_K: f64 = 5.0;
+
+/// Default number of starts of [`calibrate`] (see [`CalibrationOptions::starts`]).
+pub const DEFAULT_STARTS: u64 = 3;
+
+/// A pose is set aside as a blunder when the Huber loss weighs it below this, i.e. when its
+/// residual is beyond twice the Huber threshold. Poses between one and two thresholds are only
+/// down-weighted: real machines leave a heavy tail of residuals the geometric model cannot
+/// explain (compliance, backlash), and those poses are data, not blunders.
+pub const BLUNDER_WEIGHT: f64 = 0.5;
 
 /// Rounds of setting blunders aside and fitting again.
 const MAX_REJECTION_ROUNDS: usize = 5;
@@ -51,6 +71,15 @@ pub struct CalibrationOptions {
     pub frames: FrameMode,
     /// Loss on each pose's residual (Huber against blunders).
     pub loss: Loss,
+    /// Starts of the identification: the registered (or model) start, plus `starts − 1` starts
+    /// whose geometric parameters are perturbed at random within a third of the model's
+    /// tolerances. The best is kept; predictions that disagree by more than the stated position
+    /// noise fail the calibration (a wrong minimum, or data that do not determine the geometry).
+    pub starts: u64,
+    /// Seed of the perturbed starts.
+    pub seed: u64,
+    /// How reflector triples enter the fit (ignored for other measurement kinds).
+    pub reflectors: ReflectorFit,
 }
 
 impl Default for CalibrationOptions {
@@ -61,6 +90,9 @@ impl Default for CalibrationOptions {
             reweight: false,
             frames: FrameMode::Estimate,
             loss: Loss::Huber { k: DEFAULT_HUBER_K },
+            starts: DEFAULT_STARTS,
+            seed: 1,
+            reflectors: ReflectorFit::Frame,
         }
     }
 }
@@ -94,6 +126,51 @@ pub struct Calibration {
     /// Ids of the poses set aside as blunders: beyond the Huber threshold of the robust loss at
     /// the solution, then left out of the final fit.
     pub blunders: Vec<i64>,
+    /// What each start reached (the first is the registered start).
+    pub starts: Vec<StartOutcome>,
+}
+
+/// The outcome of one start of [`calibrate`].
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct StartOutcome {
+    /// A-posteriori standard deviation of unit weight reached.
+    pub sigma0: f64,
+    /// Whether that identification converged.
+    pub converged: bool,
+    /// Largest distance (mm) between this start's predicted tool positions and the kept
+    /// solution's, over the identification poses.
+    pub max_difference_mm: f64,
+}
+
+/// A random perturbation of the free, non-frame geometric parameters: uniform within a third of
+/// the tolerance of each parameter's unit (lengths in mm, angles in rad).
+fn perturbation(model: &dyn Mechanism, free: &[usize], tol: &crate::io::model_file::Tolerances, seed: u64) -> nalgebra::DVector<f64> {
+    use rand::{RngExt, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let params = model.params();
+    let mut d = nalgebra::DVector::zeros(params.len());
+    for &i in free {
+        if params[i].group.ends_with(" frame") {
+            continue;
+        }
+        let s = match params[i].unit {
+            Unit::Length => tol.length_mm / 3.0,
+            Unit::Angle => tol.angle_deg.to_radians() / 3.0,
+            _ => 0.0,
+        };
+        d[i] = rng.random_range(-s..=s);
+    }
+    d
+}
+
+/// Largest distance (mm) between the tool positions two models predict at the poses of `data`.
+fn max_prediction_difference(a: &dyn Mechanism, b: &dyn Mechanism, data: &[Measurement]) -> f64 {
+    data.iter()
+        .map(|m| match (a.forward(&m.q), b.forward(&m.q)) {
+            (Ok(x), Ok(y)) => (x.translation.vector - y.translation.vector).norm(),
+            _ => f64::INFINITY,
+        })
+        .fold(0.0, f64::max)
 }
 
 /// Calibrate `model` from `data` (and judge it on `validation`): see the module docs.
@@ -104,6 +181,16 @@ pub fn calibrate(
     opts: &CalibrationOptions,
 ) -> Result<Calibration, CalibrateError> {
     plausible_angles(model, data)?;
+    let measurements: Vec<Measurement> = match opts.reflectors {
+        ReflectorFit::Frame => data.measurements.clone(),
+        ReflectorFit::Points => data.reflector_points().ok_or_else(|| IoError::Invalid {
+            path: data.path.clone(),
+            message: format!(
+                "fitting reflector points needs three reflector centres per pose (m1x_mm … m3z_mm); this file gives a {}",
+                data.format.describe()
+            ),
+        })?,
+    };
     let (start, free, registration): (Box<dyn Mechanism>, Vec<usize>, Option<Registration>) = match opts.frames {
         FrameMode::Model => (model.build(), model.free_indices()?, None),
         FrameMode::Estimate => {
@@ -113,7 +200,7 @@ pub fn calibrate(
                 message: format!("calibration pattern '{pat}' matches no parameter"),
             })?;
             let tool_guess = model.frames.map_or(Pose::identity(), |f| f.tool);
-            let reg = register(&inner, &data.measurements, &tool_guess).map_err(|e| data.locate(e))?;
+            let reg = register(&inner, &measurements, &tool_guess).map_err(|e| data.locate(e))?;
             let framed = Framed::new(inner, reg.measurement, reg.tool);
             let mut free: Vec<usize> = (0..FRAME_PARAMS).collect();
             free.extend(inner_free.iter().map(|i| i + FRAME_PARAMS));
@@ -128,22 +215,22 @@ pub fn calibrate(
         loss: opts.loss,
         ..Options::default()
     };
-    let mut identification = identify(&start, &data.measurements, &id_opts).map_err(|e| data.locate(e))?;
+    let mut identification = identify(&start, &measurements, &id_opts).map_err(|e| data.locate(e))?;
     // Blunders: poses the robust loss down-weighted are set aside and the fit repeated on the rest,
     // until the set is stable (a Huber fit alone still lets many blunders pull together).
-    let mut kept: Vec<usize> = (0..data.measurements.len()).collect();
+    let mut kept: Vec<usize> = (0..measurements.len()).collect();
     for _ in 0..MAX_REJECTION_ROUNDS {
         let rejected: Vec<usize> = kept
             .iter()
             .zip(&identification.pose_weights)
-            .filter(|(_, w)| **w < 1.0)
+            .filter(|(_, w)| **w < BLUNDER_WEIGHT)
             .map(|(i, _)| *i)
             .collect();
         if rejected.is_empty() {
             break;
         }
         kept.retain(|i| !rejected.contains(i));
-        let subset: Vec<Measurement> = kept.iter().map(|&i| data.measurements[i].clone()).collect();
+        let subset: Vec<Measurement> = kept.iter().map(|&i| measurements[i].clone()).collect();
         let again = identify(&identification.model, &subset, &id_opts).map_err(|e| match e {
             CalibError::Kinematics { pose, source } => data.locate(CalibError::Kinematics { pose: kept[pose], source }),
             other => data.locate(other),
@@ -152,6 +239,57 @@ pub fn calibrate(
         identification = Identification { delta, ..again };
     }
     let set_aside: Vec<usize> = (0..data.measurements.len()).filter(|i| !kept.contains(i)).collect();
+    // Other starts: perturbed geometry, the same frames; the best is kept.
+    let subset: Vec<Measurement> = kept.iter().map(|&i| measurements[i].clone()).collect();
+    let mut others = Vec::new();
+    for k in 1..opts.starts.max(1) as usize {
+        let pert = perturbation(&*start, &free, &model.tolerances, opts.seed.wrapping_add(k as u64));
+        let mut perturbed = start.box_clone();
+        perturbed.retract(&pert);
+        // A start that fails outright (a pose out of reach) is a start that did not agree.
+        let outcome = identify(&perturbed, &subset, &id_opts).ok().map(|r| {
+            let delta = pert + &r.delta;
+            Identification { delta, ..r }
+        });
+        others.push(outcome);
+    }
+    let mut all: Vec<Option<Identification<Box<dyn Mechanism>>>> = vec![Some(identification)];
+    all.extend(others);
+    // The registered start is kept unless another reaches a clearly lower residual: equal fits
+    // from perturbed starts differ only in how redundant directions were split.
+    let sigma = |k: usize| {
+        all[k]
+            .as_ref()
+            .filter(|r| r.converged && r.sigma0.is_finite())
+            .map_or(f64::INFINITY, |r| r.sigma0)
+    };
+    let mut best = 0;
+    for k in 1..all.len() {
+        if sigma(k) < sigma(best) * (1.0 - 1e-6) || (sigma(best).is_infinite() && sigma(k).is_finite()) {
+            best = k;
+        }
+    }
+    let identification = all[best].take().expect("the best start has a result");
+    let starts: Vec<StartOutcome> = std::iter::once(best)
+        .chain((0..all.len()).filter(|&k| k != best))
+        .map(|k| match &all[k] {
+            None if k == best => StartOutcome {
+                sigma0: identification.sigma0,
+                converged: identification.converged,
+                max_difference_mm: 0.0,
+            },
+            None => StartOutcome {
+                sigma0: f64::NAN,
+                converged: false,
+                max_difference_mm: f64::INFINITY,
+            },
+            Some(r) => StartOutcome {
+                sigma0: r.sigma0,
+                converged: r.converged,
+                max_difference_mm: max_prediction_difference(&*r.model, &*identification.model, &subset),
+            },
+        })
+        .collect();
     let mut calibrated = model.with_geometry_of(&*identification.model).map_err(|message| IoError::Invalid {
         path: format!("model '{}'", model.name).into(),
         message,
@@ -168,7 +306,19 @@ pub fn calibrate(
         &data.measurements,
         validation.map(|v| (validation_name.as_deref().unwrap_or("validation"), v.measurements.as_slice())),
     )?;
+    report.set_ids(&data.ids, validation.map(|v| v.ids.as_slice()));
+    report.set_inputs(&model.inputs());
     report.assess(&opts.noise, &model.tolerances);
+    let spread = starts.iter().map(|s| s.max_difference_mm).fold(0.0, f64::max);
+    if spread > opts.noise.position {
+        let sigmas: Vec<String> = starts.iter().map(|s| format!("{:.3}", s.sigma0)).collect();
+        report.fail(format!(
+            "the {} starts disagree: their predictions differ by up to {spread:.4} mm (more than the stated noise, {} mm; σ̂₀ {}): the fit has several minima here and the kept one (the lowest) may not be the true geometry: check the nominal model and the tolerances, add or spread the poses, or fix parameters",
+            starts.len(),
+            opts.noise.position,
+            sigmas.join(" / ")
+        ));
+    }
     let blunders = set_aside.iter().map(|&i| data.ids[i]).collect();
     Ok(Calibration {
         blunders,
@@ -178,6 +328,7 @@ pub fn calibrate(
         registration,
         free,
         report,
+        starts,
     })
 }
 

@@ -150,10 +150,13 @@ pub struct Identification<M> {
     /// Sum of all increments applied, per parameter (local coordinates; for additive models the
     /// identified error itself).
     pub delta: DVector<f64>,
-    /// Standard deviation per parameter (0 for parameters not identified).
+    /// Standard deviation per parameter, from [`Identification::covariance`] (0 for parameters
+    /// without effect or not free).
     pub std_dev: DVector<f64>,
-    /// Covariance of the parameters, `σ̂₀²·(JᵀWJ)⁻¹` on the identified ones (p × p, model units:
-    /// mm and rad; zero rows and columns for parameters not identified).
+    /// Covariance of the identified change (model units: mm, rad), `σ̂₀²·(AᵀA)⁺` on the weighted
+    /// Jacobian at the solution, for the solution the method took: the minimum-norm one over the
+    /// parameters with an effect (Gauss–Newton: the values and the deviations describe the same
+    /// solution), or the identifiable subset (one-step methods). Zero outside those parameters.
     pub covariance: DMatrix<f64>,
     /// Solver history.
     pub iterations: Vec<Iteration>,
@@ -281,17 +284,43 @@ fn solve_subset(a: &DMatrix<f64>, b: &DVector<f64>, cols: &[usize], damping: f64
     Ok(delta)
 }
 
-/// The covariance `σ₀²·(AᵀA)⁻¹` of the parameters on the columns `cols` (scaled for the
-/// inverse, unscaled back), as a full `p × p` matrix that is zero outside `cols`.
-fn covariance(a: &DMatrix<f64>, cols: &[usize], sigma0: f64) -> DMatrix<f64> {
+/// Standard deviations on the columns `cols` from `σ₀²·(AᵀA)⁻¹`.
+/// Unit-weight covariance `(AᵀA)⁺` of the solution on the columns `cols` (model units, full
+/// size, zero outside `cols`): with `rank = Some(r)` the pseudo-inverse truncated to the `r`
+/// largest singular values of the column-scaled matrix — the covariance of the minimum-norm
+/// solution the Gauss–Newton steps take — otherwise the plain inverse (subset solution).
+fn covariance(a: &DMatrix<f64>, cols: &[usize], rank: Option<usize>) -> DMatrix<f64> {
+    let p = a.ncols();
+    let mut out = DMatrix::zeros(p, p);
     let (scaled, norms) = identifiability::scale_columns(a, cols);
-    let mut out = DMatrix::zeros(a.ncols(), a.ncols());
     let n = scaled.transpose() * &scaled;
-    if let Some(inv) = n.try_inverse() {
-        for (k, &c) in cols.iter().enumerate() {
-            for (l, &d) in cols.iter().enumerate() {
-                out[(c, d)] = sigma0 * sigma0 * inv[(k, l)] / (norms[k] * norms[l]);
+    if n.iter().any(|v| !v.is_finite()) {
+        return out;
+    }
+    let inv = match rank {
+        None => match n.try_inverse() {
+            Some(inv) => inv,
+            None => return out,
+        },
+        Some(r) => {
+            let eig = n.symmetric_eigen();
+            let mut order: Vec<usize> = (0..eig.eigenvalues.len()).collect();
+            order.sort_by(|&i, &j| eig.eigenvalues[j].total_cmp(&eig.eigenvalues[i]));
+            let k = cols.len();
+            let mut inv = DMatrix::zeros(k, k);
+            for &i in order.iter().take(r.min(k)) {
+                let l = eig.eigenvalues[i];
+                if l > 0.0 {
+                    let v = eig.eigenvectors.column(i);
+                    inv += (v * v.transpose()) / l;
+                }
             }
+            inv
+        }
+    };
+    for (i, &ci) in cols.iter().enumerate() {
+        for (j, &cj) in cols.iter().enumerate() {
+            out[(ci, cj)] = inv[(i, j)] / (norms[i] * norms[j]);
         }
     }
     out
@@ -434,8 +463,16 @@ pub fn identify<M: Mechanism + Clone>(initial: &M, data: &[Measurement], opts: &
         }
     }
     let sigma0 = (lin.residual.norm_squared() / (rows - cols.len()) as f64).sqrt();
-    let covariance = covariance(&lin.jacobian, &cols, sigma0);
-    let std_dev = DVector::from_fn(covariance.nrows(), |i, _| covariance[(i, i)].max(0.0).sqrt());
+    // The covariance of the solution the method took: minimum-norm over the parameters with an
+    // effect (Gauss–Newton), or the identifiable subset (one-step methods).
+    let covariance = match opts.method {
+        Method::GaussNewton => {
+            let effective: Vec<usize> = free.iter().copied().filter(|c| !ident.no_effect.contains(c)).collect();
+            covariance(&lin.jacobian, &effective, Some(ident.rank))
+        }
+        Method::Linear | Method::Recursive => covariance(&lin.jacobian, &cols, None),
+    } * (sigma0 * sigma0);
+    let std_dev = DVector::from_iterator(p, (0..p).map(|i| covariance[(i, i)].max(0.0).sqrt()));
     Ok(Identification {
         model,
         identifiability: ident,

@@ -151,6 +151,24 @@ pub fn frame_from_reflectors(m1: &Vector3<f64>, m2: &Vector3<f64>, m3: &Vector3<
     Some(se3::pose_from_matrix(&r, &origin))
 }
 
+/// The reflector centres in the reflector frame of [`frame_from_reflectors`], averaged over
+/// every triple (the reflectors are rigid on the tool). `None` when a triple is collinear or
+/// there is none.
+pub fn reflector_offsets(triples: &[[Vector3<f64>; 3]]) -> Option<[Vector3<f64>; 3]> {
+    if triples.is_empty() {
+        return None;
+    }
+    let mut sum = [Vector3::zeros(); 3];
+    for m in triples {
+        let f = frame_from_reflectors(&m[0], &m[1], &m[2])?;
+        for k in 0..3 {
+            sum[k] += f.inverse_transform_point(&m[k].into()).coords;
+        }
+    }
+    let n = triples.len() as f64;
+    Some([sum[0] / n, sum[1] / n, sum[2] / n])
+}
+
 /// Rigid registration by SVD (eq. (39)–(44) of the 5-DOF paper, with the reflection guard of
 /// Arun/Umeyama): the pose `T` minimising `Σ |T·src_i − dst_i|²`. Needs at least three points not
 /// on one line; returns `None` otherwise.

@@ -792,6 +792,34 @@ pub struct StudyCase {
     pub ablations: Vec<Ablation>,
 }
 
+impl StudyCase {
+    /// Why this case's identification cannot be trusted, if it cannot: `‖X‖` never reached the
+    /// tolerance (not converged), or the iterations ended with a larger identification-set error
+    /// than the first one reached (diverged into a wrong solution).
+    pub fn failure(&self) -> Option<String> {
+        let (first, last) = (&self.one_iteration[0], &self.converged[0]);
+        if last.max_position_mm > first.max_position_mm * 1.0001 || last.max_orientation_deg > first.max_orientation_deg * 1.0001 {
+            return Some(format!(
+                "diverged: the identification-set error grew from {:.4} mm / {:.4} deg after one iteration to {:.4} mm / {:.4} deg after {} (too few poses for {} identified coordinates, or noise that the data cannot average out)",
+                first.max_position_mm,
+                first.max_orientation_deg,
+                last.max_position_mm,
+                last.max_orientation_deg,
+                self.x_norms.len(),
+                self.identified
+            ));
+        }
+        if !self.reached_tolerance {
+            return Some(format!(
+                "not converged: ||X|| is still {:.2e} after {} iterations",
+                self.x_norms.last().copied().unwrap_or(f64::NAN),
+                self.x_norms.len()
+            ));
+        }
+        None
+    }
+}
+
 /// Checks of the lower-angle estimate on the actual machine (true model, true readings).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct LowerAngleCheck {

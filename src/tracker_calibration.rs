@@ -180,16 +180,7 @@ pub fn measurements(data: &TrackerData, what: ToolMeasurement, keep: impl Fn(i64
 /// The reflector centres in the reflector frame (eq. (38)), averaged over every pose of the data
 /// set (the reflectors are rigid on the tool).
 pub fn reflector_offsets(data: &TrackerData) -> Result<[Vector3<f64>; 3], CalibError> {
-    let mut sum = [Vector3::zeros(); 3];
-    for (i, m) in data.tool.iter().enumerate() {
-        let f = measure::frame_from_reflectors(&m[0], &m[1], &m[2])
-            .ok_or_else(|| CalibError::Numerical(format!("pose {}: the three reflectors are collinear", data.idx[i])))?;
-        for k in 0..3 {
-            sum[k] += f.inverse_transform_point(&m[k].into()).coords;
-        }
-    }
-    let n = data.len().max(1) as f64;
-    Ok([sum[0] / n, sum[1] / n, sum[2] / n])
+    measure::reflector_offsets(&data.tool).ok_or_else(|| CalibError::Numerical("no poses, or three collinear reflectors".into()))
 }
 
 /// Three-point observations of the reflectors for the poses selected by `keep`.
@@ -367,4 +358,80 @@ pub fn calibrate(
         free_params: free,
         fit: res,
     })
+}
+
+/// One calibration of [`general_path`].
+#[derive(Debug, Clone, Serialize)]
+pub struct GeneralRun {
+    /// What is fitted: `"frame"`, `"3 points"` or `"reflector 1"`.
+    pub fit: &'static str,
+    /// Identified / free parameters (frames included).
+    pub identified: usize,
+    /// Free parameters.
+    pub free: usize,
+    /// Solver iterations.
+    pub iterations: usize,
+    /// The verdict (`calibrated`, `usable with warnings`, `failed`).
+    pub status: &'static str,
+    /// Held-out errors after calibration.
+    pub validation: ErrorStats,
+    /// Wall time of the calibration (s).
+    pub seconds: f64,
+}
+
+/// The same data through the general path every user takes, for comparison with the schemes
+/// above: the folder's exports joined by id ([`crate::io::exports::join_exports`]: joints,
+/// `smr1..3.csv`, or `smr1.csv` alone), split by `rule`, and calibrated by
+/// [`crate::calibrate::calibrate`] from the built-in IRB 120 model file with the frames
+/// estimated from the data; three runs: the reflector frame, the three points, reflector 1's
+/// position.
+pub fn general_path(
+    folder: &std::path::Path,
+    rule: crate::io::split::SplitRule,
+    noise: Noise,
+) -> Result<Vec<GeneralRun>, crate::calibrate::CalibrateError> {
+    use crate::calibrate::{calibrate, CalibrationOptions, ReflectorFit};
+    use crate::io::exports::{join_exports, ExportFiles};
+    use crate::io::model_file::{AngleUnit, LengthUnit};
+    let model = crate::model::builtin::model_file("irb120").ok_or_else(|| CalibError::InvalidOption("no built-in irb120".into()))?;
+    let files = |reflectors: &[usize]| ExportFiles {
+        joints: folder.join("joints_deg.csv"),
+        angles: AngleUnit::Deg,
+        reflectors: reflectors.iter().map(|k| folder.join(format!("smr{k}.csv"))).collect(),
+        references: Vec::new(),
+        lengths: LengthUnit::Mm,
+    };
+    let three = join_exports(&files(&[1, 2, 3]), &model.inputs(), &folder.join("joined.csv"))?.data;
+    let one = join_exports(&files(&[1]), &model.inputs(), &folder.join("joined-1.csv"))?.data;
+    let mut runs = Vec::new();
+    for (fit, data, reflectors) in [
+        ("frame", &three, ReflectorFit::Frame),
+        ("3 points", &three, ReflectorFit::Points),
+        ("reflector 1", &one, ReflectorFit::Frame),
+    ] {
+        let (ident, valid) = crate::io::split::split(data, rule);
+        let opts = CalibrationOptions {
+            noise,
+            reflectors,
+            ..CalibrationOptions::default()
+        };
+        let t0 = Instant::now();
+        let cal = calibrate(&model, &ident, Some(&valid), &opts)?;
+        let seconds = t0.elapsed().as_secs_f64();
+        let r = &cal.report;
+        runs.push(GeneralRun {
+            fit,
+            identified: r.rank,
+            free: r.free,
+            iterations: r.iterations,
+            status: r.verdict.status.as_str(),
+            validation: r
+                .validation
+                .as_ref()
+                .map(|v| v.after_stats)
+                .ok_or_else(|| CalibError::InvalidOption("no validation pose".into()))?,
+            seconds,
+        });
+    }
+    Ok(runs)
 }

@@ -2,8 +2,10 @@
 //! measurement file into one data file.
 use clap::{Args, Subcommand};
 use kinecal::io::data_file::{data_text, join_files, read_data, DataSet, InputColumns};
-use kinecal::io::model_file::ModelFile;
+use kinecal::io::exports::{join_exports, ExportFiles, JoinedExports};
+use kinecal::io::model_file::{AngleUnit, LengthUnit, ModelFile};
 use kinecal::io::output::Outputs;
+use kinecal::io::split::{split, SplitRule};
 use std::path::PathBuf;
 
 /// Arguments of `kinecal data`.
@@ -25,17 +27,64 @@ enum DataCommand {
         #[arg(long)]
         json: bool,
     },
-    /// Join an inputs file (id + input columns, e.g. q1_deg…) and a measurement file (id +
-    /// x_mm,y_mm,z_mm[,qw..qz | roll_deg..yaw_deg] or m1x_mm..m3z_mm) row by row; both must have the
-    /// same rows (and the same ids, when both have an id column). Writes positions in mm and
-    /// orientations as quaternions (reflector triples as their frame).
+    /// Split a data file into an identification part and a held-out validation part, by id
+    /// (`below:500`), parity of the id (`even`: even ids first) or at random (`random:0.5`, with
+    /// `--seed`).
+    Split {
+        /// Model file or built-in name (decides the input columns).
+        model: String,
+        /// Data file to split.
+        data: PathBuf,
+        /// The rule: below:ID, even, random:FRACTION.
+        #[arg(long)]
+        by: String,
+        /// Seed of a random split.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// File for the poses the rule selects (identification).
+        #[arg(long)]
+        out: PathBuf,
+        /// File for the other poses (validation).
+        #[arg(long)]
+        rest: PathBuf,
+        /// Replace existing output files.
+        #[arg(long)]
+        force: bool,
+    },
+    /// Join raw exports into one data file. Two forms:
+    ///
+    /// * `data join MODEL INPUTS MEASUREMENTS --out F`: an inputs file (id + input columns, e.g.
+    ///   q1_deg…) and a measurement file (id + x_mm,y_mm,z_mm[,qw..qz | roll_deg..yaw_deg] or
+    ///   m1x_mm..m3z_mm), row by row;
+    /// * `data join MODEL --joints LOG --reflector R1 [--reflector R2 --reflector R3]
+    ///   [--reference B1 …] --angles deg|rad --units mm|m --out F`: a controller log (idx or id,
+    ///   then one column per input in the model's order) and one tracker export per reflector
+    ///   (idx or id, x, y, z), matched by id; lost beams (empty or 0,0,0) and unmatched ids are
+    ///   dropped and listed; fixed reference reflectors report how steady the tracker stood.
     Join {
         /// Model file or built-in name (decides the input columns).
         model: String,
-        /// Inputs file (CSV).
-        inputs: PathBuf,
-        /// Measurement file (CSV).
-        measurements: PathBuf,
+        /// Inputs file (CSV), first form.
+        #[arg(required_unless_present = "joints", conflicts_with = "joints")]
+        inputs: Option<PathBuf>,
+        /// Measurement file (CSV), first form.
+        #[arg(required_unless_present = "joints", conflicts_with = "joints")]
+        measurements: Option<PathBuf>,
+        /// Controller log of the joint values (second form).
+        #[arg(long, requires = "reflector")]
+        joints: Option<PathBuf>,
+        /// Tool reflector export (idx,x,y,z): once for a position, three times for the tool frame.
+        #[arg(long, action = clap::ArgAction::Append)]
+        reflector: Vec<PathBuf>,
+        /// Fixed reference reflector export (idx,x,y,z), any number: tracker stability only.
+        #[arg(long, action = clap::ArgAction::Append)]
+        reference: Vec<PathBuf>,
+        /// Unit of the controller log's angle columns.
+        #[arg(long, value_parser = ["deg", "rad"], default_value = "deg")]
+        angles: String,
+        /// Unit of the length columns of the exports.
+        #[arg(long, value_parser = ["mm", "m"], default_value = "mm")]
+        units: String,
         /// Joined data file to write (CSV).
         #[arg(long, short)]
         out: PathBuf,
@@ -64,6 +113,34 @@ fn summary(d: &DataSet, json: bool) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Dropped poses and reference stability of a join from exports (stderr for dropped lines, so
+/// that `--json` stays one document on stdout).
+fn print_join(j: &JoinedExports, json: bool) {
+    if !j.dropped.is_empty() {
+        eprintln!("{} poses dropped:", j.dropped.len());
+        for (id, why) in j.dropped.iter().take(20) {
+            eprintln!("  id {id}: {why}");
+        }
+        if j.dropped.len() > 20 {
+            eprintln!("  … ({} more)", j.dropped.len() - 20);
+        }
+    }
+    if json {
+        return;
+    }
+    for r in &j.references {
+        println!(
+            "reference {}: {} readings within {} mm of its median ({} lost or beyond), max deviation {:.4} mm, RMS {:.4} mm",
+            r.path.display(),
+            r.valid,
+            kinecal::io::exports::REFERENCE_OUTLIER_MM,
+            r.failed,
+            r.max_deviation_mm,
+            r.rms_deviation_mm
+        );
+    }
+}
+
 /// Run the command.
 pub fn run(args: DataArgs) -> anyhow::Result<()> {
     match args.command {
@@ -71,20 +148,87 @@ pub fn run(args: DataArgs) -> anyhow::Result<()> {
             let file = ModelFile::load_or_builtin(&model)?;
             summary(&read_data(&data, &file.inputs(), InputColumns::Required)?, json)
         }
+        DataCommand::Split {
+            model,
+            data,
+            by,
+            seed,
+            out,
+            rest,
+            force,
+        } => {
+            let rule = SplitRule::parse(&by, seed).map_err(|e| anyhow::anyhow!("--by {e}"))?;
+            let mut outputs = Outputs::new(force);
+            outputs.input(std::path::Path::new(&model)).input(&data);
+            outputs.output(&out)?.output(&rest)?;
+            let file = ModelFile::load_or_builtin(&model)?;
+            let inputs = file.inputs();
+            let d = read_data(&data, &inputs, InputColumns::Required)?;
+            let (a, b) = split(&d, rule);
+            for (part, path) in [(&a, &out), (&b, &rest)] {
+                anyhow::ensure!(!part.ids.is_empty(), "--by {by}: {} would get no pose", path.display());
+                let refl = (!part.reflectors.is_empty()).then_some(part.reflectors.as_slice());
+                outputs.stage(path, data_text(path, &inputs, &part.ids, &part.measurements, refl)?.as_bytes())?;
+            }
+            outputs.commit()?;
+            println!(
+                "{}: {} poses → {} ({} poses) and {} ({} poses)",
+                data.display(),
+                d.ids.len(),
+                out.display(),
+                a.ids.len(),
+                rest.display(),
+                b.ids.len()
+            );
+            Ok(())
+        }
         DataCommand::Join {
             model,
             inputs,
             measurements,
+            joints,
+            reflector,
+            reference,
+            angles,
+            units,
             out,
             json,
             force,
         } => {
             let mut outputs = Outputs::new(force);
-            outputs.input(std::path::Path::new(&model)).input(&inputs).input(&measurements);
+            outputs.input(std::path::Path::new(&model));
+            for p in inputs
+                .iter()
+                .chain(&measurements)
+                .chain(&joints)
+                .chain(&reflector)
+                .chain(&reference)
+            {
+                outputs.input(p);
+            }
             outputs.output(&out)?;
             let file = ModelFile::load_or_builtin(&model)?;
-            let d = join_files(&inputs, &measurements, &file.inputs())?;
-            outputs.stage(&out, data_text(&out, &file.inputs(), &d.ids, &d.measurements, None)?.as_bytes())?;
+            let (d, reflectors) = match (inputs, measurements, joints) {
+                (Some(i), Some(m), None) => (join_files(&i, &m, &file.inputs())?, None),
+                (None, None, Some(joints)) => {
+                    let files = ExportFiles {
+                        joints,
+                        angles: AngleUnit::parse(&angles).unwrap_or(AngleUnit::Deg),
+                        reflectors: reflector,
+                        references: reference,
+                        lengths: LengthUnit::parse(&units).unwrap_or(LengthUnit::Mm),
+                    };
+                    let j = join_exports(&files, &file.inputs(), &out)?;
+                    print_join(&j, json);
+                    let r = (!j.data.reflectors.is_empty()).then(|| j.data.reflectors.clone());
+                    (j.data, r)
+                }
+                _ => anyhow::bail!("data join: give either INPUTS and MEASUREMENTS, or --joints with --reflector"),
+            };
+            outputs.stage(
+                &out,
+                data_text(&out, &file.inputs(), &d.ids, &d.measurements, reflectors.as_deref())?.as_bytes(),
+            )?;
             outputs.commit()?;
             summary(&d, json)?;
             if !json {

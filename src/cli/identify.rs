@@ -1,7 +1,7 @@
 //! `kinecal identify MODEL DATA`: identify the free parameters → calibrated model file + report.
 use super::progress;
 use clap::{Args, ValueEnum};
-use kinecal::calibrate::{calibrate, CalibrationOptions, FrameMode};
+use kinecal::calibrate::{calibrate, CalibrationOptions, FrameMode, ReflectorFit};
 use kinecal::identify::{Loss, Method};
 use kinecal::io::data_file::{read_data, InputColumns};
 use kinecal::io::model_file::{ModelFile, Provenance};
@@ -30,6 +30,15 @@ pub enum FramesArg {
     Estimate,
     /// The data are in the model file's frames.
     Model,
+}
+
+/// How reflector triples are fitted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ReflectorsArg {
+    /// The frame the three reflectors define.
+    Frame,
+    /// The three reflector points themselves.
+    Points,
 }
 
 /// Arguments of `kinecal identify`.
@@ -73,6 +82,19 @@ pub struct IdentifyArgs {
     /// residuals (poses beyond it are down-weighted and listed); 0 = plain least squares.
     #[arg(long, default_value_t = kinecal::calibrate::DEFAULT_HUBER_K)]
     pub huber: f64,
+    /// Starts of the identification: the registered start plus perturbed ones (geometry moved at
+    /// random within a third of the model's tolerances); starts whose predictions disagree by
+    /// more than the stated noise fail the calibration.
+    #[arg(long, default_value_t = kinecal::calibrate::DEFAULT_STARTS, value_parser = clap::value_parser!(u64).range(1..=100))]
+    pub starts: u64,
+    /// Seed of the perturbed starts.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// How three reflector centres per pose (m1x_mm … m3z_mm) are fitted: `frame` (the frame
+    /// they define, 6 rows per pose) or `points` (the three points, 9 rows per pose: the
+    /// tracker's own measurement model). Validation is on the frame either way.
+    #[arg(long, value_enum, default_value_t = ReflectorsArg::Frame)]
+    pub reflectors: ReflectorsArg,
     /// Replace existing output files; and write the model and report even when the calibration
     /// failed its checks (marked failed in both; the exit code is still 2).
     #[arg(long)]
@@ -129,6 +151,12 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         } else {
             Loss::Squares
         },
+        starts: a.starts,
+        seed: a.seed,
+        reflectors: match a.reflectors {
+            ReflectorsArg::Frame => ReflectorFit::Frame,
+            ReflectorsArg::Points => ReflectorFit::Points,
+        },
     };
     for d in std::iter::once(&data).chain(validation.as_ref()) {
         if let Some(note) = d.dropped_note() {
@@ -151,6 +179,9 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         date: super::utc_now(),
         data: data_files,
     });
+    let mut report = cal.report.clone();
+    report.provenance = calibrated.provenance.clone();
+    let report = &report;
     if !failed || a.force {
         let text = calibrated.to_toml().map_err(|e| anyhow::anyhow!("{}: {e}", a.out.display()))?;
         outputs.stage(&a.out, text.as_bytes())?;
@@ -199,6 +230,19 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
     if let Some(v) = &report.validation {
         println!("validation set before:     {}", v.before_stats);
         println!("validation set after:      {}", v.after_stats);
+    }
+    if cal.starts.len() > 1 {
+        let spread = cal.starts.iter().map(|s| s.max_difference_mm).fold(0.0, f64::max);
+        let agree = if spread <= opts.noise.position { "agree" } else { "DISAGREE" };
+        println!(
+            "{} starts {agree}: predictions within {spread:.2e} mm of the kept solution (σ̂₀ {})",
+            cal.starts.len(),
+            cal.starts
+                .iter()
+                .map(|s| format!("{:.4}", s.sigma0))
+                .collect::<Vec<_>>()
+                .join(" / ")
+        );
     }
     if !cal.blunders.is_empty() {
         let ids: Vec<String> = cal.blunders.iter().map(|id| id.to_string()).collect();

@@ -1,5 +1,6 @@
 //! `kinecal irb120 DATA_DIR`: real-data calibration of an ABB IRB 120 measured by a laser tracker.
 use clap::Args;
+use kinecal::io::split::SplitRule;
 use kinecal::io::tracker;
 use kinecal::measure::{self, Noise};
 use kinecal::model::irb120;
@@ -18,6 +19,13 @@ pub struct Irb120Args {
     /// Poses with idx below this identify the model; the others validate it.
     #[arg(long, default_value_t = 500)]
     pub split: i64,
+    /// Another split instead of --split: `below:ID`, `even` (even ids identify) or
+    /// `random:FRACTION` (with --seed).
+    #[arg(long)]
+    pub by: Option<String>,
+    /// Seed of a random split.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
     /// Print the tables as JSON instead of text.
     #[arg(long)]
     pub json: bool,
@@ -47,6 +55,7 @@ struct Run {
 struct Output {
     data: DataSummary,
     runs: Vec<Run>,
+    general_path: Vec<tracker_calibration::GeneralRun>,
     unexplained: Unexplained,
 }
 
@@ -92,6 +101,18 @@ fn reflector_distance_std(data: &tracker::TrackerData) -> f64 {
     (var / 3.0).sqrt()
 }
 
+/// The identification and validation parts of a split, in words.
+fn describe(rule: SplitRule) -> (String, String) {
+    match rule {
+        SplitRule::IdBelow(v) => (format!("idx < {v}"), format!("idx ≥ {v}")),
+        SplitRule::EvenIds => ("even idx".into(), "odd idx".into()),
+        SplitRule::Random { fraction, seed } => (
+            format!("random {:.0} % (seed {seed})", fraction * 100.0),
+            format!("the other {:.0} %", (1.0 - fraction) * 100.0),
+        ),
+    }
+}
+
 /// Run the command.
 pub fn run(args: Irb120Args) -> anyhow::Result<()> {
     if !(args.sigma_position > 0.0 && args.sigma_orientation > 0.0) {
@@ -103,20 +124,27 @@ pub fn run(args: Irb120Args) -> anyhow::Result<()> {
     }
     let data = tracker::read_folder(&args.data, 6)?;
     let nominal = irb120::nominal();
-    let split = args.split;
+    let rule = match &args.by {
+        Some(text) => SplitRule::parse(text, args.seed).map_err(|e| anyhow::anyhow!("--by {e}"))?,
+        None => SplitRule::IdBelow(args.split),
+    };
+    let (split_in, split_out) = describe(rule);
+    // The identification ids, chosen the way `kinecal data split` chooses them.
+    let all = kinecal::io::split::subset_ids(&data.idx, rule);
+    let ident: std::collections::HashSet<i64> = all.into_iter().collect();
     let frame = ToolMeasurement::FullPose;
-    let train = tracker_calibration::measurements(&data, frame, |i| i < split)?;
-    let test = tracker_calibration::measurements(&data, frame, |i| i >= split)?;
+    let train = tracker_calibration::measurements(&data, frame, |i| ident.contains(&i))?;
+    let test = tracker_calibration::measurements(&data, frame, |i| !ident.contains(&i))?;
     if test.is_empty() || train.is_empty() {
         anyhow::bail!(
-            "{}: --split {split} leaves no pose to identify on or none to validate on",
+            "{}: the split {split_in} leaves no pose to identify on or none to validate on",
             args.data.display()
         );
     }
-    let points = tracker_calibration::reflector_measurements(&data, |i| i < split)?;
+    let points = tracker_calibration::reflector_measurements(&data, |i| ident.contains(&i))?;
     let r1 = ToolMeasurement::Reflector(1);
-    let train1 = tracker_calibration::measurements(&data, r1, |i| i < split)?;
-    let test1 = tracker_calibration::measurements(&data, r1, |i| i >= split)?;
+    let train1 = tracker_calibration::measurements(&data, r1, |i| ident.contains(&i))?;
+    let test1 = tracker_calibration::measurements(&data, r1, |i| !ident.contains(&i))?;
 
     let fixed = CalibrateOptions {
         noise: Noise {
@@ -201,6 +229,8 @@ pub fn run(args: Irb120Args) -> anyhow::Result<()> {
         by_q1,
     };
 
+    let general = tracker_calibration::general_path(&args.data, rule, fixed.noise)?;
+
     if let Some(path) = &args.report {
         let r = &runs[1].result;
         let report = kinecal::report::CalibrationReport::new(
@@ -208,9 +238,9 @@ pub fn run(args: Irb120Args) -> anyhow::Result<()> {
             &r.fit,
             &r.free_params,
             "GaussNewton, frame residual",
-            &format!("{} (idx < {split})", args.data.display()),
+            &format!("{} ({split_in})", args.data.display()),
             &train,
-            Some((&format!("{} (idx ≥ {split})", args.data.display()), &test)),
+            Some((&format!("{} ({split_out})", args.data.display()), &test)),
         )?;
         let html = report.to_html().map_err(|e| anyhow::anyhow!("report: {e}"))?;
         kinecal::io::write_atomic(path, html.as_bytes())?;
@@ -232,6 +262,7 @@ pub fn run(args: Irb120Args) -> anyhow::Result<()> {
             serde_json::to_string_pretty(&Output {
                 data: summary,
                 runs,
+                general_path: general,
                 unexplained
             })?
         );
@@ -239,7 +270,7 @@ pub fn run(args: Irb120Args) -> anyhow::Result<()> {
     }
     println!("ABB IRB 120, laser-tracker data: {}", summary.folder);
     println!(
-        "  {} poses kept ({} dropped); identification idx < {split}: {}, validation idx ≥ {split}: {}",
+        "  {} poses kept ({} dropped); identification {split_in}: {}, validation {split_out}: {}",
         summary.poses,
         summary.dropped.len(),
         summary.identification_poses,
@@ -253,7 +284,7 @@ pub fn run(args: Irb120Args) -> anyhow::Result<()> {
     );
     println!("  tracker repeatability (std of the tool-reflector distances): {:.4} mm", noise);
     println!();
-    println!("Held-out validation (idx ≥ {split}): tool-frame position error (mm), orientation error (deg)");
+    println!("Held-out validation ({split_out}): tool-frame position error (mm), orientation error (deg)");
     println!(
         "{:<34} {:<24} {:>6} {:>7} {:>7} {:>7}  {:>7} {:>7} {:>5} {:>8}",
         "scheme", "fitted residual", "params", "mean", "RMS", "max", "mean°", "max°", "iter", "time"
@@ -271,9 +302,30 @@ pub fn run(args: Irb120Args) -> anyhow::Result<()> {
         );
     }
     println!();
-    println!("Identification poses (idx < {split}), same order and columns:");
+    println!("Identification poses ({split_in}), same order and columns:");
     for r in &runs {
         println!("{:<34} {:<24} {:>6} {}", r.label, r.fit, "", fmt_stats(&r.result.identification));
+    }
+    println!();
+    println!("The same data through the general path (data join → data split → identify, frames estimated, {frame_label}):");
+    // The pipeline rows they correspond to: (ii) frame, 3 points full, reflector 1 full.
+    for (g, k) in general.iter().zip([1, 3, 6]) {
+        let v = g.validation.position_rms_mm;
+        let p = runs[k].result.validation.position_rms_mm;
+        println!(
+            "  {:<12} held-out RMS {:.4} mm (pipeline above {:.4} mm, {:+.2} %), mean {:.4}, max {:.4} mm, {}/{} params, {} iterations, {:.0} ms, {}",
+            g.fit,
+            v,
+            p,
+            100.0 * (v - p) / p,
+            g.validation.position_mean_mm,
+            g.validation.position_max_mm,
+            g.identified,
+            g.free,
+            g.iterations,
+            g.seconds * 1e3,
+            g.status
+        );
     }
     println!();
     println!(

@@ -413,6 +413,14 @@ fn run_pm5(args: StudyArgs) -> anyhow::Result<()> {
             } else {
                 print(&study, secs);
             }
+            let failed: Vec<String> = [("noise-free", &study.noise_free), ("noisy", &study.noisy)]
+                .iter()
+                .filter(|(_, t)| !t.converged)
+                .map(|(name, t)| format!("the {name} identification did not converge after {} iterations", t.iterations))
+                .collect();
+            if !failed.is_empty() {
+                return Err(super::FailedChecks(format!("study pm5: {}", failed.join("; "))).into());
+            }
             Ok(())
         }
     }

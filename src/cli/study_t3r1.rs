@@ -44,7 +44,11 @@ fn print_case(name: &str, c: &StudyCase) {
         println!("{set} poses (worse of the two chains per pose):");
         println!("{}", line("nominal model", &c.nominal[k]));
         println!("{}", line("after 1 iteration", &c.one_iteration[k]));
-        println!("{}", line(&format!("after {} iterations", c.x_norms.len()), &c.converged[k]));
+        let label = match c.failure() {
+            None => format!("after {} iterations", c.x_norms.len()),
+            Some(_) => format!("after {} its. (FAILED)", c.x_norms.len()),
+        };
+        println!("{}", line(&label, &c.converged[k]));
     }
     let v = &c.nominal[1];
     let f = &c.one_iteration[1];
@@ -97,9 +101,14 @@ pub fn run(args: StudyT3r1Args) -> anyhow::Result<()> {
         ..Default::default()
     };
     let report = run_study(&config)?;
+    let failures: Vec<String> = [("noise-free", &report.noise_free), ("noisy", &report.noisy)]
+        .iter()
+        .filter_map(|(name, c)| c.failure().map(|f| format!("{name} run: {f}")))
+        .collect();
+    let verdict = || Err(super::FailedChecks(format!("study t3r1: {}", failures.join("; "))).into());
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
-        return Ok(());
+        return if failures.is_empty() { Ok(()) } else { verdict() };
     }
     println!(
         "kinecal study t3r1: 3T1R manipulator (Zhang et al. 2020), §6 simulation, seed {}",
@@ -173,9 +182,14 @@ pub fn run(args: StudyT3r1Args) -> anyhow::Result<()> {
         if redc >= 1000.0 { "met" } else { "NOT met" }
     );
     println!(
-        "  kinecal, noisy: validation max {:.3e} mm / {:.3e} deg after convergence (from {:.3} mm / {:.3} deg)",
+        "  kinecal, noisy: validation max {:.3e} mm / {:.3e} deg {} (from {:.3} mm / {:.3} deg)",
         report.noisy.converged[1].max_position_mm,
         report.noisy.converged[1].max_orientation_deg,
+        if report.noisy.failure().is_some() {
+            "where the iterations ended (FAILED)"
+        } else {
+            "after convergence"
+        },
         report.noisy.nominal[1].max_position_mm,
         report.noisy.nominal[1].max_orientation_deg
     );
@@ -183,5 +197,8 @@ pub fn run(args: StudyT3r1Args) -> anyhow::Result<()> {
         "  idle-pair cross-validation, noise-free: pairs agree to {:.3e} mm / {:.3e} deg",
         nf.cross_validation.agreement_position_mm, nf.cross_validation.agreement_orientation_deg
     );
+    if !failures.is_empty() {
+        return verdict();
+    }
     Ok(())
 }

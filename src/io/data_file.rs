@@ -73,6 +73,9 @@ pub struct DataSet {
     /// Lines of rows dropped as lost measurements (an empty measurement cell, or all measurement
     /// values exactly zero: what trackers write when the beam was lost).
     pub dropped: Vec<usize>,
+    /// The three reflector centres of each row (mm, measurement frame) when the file gave them
+    /// (`m1x_mm … m3z_mm`); empty otherwise. `measurements` holds their frame.
+    pub reflectors: Vec<[Vector3<f64>; 3]>,
 }
 
 impl DataSet {
@@ -90,6 +93,27 @@ impl DataSet {
             self.dropped.len(),
             shown.join(", ")
         ))
+    }
+
+    /// The measurements as three-point observations of the reflectors (9 rows per pose: the
+    /// tracker's own measurement model) instead of their frame: each reflector's position in the
+    /// reflector frame is its mean over the set ([`crate::measure::reflector_offsets`]). `None`
+    /// when the file did not give three reflector centres.
+    pub fn reflector_points(&self) -> Option<Vec<Measurement>> {
+        if self.reflectors.len() != self.measurements.len() || self.reflectors.is_empty() {
+            return None;
+        }
+        let offsets = crate::measure::reflector_offsets(&self.reflectors)?;
+        Some(
+            self.measurements
+                .iter()
+                .zip(&self.reflectors)
+                .map(|(m, r)| Measurement {
+                    q: m.q.clone(),
+                    obs: Observation::Points((0..3).map(|k| (offsets[k], r[k])).collect()),
+                })
+                .collect(),
+        )
     }
 
     /// An error of a computation on this data set, located: a failure at one pose names the
@@ -466,6 +490,7 @@ pub fn data_from_table(table: &Table, inputs: &[InputSpec], input_columns: Input
     let mut ids = Vec::with_capacity(table.len());
     let mut first_line_of_id = std::collections::HashMap::new();
     let mut dropped = Vec::new();
+    let mut reflectors = Vec::new();
     let mut kept_lines = Vec::with_capacity(table.len());
     for (r, row) in table.rows.iter().enumerate() {
         let line = table.lines[r];
@@ -551,6 +576,9 @@ pub fn data_from_table(table: &Table, inputs: &[InputSpec], input_columns: Input
                 })?)
             }
         };
+        if format == MeasurementFormat::Reflectors {
+            reflectors.push(refl);
+        }
         measurements.push(Measurement { q, obs });
         ids.push(id);
     }
@@ -571,6 +599,7 @@ pub fn data_from_table(table: &Table, inputs: &[InputSpec], input_columns: Input
         format,
         has_inputs,
         dropped,
+        reflectors,
     })
 }
 

@@ -1,8 +1,10 @@
 //! Files: numeric CSV tables with line-accurate errors, laser-tracker data sets, model files,
 //! URDF.
 pub mod data_file;
+pub mod exports;
 pub mod model_file;
 pub mod output;
+pub mod split;
 pub mod table;
 pub mod tracker;
 pub mod urdf;

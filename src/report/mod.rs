@@ -1,6 +1,7 @@
 //! The calibration report: everything an identification produced, as data ([`CalibrationReport`],
 //! serialisable to JSON) and as one self-contained HTML file with inline SVG plots
 //! ([`CalibrationReport::to_html`]).
+mod html;
 pub mod plot;
 
 use crate::error::CalibError;
@@ -10,9 +11,7 @@ use crate::measure::{Measurement, Noise};
 use crate::model::Mechanism;
 use crate::params::Unit;
 use crate::workflow::{outliers, pose_errors, ErrorStats, Outlier, PoseErrors};
-use plot::Series;
 use serde::Serialize;
-use std::fmt::Write as _;
 
 /// Errors of one data set before and after calibration.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -29,6 +28,11 @@ pub struct SetErrors {
     pub after_stats: ErrorStats,
     /// Poses whose residual after calibration exceeds 3σ.
     pub outliers: Vec<Outlier>,
+    /// Pose ids (the data file's `id` column; row numbers from 0 until
+    /// [`CalibrationReport::set_ids`] is called).
+    pub ids: Vec<i64>,
+    /// Input values of each pose (internal units: rad, mm), for errors against each input.
+    pub inputs: Vec<Vec<f64>>,
 }
 
 impl SetErrors {
@@ -48,6 +52,8 @@ impl SetErrors {
             before,
             after,
             outliers: outliers(calibrated, data, 3.0)?,
+            ids: (0..data.len() as i64).collect(),
+            inputs: data.iter().map(|m| m.q.clone()).collect(),
         })
     }
 }
@@ -83,8 +89,9 @@ pub struct ParamRow {
     pub status: ParamStatus,
 }
 
-/// The covariance of the identified parameters, `σ̂₀²·(JᵀWJ)⁻¹`, in display units: rows and
-/// columns follow `params` (identified parameters, in priority order), entry `(i, j)` in
+/// The covariance of the identified parameters ([`Identification::covariance`] restricted to
+/// them), in display units: rows and columns follow `params` (identified parameters, in
+/// priority order, as [`CalibrationReport::correlation_names`]), entry `(i, j)` in
 /// `units[i]·units[j]` (mm, deg). Its diagonal is the square of [`ParamRow::std_dev`].
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ParamCovariance {
@@ -175,7 +182,26 @@ pub struct CalibrationReport {
     pub identification: SetErrors,
     /// Validation set, if one was given.
     pub validation: Option<SetErrors>,
+    /// Notes that do not change the verdict but deserve a look (poorly determined parameters,
+    /// strongly correlated pairs).
+    pub flags: Vec<String>,
+    /// Names of the identified parameters, in the order of [`CalibrationReport::correlation`].
+    pub correlation_names: Vec<String>,
+    /// Correlation matrix of the identified parameters (from the covariance of the solution).
+    pub correlation: Vec<Vec<f64>>,
+    /// Pairs of identified parameters correlated beyond [`STRONG_CORRELATION`]: (a, b, ρ).
+    pub correlated: Vec<(String, String, f64)>,
+    /// Each redundant parameter and the identified parameters whose combination has the same
+    /// effect on the measurements (what it is absorbed into), e.g. `("0-1.vx", "≈ +1·mx")`.
+    pub absorbed: Vec<(String, String)>,
+    /// The inputs (name, display unit `deg` or `mm`), for errors against each input.
+    pub inputs: Vec<(String, String)>,
+    /// Where the calibration came from (command line, version, date, data), when known.
+    pub provenance: Option<crate::io::model_file::Provenance>,
 }
+
+/// Identified parameters correlated beyond this (in absolute value) are flagged.
+pub const STRONG_CORRELATION: f64 = 0.95;
 
 impl CalibrationReport {
     /// Assemble the report of `result`, identified from `nominal` with the free parameters
@@ -237,7 +263,10 @@ impl CalibrationReport {
                 .map(|&i| {
                     id.identifiable
                         .iter()
-                        .map(|&j| result.covariance[(i, j)] * display(i).0 * display(j).0)
+                        .map(|&j| match result.covariance.get((i, j)) {
+                            Some(c) => c * display(i).0 * display(j).0,
+                            None => f64::NAN,
+                        })
                         .collect()
                 })
                 .collect(),
@@ -267,7 +296,16 @@ impl CalibrationReport {
                 Some((src, v)) => Some(SetErrors::compute(src, nominal, &result.model, v)?),
                 None => None,
             },
+            flags: Vec::new(),
+            correlation_names: Vec::new(),
+            correlation: Vec::new(),
+            correlated: Vec::new(),
+            absorbed: Vec::new(),
+            inputs: nominal.input_names().into_iter().map(|n| (n, String::new())).collect(),
+            provenance: None,
         };
+        report.correlations(result, &params);
+        report.absorbed = absorbed(result, &params, data);
         report.assess(&result.noise, &Tolerances::default());
         Ok(report)
     }
@@ -331,6 +369,7 @@ impl CalibrationReport {
                 "the residual is {excess:.1}× the stated noise: errors the geometric model does not describe remain (see the residual plots), or the stated noise is optimistic"
             ));
         }
+        self.flags.clear();
         let poor: Vec<&str> = self
             .params
             .iter()
@@ -338,10 +377,19 @@ impl CalibrationReport {
             .map(|p| p.name.as_str())
             .collect();
         if !poor.is_empty() {
-            warnings.push(format!(
-                "{} identified parameters have a standard deviation larger than their value (poorly determined): {}",
+            self.flags.push(format!(
+                "{} identified parameters have a standard deviation larger than their value (not distinguished from zero by these data): {}",
                 poor.len(),
                 short(&poor)
+            ));
+        }
+        if !self.correlated.is_empty() {
+            let pairs: Vec<String> = self.correlated.iter().map(|(a, b, r)| format!("{a}/{b} {r:+.3}")).collect();
+            let pairs: Vec<&str> = pairs.iter().map(String::as_str).collect();
+            self.flags.push(format!(
+                "{} pairs of identified parameters correlated beyond ±{STRONG_CORRELATION}: {} (their sum or difference is better determined than each)",
+                pairs.len(),
+                short(&pairs)
             ));
         }
         if let Some(v) = &self.validation {
@@ -352,9 +400,18 @@ impl CalibrationReport {
                 ));
             }
         }
+        // A residual component beyond 3σ happens to ~0.3 % of components by chance: only more
+        // flagged poses than 2 + 1 % of the poses is a warning.
         let flagged = self.identification.outliers.len() + self.validation.as_ref().map_or(0, |v| v.outliers.len());
-        if flagged > 0 {
-            warnings.push(format!("{flagged} poses flagged as outliers (residual beyond 3σ)"));
+        let poses = self.identification.after_stats.poses + self.validation.as_ref().map_or(0, |v| v.after_stats.poses);
+        if flagged as f64 > 2.0 + 0.01 * poses as f64 {
+            warnings.push(format!(
+                "{flagged} of {poses} poses flagged as outliers (a residual component beyond 3σ; Gaussian noise flags about 1 %)"
+            ));
+        } else if flagged > 0 {
+            self.flags.push(format!(
+                "{flagged} poses with a residual component beyond 3σ (as many as chance gives)"
+            ));
         }
         self.verdict = if !failed.is_empty() {
             failed.extend(warnings);
@@ -375,272 +432,133 @@ impl CalibrationReport {
         };
     }
 
-    /// The report as one self-contained HTML page (inline CSS and SVG, no external resources).
-    pub fn to_html(&self) -> Result<String, String> {
-        let mut h = String::new();
-        h.push_str("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">");
-        let _ = write!(h, "<title>kinecal calibration report: {}</title>", esc(&self.model));
-        h.push_str(
-            "<style>body{font-family:sans-serif;margin:24px;max-width:1180px;color:#222}\
-             h1{font-size:22px}h2{font-size:18px;border-bottom:1px solid #ccc;padding-bottom:4px;margin-top:28px}\
-             table{border-collapse:collapse;font-size:13px;margin:8px 0}td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}\
-             th{background:#f0f0f0}td.l,th.l{text-align:left}.plots{display:flex;flex-wrap:wrap;gap:8px}\
-             .plots svg{border:1px solid #ddd}.muted{color:#888}.warn{color:#b00}</style></head><body>\n",
-        );
-        let _ = writeln!(h, "<h1>Calibration report: {}</h1>", esc(&self.model));
-        let (colour, label) = match self.verdict.status {
-            Status::Calibrated => ("#1a7f37", "Calibrated"),
-            Status::UsableWithWarnings => ("#9a6700", "Usable with warnings"),
-            Status::Failed => ("#b00", "FAILED — do not use this model"),
-        };
-        let _ = write!(
-            h,
-            "<div id=\"verdict\" style=\"border:2px solid {colour};padding:8px 12px;margin:8px 0\"><b style=\"color:{colour};font-size:18px\">Verdict: {label}</b>"
-        );
-        if !self.verdict.reasons.is_empty() {
-            h.push_str("<ul>");
-            for r in &self.verdict.reasons {
-                let _ = write!(h, "<li>{}</li>", esc(r));
-            }
-            h.push_str("</ul>");
+    /// The correlation matrix of the identified parameters and the strongly correlated pairs.
+    fn correlations<M: Mechanism>(&mut self, result: &Identification<M>, params: &[crate::params::Param]) {
+        let ids = &result.identifiability.identifiable;
+        let c = &result.covariance;
+        if c.nrows() != params.len() {
+            return;
         }
-        h.push_str("</div>\n<h2>Summary</h2>\n<table>");
-        let kv = |h: &mut String, k: &str, v: String| {
-            let _ = write!(h, "<tr><th class=\"l\">{k}</th><td class=\"l\">{v}</td></tr>");
-        };
-        kv(&mut h, "identification data", esc(&self.identification.source));
-        if let Some(v) = &self.validation {
-            kv(&mut h, "validation data", esc(&v.source));
-        }
-        kv(&mut h, "poses (identification)", self.identification.before_stats.poses.to_string());
-        kv(
-            &mut h,
-            "method",
-            format!(
-                "{} — {} after {} iterations",
-                esc(&self.method),
-                if self.converged {
-                    "converged"
-                } else {
-                    "<span class=\"warn\">NOT converged</span>"
-                },
-                self.iterations
-            ),
-        );
-        kv(
-            &mut h,
-            "weights (noise σ)",
-            format!("{} mm, {} deg", sig(self.noise_mm_deg.0), sig(self.noise_mm_deg.1)),
-        );
-        kv(&mut h, "σ̂₀ (a-posteriori, 1 = noise model right)", sig(self.sigma0));
-        kv(
-            &mut h,
-            "identified / free parameters",
-            format!("{} of {} (rank of the identification Jacobian)", self.rank, self.free),
-        );
-        kv(&mut h, "condition number (column-scaled)", format!("{:.3e}", self.condition));
-        h.push_str("</table>\n<h2>Errors before and after calibration</h2>\n<table><tr><th class=\"l\">set</th><th class=\"l\">model</th><th>poses</th><th>mean mm</th><th>RMS mm</th><th>max mm</th><th>rotation mean deg</th><th>rotation max deg</th><th>tool axis mean deg</th><th>tool axis max deg</th></tr>");
-        let mut sets = vec![("identification", &self.identification)];
-        if let Some(v) = &self.validation {
-            sets.push(("validation", v));
-        }
-        for (name, s) in &sets {
-            for (which, st) in [("nominal", &s.before_stats), ("calibrated", &s.after_stats)] {
-                let o = |v: Option<f64>| v.map(sig).unwrap_or_else(|| "—".into());
-                let _ = write!(
-                    h,
-                    "<tr><td class=\"l\">{name}</td><td class=\"l\">{which}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
-                    st.poses,
-                    sig(st.position_mean_mm),
-                    sig(st.position_rms_mm),
-                    sig(st.position_max_mm),
-                    o(st.orientation_mean_deg),
-                    o(st.orientation_max_deg),
-                    o(st.tool_axis_mean_deg),
-                    o(st.tool_axis_max_deg)
-                );
+        self.correlation_names = ids.iter().map(|&i| params[i].name.clone()).collect();
+        self.correlation = ids
+            .iter()
+            .map(|&i| {
+                ids.iter()
+                    .map(|&j| {
+                        let d = (c[(i, i)] * c[(j, j)]).sqrt();
+                        if d > 0.0 && d.is_finite() {
+                            c[(i, j)] / d
+                        } else {
+                            0.0
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        for a in 0..ids.len() {
+            for b in a + 1..ids.len() {
+                let r = self.correlation[a][b];
+                if r.abs() > STRONG_CORRELATION {
+                    self.correlated
+                        .push((self.correlation_names[a].clone(), self.correlation_names[b].clone(), r));
+                }
             }
         }
-        h.push_str("</table>\n");
-        let before = (200, 80, 60);
-        let after = (30, 90, 200);
-        for (name, s) in &sets {
-            let _ = write!(h, "<h2>Per-pose errors, {name} set</h2>\n<div class=\"plots\">");
-            let (pb, pa) = (&s.before.position, &s.after.position);
-            h.push_str(&plot::per_pose_chart(
-                &format!("Position error, {name} (mm)"),
-                "mm",
-                &[
-                    Series {
-                        name: "nominal",
-                        color: before,
-                        values: pb,
-                    },
-                    Series {
-                        name: "calibrated",
-                        color: after,
-                        values: pa,
-                    },
-                ],
-            )?);
-            h.push_str(&plot::per_pose_chart(
-                &format!("Position error after calibration, {name} (mm)"),
-                "mm",
-                &[Series {
-                    name: "calibrated",
-                    color: after,
-                    values: pa,
-                }],
-            )?);
-            let ob: Vec<f64> = s.before.orientation.iter().flatten().map(|v| v.to_degrees()).collect();
-            let oa: Vec<f64> = s.after.orientation.iter().flatten().map(|v| v.to_degrees()).collect();
-            if !ob.is_empty() {
-                h.push_str(&plot::per_pose_chart(
-                    &format!("Orientation error, {name} (deg)"),
-                    "deg",
-                    &[
-                        Series {
-                            name: "nominal",
-                            color: before,
-                            values: &ob,
-                        },
-                        Series {
-                            name: "calibrated",
-                            color: after,
-                            values: &oa,
-                        },
-                    ],
-                )?);
-                h.push_str(&plot::per_pose_chart(
-                    &format!("Orientation error after calibration, {name} (deg)"),
-                    "deg",
-                    &[Series {
-                        name: "calibrated",
-                        color: after,
-                        values: &oa,
-                    }],
-                )?);
-            }
-            h.push_str(&plot::histogram(
-                &format!("Histogram of position errors after calibration, {name}"),
-                "position error (mm)",
-                &[Series {
-                    name: "calibrated",
-                    color: after,
-                    values: pa,
-                }],
-                20,
-            )?);
-            if !oa.is_empty() {
-                h.push_str(&plot::histogram(
-                    &format!("Histogram of orientation errors after calibration, {name}"),
-                    "orientation error (deg)",
-                    &[Series {
-                        name: "calibrated",
-                        color: after,
-                        values: &oa,
-                    }],
-                    20,
-                )?);
-            }
-            h.push_str("</div>\n");
+    }
+
+    /// Label the poses with the data's ids (identification set, validation set).
+    pub fn set_ids(&mut self, identification: &[i64], validation: Option<&[i64]>) {
+        if identification.len() == self.identification.ids.len() {
+            self.identification.ids = identification.to_vec();
         }
-        h.push_str("<h2>Outliers (a residual component beyond 3σ after calibration)</h2>\n");
-        let mut any = false;
-        for (name, s) in &sets {
-            if s.outliers.is_empty() {
-                continue;
-            }
-            if !any {
-                h.push_str(
-                    "<table><tr><th class=\"l\">set</th><th>pose (row, from 0)</th><th>score (σ)</th><th>position mm</th><th>orientation deg</th></tr>",
-                );
-                any = true;
-            }
-            for o in &s.outliers {
-                let _ = write!(
-                    h,
-                    "<tr><td class=\"l\">{name}</td><td>{}</td><td>{:.2}</td><td>{}</td><td>{}</td></tr>",
-                    o.pose,
-                    o.score,
-                    sig(o.position_mm),
-                    o.orientation_deg.map(sig).unwrap_or_else(|| "—".into())
-                );
+        if let (Some(v), Some(ids)) = (self.validation.as_mut(), validation) {
+            if ids.len() == v.ids.len() {
+                v.ids = ids.to_vec();
             }
         }
-        h.push_str(if any { "</table>\n" } else { "<p>None.</p>\n" });
-        h.push_str("<h2>Identifiability</h2>\n");
-        let _ = write!(
-            h,
-            "<p>Rank {} of {} free parameters; condition number {:.3e}.</p><p><b>Redundant</b> (combinations of parameters earlier in priority order, not identified): {}</p>",
-            self.rank,
-            self.free,
-            self.condition,
-            if self.redundant.is_empty() { "none".into() } else { esc(&self.redundant.join(", ")) }
-        );
-        if !self.no_effect.is_empty() {
-            let _ = write!(
-                h,
-                "<p><b>Without effect</b> on these measurements: {}</p>",
-                esc(&self.no_effect.join(", "))
-            );
-        }
-        if !self.singular_values.is_empty() {
-            h.push_str("<div class=\"plots\">");
-            let smax = self.singular_values.iter().copied().fold(0.0, f64::max).max(f64::MIN_POSITIVE);
-            let lg: Vec<f64> = self.singular_values.iter().map(|s| (s / smax).max(1e-17).log10()).collect();
-            h.push_str(&plot::per_pose_chart_with_x(
-                "Singular values σ/σmax of the column-scaled Jacobian (log10, floor 1e-17)",
-                "index",
-                "log10 σ/σmax",
-                &lg,
-            )?);
-            h.push_str("</div>");
-        }
-        h.push_str("<h2>Parameters</h2>\n<p class=\"muted\">Identified change of each error coordinate (local coordinates of the model's error parameters) with its standard deviation σ̂₀·√diag((AᵀA)⁻¹). Redundant parameters move with the minimum-norm solution; their values are not individually meaningful and have no standard deviation.</p><table><tr><th class=\"l\">parameter</th><th class=\"l\">group</th><th>value</th><th>std. dev.</th><th class=\"l\">unit</th><th class=\"l\">status</th></tr>");
-        for p in &self.params {
-            let status = match p.status {
-                ParamStatus::Identified => "identified",
-                ParamStatus::Redundant => "redundant",
-                ParamStatus::NoEffect => "no effect",
-                ParamStatus::Fixed => "fixed",
+    }
+
+    /// Name the inputs and their display units (`deg` for angles, `mm` for lengths).
+    pub fn set_inputs(&mut self, inputs: &[crate::io::model_file::InputSpec]) {
+        self.inputs = inputs
+            .iter()
+            .map(|i| (i.name.clone(), if i.unit == Unit::Angle { "deg" } else { "mm" }.to_string()))
+            .collect();
+    }
+
+    /// Fail the verdict for `reason` (put first among the reasons), whatever it was.
+    pub fn fail(&mut self, reason: String) {
+        self.verdict.status = Status::Failed;
+        self.verdict.reasons.insert(0, reason);
+    }
+}
+
+/// For each redundant parameter, the identified parameters whose combination has the same effect
+/// on the measurements: least squares of its (column-scaled) Jacobian column on the identified
+/// columns at the solution, the largest three terms in model units.
+fn absorbed<M: Mechanism>(result: &Identification<M>, params: &[crate::params::Param], data: &[Measurement]) -> Vec<(String, String)> {
+    let id = &result.identifiability;
+    if id.redundant.is_empty() || id.identifiable.is_empty() {
+        return Vec::new();
+    }
+    let Ok(lin) = crate::identify::linearize(&result.model, data, &result.noise) else {
+        return Vec::new();
+    };
+    let (a, norms) = crate::identifiability::scale_columns(&lin.jacobian, &id.identifiable);
+    if a.iter().any(|v| !v.is_finite()) {
+        return Vec::new();
+    }
+    let svd = a.clone().svd(true, true);
+    let unit = |p: &crate::params::Param| match p.unit {
+        Unit::Length => "mm",
+        Unit::Angle => "rad",
+        Unit::Dimensionless => "",
+    };
+    id.redundant
+        .iter()
+        .map(|&j| {
+            let col = lin.jacobian.column(j).into_owned();
+            let nj = col.norm();
+            if nj == 0.0 || !nj.is_finite() {
+                return (params[j].name.clone(), "no effect".to_string());
+            }
+            let Ok(c) = svd.solve(&(col.clone() / nj), 1e-12) else {
+                return (params[j].name.clone(), "—".to_string());
             };
-            let cls = if p.status == ParamStatus::Identified {
-                ""
+            let fit = (&a * &c - col / nj).norm();
+            // In model units: a change δ of this parameter acts like changes coef_k·δ of those.
+            let mut terms: Vec<(f64, usize)> = c.iter().enumerate().map(|(k, v)| (v * nj / norms[k], k)).collect();
+            let weight = |t: &(f64, usize)| (c[t.1]).abs();
+            terms.sort_by(|x, y| weight(y).total_cmp(&weight(x)));
+            let top = weight(&terms[0]).max(f64::MIN_POSITIVE);
+            let shown: Vec<String> = terms
+                .iter()
+                .filter(|t| weight(t) > 1e-3 * top)
+                .take(3)
+                .map(|(v, k)| {
+                    let p = &params[id.identifiable[*k]];
+                    let u = if unit(p) == unit(&params[j]) {
+                        String::new()
+                    } else {
+                        format!(" {}/{}", unit(p), unit(&params[j]))
+                    };
+                    format!("{v:+.3}{u}·{}", p.name)
+                })
+                .collect();
+            let more = terms.iter().filter(|t| weight(t) > 1e-3 * top).count().saturating_sub(3);
+            let partial = if fit > 1e-3 {
+                format!(" (only partly: {:.0} % of its effect remains)", 100.0 * fit)
             } else {
-                " class=\"muted\""
+                String::new()
             };
-            let _ = write!(
-                h,
-                "<tr{cls}><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{}</td><td>{}</td><td class=\"l\">{}</td><td class=\"l\">{status}</td></tr>",
-                esc(&p.name),
-                esc(&p.group),
-                sig(p.value),
-                if p.status == ParamStatus::Identified { sig(p.std_dev) } else { "—".into() },
-                p.unit
-            );
-        }
-        h.push_str("</table>\n<p class=\"muted\">Generated by kinecal.</p></body></html>\n");
-        Ok(h)
-    }
-}
-
-fn esc(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
-}
-
-/// A number with 4 significant digits (scientific notation outside 1e-3..1e5).
-fn sig(v: f64) -> String {
-    let a = v.abs();
-    if v == 0.0 {
-        "0".into()
-    } else if !(1e-3..1e5).contains(&a) {
-        format!("{v:.3e}")
-    } else {
-        let d = (3 - a.log10().floor() as i32).max(0) as usize;
-        format!("{v:.d$}")
-    }
+            (
+                params[j].name.clone(),
+                format!(
+                    "≈ {}{}{partial}",
+                    shown.join(" "),
+                    if more > 0 { format!(" + {more} more") } else { String::new() }
+                ),
+            )
+        })
+        .collect()
 }

@@ -246,6 +246,173 @@ pub fn histogram(title: &str, x_label: &str, series: &[Series<'_>], bins: usize)
     Ok(finish(svg, frame))
 }
 
+/// At most this many points are drawn per scatter or sorted series; larger sets are thinned
+/// evenly (every k-th point, the worst ones always kept) so that the report stays small.
+pub const MAX_POINTS: usize = 4000;
+
+/// Indices `0..n` thinned to about [`MAX_POINTS`], keeping `always`.
+fn thin(n: usize, always: &[usize]) -> Vec<usize> {
+    if n <= MAX_POINTS {
+        return (0..n).collect();
+    }
+    let step = n.div_ceil(MAX_POINTS);
+    let mut keep: Vec<usize> = (0..n).step_by(step).chain(always.iter().copied()).collect();
+    keep.sort_unstable();
+    keep.dedup();
+    keep
+}
+
+/// Per-pose values sorted in increasing order (x = rank), one curve per series: readable at any
+/// number of poses, unlike values joined in file order. The `label_worst` largest values of the
+/// last series are labelled with their pose ids.
+pub fn sorted_chart(title: &str, y_label: &str, series: &[Series<'_>], ids: &[i64], label_worst: usize) -> Result<String, String> {
+    let n = series.iter().map(|s| s.values.len()).max().unwrap_or(0);
+    let (_, hi) = range(series.iter().flat_map(|s| s.values.iter().copied()));
+    let (y0, y1) = (0.0, if hi > 0.0 { hi * 1.12 } else { 1.0 });
+    let (x0, x1) = (0.0, (n.max(2) - 1) as f64);
+    let mut svg = String::new();
+    let mut frame = Frame { texts: String::new() };
+    {
+        let root = SVGBackend::with_string(&mut svg, (W, H)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let mut chart = ChartBuilder::on(&root)
+            .margin_top(44)
+            .margin_right(14)
+            .x_label_area_size(38)
+            .y_label_area_size(64)
+            .build_cartesian_2d(x0..x1, y0..y1)
+            .map_err(|e| e.to_string())?;
+        let legend: Vec<_> = series.iter().filter(|s| !s.name.is_empty()).map(|s| (s.name, s.color)).collect();
+        decorate(
+            &mut chart,
+            &mut frame,
+            (x0, x1, y0, y1),
+            title,
+            "poses, sorted by error",
+            y_label,
+            &legend,
+        )?;
+        for (k, s) in series.iter().enumerate() {
+            let c = RGBColor(s.color.0, s.color.1, s.color.2);
+            let mut order: Vec<usize> = (0..s.values.len()).filter(|&i| s.values[i].is_finite()).collect();
+            order.sort_by(|&a, &b| s.values[a].total_cmp(&s.values[b]));
+            let m = order.len();
+            let worst: Vec<usize> = (m.saturating_sub(label_worst)..m).collect();
+            let pts: Vec<(f64, f64)> = thin(m, &worst).into_iter().map(|r| (r as f64, s.values[order[r]])).collect();
+            chart
+                .draw_series(LineSeries::new(pts.clone(), c.stroke_width(1)))
+                .map_err(|e| e.to_string())?;
+            chart
+                .draw_series(PointSeries::of_element(pts, 2, c, &|p, s, st| Circle::new(p, s, st.filled())))
+                .map_err(|e| e.to_string())?;
+            if k + 1 == series.len() {
+                for &r in &worst {
+                    let i = order[r];
+                    let (px, py) = chart.backend_coord(&(r as f64, s.values[i]));
+                    let id = ids.get(i).copied().unwrap_or(i as i64);
+                    frame.text(px - 4, py - 4 - 10 * ((m - 1 - r) as i32 % 2), "end", 10, &format!("id {id}"), "");
+                }
+            }
+        }
+        root.present().map_err(|e| e.to_string())?;
+    }
+    Ok(finish(svg, frame))
+}
+
+/// Markers of `ys` against `xs` (one series), y axis from 0: e.g. the error after calibration
+/// against one joint angle, to show what the geometric model leaves.
+pub fn scatter(title: &str, x_label: &str, y_label: &str, xs: &[f64], ys: &[f64], color: (u8, u8, u8)) -> Result<String, String> {
+    let (lo, hi) = range(xs.iter().copied());
+    let pad = ((hi - lo) * 0.04).max(1e-9);
+    let (x0, x1) = (lo - pad, hi + pad);
+    let (_, yhi) = range(ys.iter().copied());
+    let (y0, y1) = (0.0, if yhi > 0.0 { yhi * 1.1 } else { 1.0 });
+    let mut svg = String::new();
+    let mut frame = Frame { texts: String::new() };
+    {
+        let root = SVGBackend::with_string(&mut svg, (W / 2, H)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let mut chart = ChartBuilder::on(&root)
+            .margin_top(44)
+            .margin_right(10)
+            .x_label_area_size(38)
+            .y_label_area_size(56)
+            .build_cartesian_2d(x0..x1, y0..y1)
+            .map_err(|e| e.to_string())?;
+        decorate(&mut chart, &mut frame, (x0, x1, y0, y1), "", x_label, y_label, &[])?;
+        frame.text(W as i32 / 4, 17, "middle", 12, title, r#" font-weight="bold""#);
+        let c = RGBColor(color.0, color.1, color.2);
+        let pts: Vec<(f64, f64)> = thin(xs.len().min(ys.len()), &[]).into_iter().map(|i| (xs[i], ys[i])).collect();
+        chart
+            .draw_series(PointSeries::of_element(pts, 2, c, &|p, s, st| Circle::new(p, s, st.filled())))
+            .map_err(|e| e.to_string())?;
+        root.present().map_err(|e| e.to_string())?;
+    }
+    Ok(finish(svg, frame))
+}
+
+/// A correlation matrix as a heat map (−1 blue, 0 white, +1 red), parameter names on both axes.
+pub fn heat_map(title: &str, names: &[String], matrix: &[Vec<f64>]) -> String {
+    let k = names.len();
+    let cell = 520usize.checked_div(k).map_or(12, |c| c.clamp(6, 16)) as i32;
+    let margin = 90;
+    let size = margin + cell * k as i32 + 20;
+    let mut s = format!(
+        r##"<svg xmlns="http://www.w3.org/2000/svg" width="{size}" height="{}" viewBox="0 0 {size} {}"><rect width="100%" height="100%" fill="#fff"/>"##,
+        size + 24,
+        size + 24
+    );
+    let _ = write!(
+        s,
+        r##"<text x="{}" y="16" text-anchor="middle" font-family="sans-serif" font-size="13" font-weight="bold" fill="#222">{}</text>"##,
+        size / 2,
+        esc(title)
+    );
+    let colour = |r: f64| {
+        let r = r.clamp(-1.0, 1.0);
+        let f = |a: f64| (255.0 * (1.0 - a)).round() as u8;
+        if r >= 0.0 {
+            (255, f(r), f(r))
+        } else {
+            (f(-r), f(-r), 255)
+        }
+    };
+    let font = (cell - 2).clamp(6, 11);
+    for (i, name) in names.iter().enumerate() {
+        let y = 24 + margin + cell * i as i32;
+        let _ = write!(
+            s,
+            r##"<text x="{}" y="{}" text-anchor="end" font-family="sans-serif" font-size="{font}" fill="#222">{}</text>"##,
+            margin - 4,
+            y + cell - 2,
+            esc(name)
+        );
+        let x = margin + cell * i as i32;
+        let _ = write!(
+            s,
+            r##"<text x="{}" y="{}" text-anchor="start" font-family="sans-serif" font-size="{font}" fill="#222" transform="rotate(-90 {} {})">{}</text>"##,
+            x + cell - 2,
+            24 + margin - 4,
+            x + cell - 2,
+            24 + margin - 4,
+            esc(name)
+        );
+        for (j, v) in matrix[i].iter().enumerate() {
+            let (r, g, b) = colour(*v);
+            let _ = write!(
+                s,
+                r##"<rect x="{}" y="{y}" width="{cell}" height="{cell}" fill="#{r:02x}{g:02x}{b:02x}"><title>{} / {}: {:.3}</title></rect>"##,
+                margin + cell * j as i32,
+                esc(name),
+                esc(&names[j]),
+                v
+            );
+        }
+    }
+    s.push_str("</svg>");
+    s
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -74,6 +74,7 @@ fn data_set(name: &str, truth: &dyn Mechanism, qs: &[Vec<f64>], kind: Kind, nois
         },
         has_inputs: true,
         dropped: Vec::new(),
+        reflectors: Vec::new(),
         measurements,
     }
 }
@@ -252,6 +253,16 @@ fn wrong_units_and_wrong_models_are_named() {
     });
     let e = crate::cli::fails(d, &["identify", "m.toml", "rad.csv", "--out", "c.toml"]);
     assert!(e.contains("look like radians"), "{e}");
+    // Joint columns swapped (q2 ↔ q3): out of the limits, or a fit that fails its checks.
+    std::fs::write(d.join("swapped.csv"), text.replacen("q2_deg,q3_deg", "q3_deg,q2_deg", 1)).unwrap();
+    let out = crate::cli::kinecal(d, &["identify", "m.toml", "swapped.csv", "--out", "c.toml"]);
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert!(!out.status.success(), "{err}");
+    assert!(
+        err.contains("joint order") || err.contains("beyond the model's tolerances"),
+        "{err}"
+    );
+    assert!(!String::from_utf8(out.stdout).unwrap().contains(" converged after"));
     // A model of another machine: a link 120 mm longer.
     let model = std::fs::read_to_string(d.join("m.toml")).unwrap().replacen("270.0", "390.0", 1);
     std::fs::write(d.join("other.toml"), model).unwrap();

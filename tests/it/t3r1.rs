@@ -403,6 +403,22 @@ fn study_command_meets_the_claims() {
     assert!(f(&ab[2]["validation"]["max_position_mm"]) > 1e-2);
 }
 
+/// With 8 identification poses the noisy run drifts away from the first iteration's solution:
+/// the study says so and exits with 2, never "after convergence".
+#[test]
+fn study_with_too_few_poses_fails_its_checks() {
+    let out = assert_cmd::Command::cargo_bin("kinecal")
+        .unwrap()
+        .args(["study", "t3r1", "--identification-poses", "8"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let (stdout, stderr) = (String::from_utf8(out.stdout).unwrap(), String::from_utf8(out.stderr).unwrap());
+    assert!(stderr.contains("noisy run: diverged"), "{stderr}");
+    let noisy = stdout.lines().find(|l| l.contains("kinecal, noisy:")).unwrap();
+    assert!(noisy.contains("FAILED") && !noisy.contains("after convergence"), "{noisy}");
+}
+
 #[test]
 fn documented_workspace_is_reachable_and_well_conditioned() {
     let m = T3r1::default();

@@ -256,7 +256,10 @@ fn urdf_model_urdf_round_trip_reproduces_the_kinematics() {
         let qs = configurations(&first, 1000, 13);
         for other in [&second, &third] {
             let gap = fk_gap(&*first.build(), &Pose::identity(), &*other.build(), &qs);
-            eprintln!("{tip} of {}: URDF → model → URDF, 1000 configurations: max {gap:.1e} mm", first.name);
+            eprintln!(
+                "{tip} of {}: URDF → model → URDF, 1000 configurations: max {gap:.1e} mm",
+                first.name
+            );
             assert!(gap < 1e-9, "{gap:e} mm");
         }
     }
@@ -502,6 +505,9 @@ fn calibrated_irb120_through_urdf_and_back() {
     let dh = calibrated.to_toml_dh(DhConvention::Standard, DhOptions { hayati: true }).unwrap();
     let dh = ModelFile::load_str(Path::new("cal-dh.toml"), &dh).unwrap();
     let gap = fk_gap(&*calibrated.build(), &Pose::identity(), &*dh.build(), &qs);
-    eprintln!("calibrated IRB 120 → DH with Hayati β → model, 1000 configurations: max {gap:.1e} mm; held-out RMS {:.4} mm both", sa.position_rms_mm);
+    eprintln!(
+        "calibrated IRB 120 → DH with Hayati β → model, 1000 configurations: max {gap:.1e} mm; held-out RMS {:.4} mm both",
+        sa.position_rms_mm
+    );
     assert!(gap < 1e-9, "Hayati DH: {gap:e} mm");
 }

@@ -85,8 +85,8 @@ fn simulate_identify_validate_compensate_recovers_the_truth() {
     assert!(!outside.contains("http://") && !outside.contains("https://") && !html.contains("<link") && !html.contains("src="));
     assert_eq!(
         html.matches("<svg").count(),
-        2 * 6 + 1,
-        "6 plots per data set and the singular values"
+        2 * 5 + 6 + 2,
+        "5 plots per data set, the error against each of the 6 joints, the singular values and the correlations"
     );
 
     // The calibrated model file has the truth's kinematics (not its parameters: 12 are redundant).

@@ -1,0 +1,209 @@
+//! Raw exports through the general path: `data join` (controller log + one file per reflector,
+//! any units, rows matched by id, lost beams dropped), `data split`, and `identify` on the
+//! joined tracker-frame data, fitting the reflectors as a frame or as three points; several
+//! starts that disagree fail the calibration.
+use crate::cli::{fails, kinecal, ok};
+use std::fs;
+use std::path::Path;
+
+/// A tracker-frame IRB 120 data set of reflector triples (noise-free), split into raw exports:
+/// `joints.csv` (idx, q1..q6 in rad, shuffled), `r1.csv`..`r3.csv` (idx, x, y, z in metres), a
+/// lost beam (0,0,0) on id 7 in r2, and a steady reference reflector.
+fn exports(d: &Path) {
+    ok(d, &["model", "export", "irb120", "--out", "m.toml"]);
+    let mut text = fs::read_to_string(d.join("m.toml")).unwrap();
+    text.push_str(
+        "\n[frames]\n[frames.measurement]\nposition = [2000.0, -700.0, 400.0]\nrpy = [100.0, -40.0, 75.0]\n\
+         [frames.tool]\nposition = [90.0, -80.0, 90.0]\nrpy = [10.0, 20.0, -30.0]\n",
+    );
+    fs::write(d.join("tracker.toml"), text).unwrap();
+    ok(
+        d,
+        &[
+            "simulate",
+            "tracker.toml",
+            "--poses",
+            "80",
+            "--seed",
+            "3",
+            "--measure",
+            "reflectors",
+            "--out",
+            "d.csv",
+            "--truth",
+            "t.toml",
+        ],
+    );
+    let data = fs::read_to_string(d.join("d.csv")).unwrap();
+    let rows: Vec<Vec<f64>> = data
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    let mut joints = String::from("idx,a1,a2,a3,a4,a5,a6\n");
+    for r in rows.iter().rev() {
+        let q: Vec<String> = r[1..7].iter().map(|v| v.to_radians().to_string()).collect();
+        joints += &format!("{},{}\n", r[0], q.join(","));
+    }
+    fs::write(d.join("joints.csv"), joints).unwrap();
+    for k in 0..3 {
+        let mut s = String::from("idx,x,y,z\n");
+        for r in &rows {
+            let c = 7 + 3 * k;
+            if k == 1 && r[0] == 7.0 {
+                s += "7,0,0,0\n";
+            } else {
+                s += &format!("{},{},{},{}\n", r[0], r[c] / 1000.0, r[c + 1] / 1000.0, r[c + 2] / 1000.0);
+            }
+        }
+        fs::write(d.join(format!("r{}.csv", k + 1)), s).unwrap();
+    }
+    let mut s = String::from("id,x,y,z\n");
+    for r in &rows {
+        s += &format!("{},1.2,0.3,-0.4\n", r[0]);
+    }
+    fs::write(d.join("base.csv"), s).unwrap();
+}
+
+const JOIN: [&str; 18] = [
+    "data",
+    "join",
+    "m.toml",
+    "--joints",
+    "joints.csv",
+    "--reflector",
+    "r1.csv",
+    "--reflector",
+    "r2.csv",
+    "--reflector",
+    "r3.csv",
+    "--reference",
+    "base.csv",
+    "--angles",
+    "rad",
+    "--units",
+    "m",
+    "--out",
+];
+
+#[test]
+fn joined_exports_calibrate_as_frame_and_as_points() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    exports(d);
+    let mut args = JOIN.to_vec();
+    args.push("all.csv");
+    let out = kinecal(d, &args);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let (stdout, stderr) = (String::from_utf8(out.stdout).unwrap(), String::from_utf8(out.stderr).unwrap());
+    assert!(stdout.contains("all.csv: 79 poses"), "{stdout}");
+    assert!(stderr.contains("id 7: lost beam (empty or 0,0,0) in r2.csv line"), "{stderr}");
+    assert!(
+        stdout.contains("base.csv: 79 readings") && stdout.contains("max deviation 0.0000 mm"),
+        "{stdout}"
+    );
+    let split = ok(
+        d,
+        &[
+            "data", "split", "m.toml", "all.csv", "--by", "even", "--out", "a.csv", "--rest", "b.csv",
+        ],
+    );
+    assert!(split.contains("a.csv (40 poses)") && split.contains("b.csv (39 poses)"), "{split}");
+    for fit in ["frame", "points"] {
+        let out = ok(
+            d,
+            &[
+                "identify",
+                "m.toml",
+                "a.csv",
+                "--validation",
+                "b.csv",
+                "--reflectors",
+                fit,
+                "--out",
+                &format!("c-{fit}.toml"),
+            ],
+        );
+        let line = out.lines().find(|l| l.starts_with("validation set after")).unwrap();
+        let rms: f64 = line.split("RMS ").nth(1).unwrap().split(' ').next().unwrap().parse().unwrap();
+        assert!(rms < 1e-6, "{fit}: {line}");
+        assert!(out.contains("3 starts agree"), "{out}");
+    }
+    // The joined file is refused as an output over an input, and an existing output needs --force.
+    let e = fails(d, &args);
+    assert!(e.contains("--force"), "{e}");
+}
+
+#[test]
+fn join_errors_name_the_file() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    exports(d);
+    fs::write(d.join("short.csv"), "idx,a1,a2\n0,1,2\n").unwrap();
+    let e = fails(
+        d,
+        &[
+            "data",
+            "join",
+            "m.toml",
+            "--joints",
+            "short.csv",
+            "--reflector",
+            "r1.csv",
+            "--out",
+            "x.csv",
+        ],
+    );
+    assert!(e.contains("short.csv") && e.contains("expected 6"), "{e}");
+    let e = fails(
+        d,
+        &[
+            "data",
+            "join",
+            "m.toml",
+            "--joints",
+            "joints.csv",
+            "--reflector",
+            "r1.csv",
+            "--reflector",
+            "r2.csv",
+            "--out",
+            "x.csv",
+        ],
+    );
+    assert!(e.contains("one reflector export") && e.contains("not 2"), "{e}");
+    let e = fails(
+        d,
+        &[
+            "data", "split", "m.toml", "d.csv", "--by", "half", "--out", "a.csv", "--rest", "b.csv",
+        ],
+    );
+    assert!(e.contains("below:ID, even or random:FRACTION"), "{e}");
+    assert!(!d.join("x.csv").exists() && !d.join("a.csv").exists());
+}
+
+#[test]
+fn starts_that_reach_other_minima_fail() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    exports(d);
+    // Tolerances of ±300° let the perturbed starts begin far from the nominal geometry.
+    let text = fs::read_to_string(d.join("m.toml")).unwrap();
+    let wide: String = text
+        .lines()
+        .map(|l| {
+            if l.starts_with("tolerance_deg") {
+                "tolerance_deg = 300.0".to_string()
+            } else {
+                l.to_string()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    fs::write(d.join("wide.toml"), wide).unwrap();
+    let out = kinecal(d, &["identify", "wide.toml", "d.csv", "--starts", "6", "--out", "c.toml"]);
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("starts disagree"), "{stderr}");
+    assert!(!d.join("c.toml").exists());
+}
