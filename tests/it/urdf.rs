@@ -469,6 +469,7 @@ fn calibrated_irb120_through_urdf_and_back() {
             format: MeasurementFormat::PoseQuaternion,
             has_inputs: true,
             dropped: Vec::new(),
+            reflectors: Vec::new(),
             measurements,
         }
     };
