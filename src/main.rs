@@ -27,7 +27,8 @@ enum Command {
     /// model, plan 30 measurement configurations, measure a virtual prototype there, identify,
     /// validate, compensate, and check the compensated commands on the prototype.
     Quickstart(cli::quickstart::QuickstartArgs),
-    /// Built-in models: list them, export one as a model file (TOML) to edit.
+    /// Models: list the built-in ones, export one (or a calibrated model file) as a model file,
+    /// DH table or URDF, import a URDF.
     Model(cli::model::ModelArgs),
     /// Choose measurement configurations that maximise an observability index (greedy, SFFS or
     /// exchange over a large candidate set) and write them as CSV.

@@ -208,10 +208,52 @@ pub fn pose_from_matrix(r: &Matrix3<f64>, p: &Vector3<f64>) -> Pose {
     Isometry3::from_parts(Translation3::from(*p), UnitQuaternion::from_rotation_matrix(&rot))
 }
 
+/// Roll, pitch, yaw of a rotation, `R = Rz(yaw)·Ry(pitch)·Rx(roll)` (the convention of model
+/// files and of URDF), conditioned for every pitch: pitch from `atan2` (an `asin` loses half the
+/// digits near ±90°), and near ±90° (gimbal lock), where only `roll ∓ yaw` is well determined,
+/// yaw fitted to the roll found when that rebuilds the rotation better. Rebuilt with
+/// `UnitQuaternion::from_euler_angles(roll, pitch, yaw)` it gives `q` back to ~1e-15 rad.
+pub fn rpy(q: &UnitQuaternion<f64>) -> [f64; 3] {
+    let m = q.to_rotation_matrix().into_inner();
+    let pitch = (-m[(2, 0)]).atan2((m[(0, 0)] * m[(0, 0)] + m[(1, 0)] * m[(1, 0)]).sqrt());
+    let roll = m[(2, 1)].atan2(m[(2, 2)]);
+    let general = [roll, pitch, m[(1, 0)].atan2(m[(0, 0)])];
+    // Near the lock: yaw from the first two rows of the second column given roll and pitch,
+    // (r01, r11) = [[a, −b], [b, a]]·(cos yaw, sin yaw) with a = sin pitch·sin roll, b = cos roll,
+    // so an imprecise roll only leaves an error scaled by cos pitch.
+    let (a, b) = (pitch.sin() * roll.sin(), roll.cos());
+    let locked = [roll, pitch, (a * m[(1, 1)] - b * m[(0, 1)]).atan2(a * m[(0, 1)] + b * m[(1, 1)])];
+    let gap = |a: &[f64; 3]| so3_log(&(UnitQuaternion::from_euler_angles(a[0], a[1], a[2]).inverse() * q)).norm();
+    if gap(&locked) < gap(&general) {
+        locked
+    } else {
+        general
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use approx::assert_relative_eq;
+
+    #[test]
+    fn rpy_rebuilds_the_rotation_at_and_near_gimbal_lock() {
+        for pitch in [
+            0.3,
+            1.0,
+            std::f64::consts::FRAC_PI_2,
+            -std::f64::consts::FRAC_PI_2,
+            std::f64::consts::FRAC_PI_2 - 3e-8,
+            -std::f64::consts::FRAC_PI_2 + 5e-12,
+        ] {
+            for (roll, yaw) in [(0.0, 0.0), (0.4, -1.1), (-2.9, 3.0)] {
+                let q = UnitQuaternion::from_euler_angles(roll, pitch, yaw);
+                let a = rpy(&q);
+                let back = UnitQuaternion::from_euler_angles(a[0], a[1], a[2]);
+                assert!(so3_log(&(back.inverse() * q)).norm() < 1e-14, "{roll} {pitch} {yaw}: {a:?}");
+            }
+        }
+    }
 
     #[test]
     fn hat_vee_roundtrip() {

@@ -1,9 +1,25 @@
-//! `kinecal model list | export NAME`: the built-in models and their model files.
-use clap::{Args, Subcommand};
+//! `kinecal model list | export NAME | import ROBOT.urdf`: the built-in models, model files in
+//! their forms (local POE, DH, modified DH, URDF), URDF in.
+use clap::{Args, Subcommand, ValueEnum};
 use kinecal::io::model_file::{AngleUnit, LengthUnit, ModelFile};
 use kinecal::io::output::Outputs;
+use kinecal::io::urdf;
 use kinecal::model::builtin;
-use std::path::PathBuf;
+use kinecal::model::dh::{DhConvention, DhOptions};
+use std::path::{Path, PathBuf};
+
+/// What `kinecal model export` writes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ExportFormat {
+    /// kinecal's model file (TOML), serial chains in local-POE joint form.
+    Toml,
+    /// kinecal's model file (TOML) with a standard DH table (serial chains only).
+    Dh,
+    /// kinecal's model file (TOML) with a modified (Craig) DH table (serial chains only).
+    Mdh,
+    /// URDF (XML, metres and radians; serial chains only).
+    Urdf,
+}
 
 /// Arguments of `kinecal model`.
 #[derive(Args, Debug)]
@@ -20,14 +36,47 @@ enum ModelCommand {
         #[arg(long)]
         json: bool,
     },
-    /// Print a built-in model (or re-write a model file) as a model file (TOML) to edit and load back.
+    /// Print a built-in model (or re-write a model file, e.g. a calibrated one) as a model file
+    /// (TOML) to edit and load back, as a DH / modified-DH table, or as URDF.
     Export {
         /// Built-in model name (see `kinecal model list`) or a model file.
         name: String,
-        /// Length unit of the written file: mm or m.
+        /// What to write: toml (the model file), dh / mdh (the model file with a standard or
+        /// modified DH table, where the geometry allows), urdf (for ROS / MoveIt).
+        #[arg(long, value_enum, default_value_t = ExportFormat::Toml)]
+        format: ExportFormat,
+        /// With --format dh: Hayati's β for joints whose next axis is nearly parallel (needed for
+        /// most calibrated arms).
+        #[arg(long)]
+        hayati: bool,
+        /// Length unit of the written model file: mm or m (URDF is always in m).
+        #[arg(long)]
+        length: Option<String>,
+        /// Angle unit of the written model file: deg or rad (URDF is always in rad).
+        #[arg(long)]
+        angle: Option<String>,
+        /// Write to this file instead of standard output.
+        #[arg(long, short)]
+        out: Option<PathBuf>,
+        /// Replace an existing output file.
+        #[arg(long)]
+        force: bool,
+    },
+    /// A serial model file from a URDF: the chain from --base to --tip, fixed joints folded
+    /// into the next joint's placement (xacro files: expand them with `xacro` first).
+    Import {
+        /// The URDF file.
+        urdf: PathBuf,
+        /// The chain's base link (default: the root link).
+        #[arg(long)]
+        base: Option<String>,
+        /// The chain's tip link (default: the only leaf reached through the most movable joints).
+        #[arg(long)]
+        tip: Option<String>,
+        /// Length unit of the written model file: mm or m.
         #[arg(long, default_value = "mm")]
         length: String,
-        /// Angle unit of the written file: deg or rad.
+        /// Angle unit of the written model file: deg or rad.
         #[arg(long, default_value = "deg")]
         angle: String,
         /// Write to this file instead of standard output.
@@ -37,6 +86,23 @@ enum ModelCommand {
         #[arg(long)]
         force: bool,
     },
+}
+
+fn units(file: &mut ModelFile, length: &str, angle: &str) -> anyhow::Result<()> {
+    file.units.length = LengthUnit::parse(length).ok_or_else(|| anyhow::anyhow!("--length: unknown unit '{length}' (use mm or m)"))?;
+    file.units.angle = AngleUnit::parse(angle).ok_or_else(|| anyhow::anyhow!("--angle: unknown unit '{angle}' (use deg or rad)"))?;
+    Ok(())
+}
+
+fn write_out(mut outputs: Outputs, out: Option<&Path>, text: &str) -> anyhow::Result<()> {
+    match out {
+        Some(path) => {
+            outputs.stage(path, text.as_bytes())?;
+            outputs.commit()?;
+        }
+        None => print!("{text}"),
+    }
+    Ok(())
 }
 
 /// Run the command.
@@ -63,25 +129,63 @@ pub fn run(args: ModelArgs) -> anyhow::Result<()> {
         }
         ModelCommand::Export {
             name,
+            format,
+            hayati,
             length,
             angle,
             out,
             force,
         } => {
             let mut outputs = Outputs::new(force);
-            outputs.input(std::path::Path::new(&name)).output_opt(out.as_deref())?;
+            outputs.input(Path::new(&name)).output_opt(out.as_deref())?;
             let mut file = ModelFile::load_or_builtin(&name)?;
-            file.units.length =
-                LengthUnit::parse(&length).ok_or_else(|| anyhow::anyhow!("--length: unknown unit '{length}' (use mm or m)"))?;
-            file.units.angle =
-                AngleUnit::parse(&angle).ok_or_else(|| anyhow::anyhow!("--angle: unknown unit '{angle}' (use deg or rad)"))?;
-            match out {
-                Some(path) => {
-                    let text = file.to_toml().map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
-                    outputs.stage(&path, text.as_bytes())?;
-                    outputs.commit()?;
+            if hayati && format != ExportFormat::Dh {
+                anyhow::bail!("--hayati: only with --format dh (Hayati's β is a standard-DH term)");
+            }
+            if format == ExportFormat::Urdf && (length.is_some() || angle.is_some()) {
+                anyhow::bail!("--length / --angle: URDF is always in metres and radians");
+            }
+            units(&mut file, length.as_deref().unwrap_or("mm"), angle.as_deref().unwrap_or("deg"))?;
+            let text = match format {
+                ExportFormat::Toml => file.to_toml().map_err(|e| anyhow::anyhow!("{name}: {e}"))?,
+                ExportFormat::Dh | ExportFormat::Mdh => {
+                    let convention = if format == ExportFormat::Dh {
+                        DhConvention::Standard
+                    } else {
+                        DhConvention::Modified
+                    };
+                    file.to_toml_dh(convention, DhOptions { hayati })
+                        .map_err(|e| anyhow::anyhow!("{name}: {e}"))?
                 }
-                None => print!("{}", file.to_toml().map_err(|e| anyhow::anyhow!("{name}: {e}"))?),
+                ExportFormat::Urdf => urdf::export(&file).map_err(|e| anyhow::anyhow!("{name}: {e}"))?,
+            };
+            write_out(outputs, out.as_deref(), &text)?;
+        }
+        ModelCommand::Import {
+            urdf: path,
+            base,
+            tip,
+            length,
+            angle,
+            out,
+            force,
+        } => {
+            let mut outputs = Outputs::new(force);
+            outputs.input(&path).output_opt(out.as_deref())?;
+            let text = kinecal::io::read_text(&path)?;
+            let mut file = urdf::import(&text, base.as_deref(), tip.as_deref()).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+            units(&mut file, &length, &angle)?;
+            let toml = file.to_toml().map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+            write_out(outputs, out.as_deref(), &toml)?;
+            if let Some(o) = &out {
+                let names = file.build().input_names();
+                println!(
+                    "{}: {} joints ({}) → {}",
+                    file.description.as_deref().unwrap_or(&file.name),
+                    names.len(),
+                    names.join(", "),
+                    o.display()
+                );
             }
         }
     }

@@ -1,4 +1,5 @@
-//! Files: numeric CSV tables with line-accurate errors, laser-tracker data sets.
+//! Files: numeric CSV tables with line-accurate errors, laser-tracker data sets, model files,
+//! URDF.
 pub mod data_file;
 pub mod exports;
 pub mod model_file;
@@ -6,6 +7,7 @@ pub mod output;
 pub mod split;
 pub mod table;
 pub mod tracker;
+pub mod urdf;
 
 use std::path::PathBuf;
 use thiserror::Error;

@@ -41,6 +41,26 @@
 //!   joint values (for the first joint: relative to the world/base frame). `axis` is the joint axis
 //!   in that frame, through its origin. `tool` is `T_{n,T}(0)`. Parameter names are
 //!   `"<dyad>.<vx|vy|vz|wx|wy|wz>"` with dyads `0-1`, `1-2`, …, `n-T`.
+//! * `kind = "serial"` may instead hold a Denavit–Hartenberg table: `[[mechanism.dh]]` rows
+//!   (standard DH) or `[[mechanism.mdh]]` rows (modified DH, Craig), each with `name`, `type`,
+//!   `a`, `alpha`, `d`, `theta` (the offsets at zero joint value; lengths in the length unit,
+//!   angles in the angle unit), optional `limits` and, in standard DH only, Hayati's `beta`;
+//!   optional `[mechanism.base]` (frame 0 in the world frame) and `[mechanism.tool]` (the tool
+//!   in the last DH frame). The table is built into the same local-POE chain
+//!   ([`crate::model::dh`]), so parameters, identifiability and every command are those of the
+//!   chain; a calibrated model is written in the joint form (`kinecal model export --format dh`
+//!   writes a table again where the geometry allows).
+//!
+//!   ```toml
+//!   [[mechanism.dh]]
+//!   name = "q1"
+//!   type = "revolute"
+//!   a = 0.0
+//!   alpha = 90.0
+//!   d = 162.5
+//!   theta = 0.0
+//!   limits = [-360.0, 360.0]
+//!   ```
 //! * Limits of revolute joints are in the angle unit, of prismatic joints in the length unit.
 //! * `kind = "pm5"` (the 5-DOF PUU-2PR(RPRR)S machine) and `kind = "stewart"` (6-UPS): every value
 //!   of the constraint model, see "Closed-loop kinds" below and
@@ -73,6 +93,7 @@ use super::IoError;
 use crate::measure::Noise;
 use crate::model::chain::{ChainJoint, JointKind, SerialChain};
 use crate::model::closed::{ClosedLoop, ConstraintSystem};
+use crate::model::dh::{DhConvention, DhError, DhJoint, DhOptions, DhTable};
 use crate::model::framed::Framed;
 use crate::model::presets::pm5::Pm5;
 use crate::model::presets::stewart::Stewart;
@@ -517,6 +538,27 @@ impl ModelFile {
 
     /// The file's text, in [`ModelFile::units`].
     pub fn to_toml(&self) -> Result<String, String> {
+        self.render(|out| self.mechanism.write(&self.units, out))
+    }
+
+    /// The file's text with its serial chain written as a DH table in `convention`
+    /// (`[[mechanism.dh]]` or `[[mechanism.mdh]]`, see [`crate::model::dh`]); everything else
+    /// (calibration, noise, frames, provenance) as in [`ModelFile::to_toml`]. Loaded back, it
+    /// gives the same kinematics. Fails for other kinds and for geometry DH cannot hold
+    /// ([`DhError::NearlyParallel`]: the joints are named).
+    pub fn to_toml_dh(&self, convention: DhConvention, opts: DhOptions) -> Result<String, DhError> {
+        let MechanismSpec::Serial(chain) = &self.mechanism else {
+            return Err(DhError::NotSerial(self.mechanism.kind().to_string()));
+        };
+        let table = DhTable::from_chain(chain, convention, opts)?;
+        self.render(|out| {
+            write_dh(&table, &self.units, out);
+            Ok(())
+        })
+        .map_err(DhError::Write)
+    }
+
+    fn render(&self, write_mechanism: impl FnOnce(&mut String) -> Result<(), String>) -> Result<String, String> {
         let mut out = String::new();
         match self.mechanism {
             MechanismSpec::Serial(_) => {
@@ -538,7 +580,7 @@ impl ModelFile {
             self.units.length.symbol(),
             self.units.angle.symbol()
         );
-        self.mechanism.write(&self.units, &mut out)?;
+        write_mechanism(&mut out)?;
         out.push_str("\n[calibration]\n# Parameter names or globs ('*', '?'); free in priority order, fixed removed from them.\n");
         let list = |v: &[String]| v.iter().map(|s| quote(s)).collect::<Vec<_>>().join(", ");
         let _ = writeln!(out, "free = [{}]\nfixed = [{}]", list(&self.free), list(&self.fixed));
@@ -684,12 +726,66 @@ fn fmt3(v: [f64; 3]) -> String {
     format!("[{}, {}, {}]", num(v[0]), num(v[1]), num(v[2]))
 }
 
+/// Writes `position` and `rpy` ([`crate::se3::rpy`]), or `rotvec` where roll/pitch/yaw would
+/// not give the rotation back to 1e-14 rad.
 fn write_pose(p: &Pose, units: &Units, out: &mut String) {
     let t = p.translation.vector / units.length.to_mm();
-    let (r, pi, y) = p.rotation.euler_angles();
     let f = units.angle.to_rad();
     let _ = writeln!(out, "position = {}", fmt3([t.x, t.y, t.z]));
-    let _ = writeln!(out, "rpy = {}", fmt3([r / f, pi / f, y / f]));
+    let [roll, pitch, yaw] = crate::se3::rpy(&p.rotation);
+    let back = UnitQuaternion::from_euler_angles(roll, pitch, yaw);
+    if crate::se3::so3_log(&(back.inverse() * p.rotation)).norm() <= 1e-14 {
+        let _ = writeln!(out, "rpy = {}", fmt3([roll / f, pitch / f, yaw / f]));
+    } else {
+        let v = crate::se3::so3_log(&p.rotation) / f;
+        let _ = writeln!(out, "rotvec = {}", fmt3([v.x, v.y, v.z]));
+    }
+}
+
+fn write_dh(table: &DhTable, units: &Units, out: &mut String) {
+    let (l, a) = (units.length.to_mm(), units.angle.to_rad());
+    let key = table.convention.key();
+    out.push_str("[mechanism]\nkind = \"serial\"\n");
+    match table.convention {
+        DhConvention::Standard => {
+            out.push_str("# Standard DH: A_i(q) = Rz(theta + q)·Tz(d)·Tx(a)·Rx(alpha)·Ry(beta) (q adds to d for prismatic\n");
+            out.push_str("# joints; beta is Hayati's, 0 when absent); g(q) = base · A_1(q_1) ··· A_n(q_n) · tool.\n");
+        }
+        DhConvention::Modified => {
+            out.push_str("# Modified DH (Craig): A_i(q) = Rx(alpha)·Tx(a)·Rz(theta + q)·Tz(d), row i holding alpha_{i-1}\n");
+            out.push_str("# and a_{i-1} (q adds to d for prismatic joints); g(q) = base · A_1(q_1) ··· A_n(q_n) · tool.\n");
+        }
+    }
+    out.push_str("\n[mechanism.base]  # frame 0 in the world frame\n");
+    write_pose(&table.base, units, out);
+    for j in &table.joints {
+        let kind = match j.kind {
+            JointKind::Revolute => "revolute",
+            JointKind::Prismatic => "prismatic",
+        };
+        let _ = write!(
+            out,
+            "\n[[mechanism.{key}]]\nname = {}\ntype = \"{kind}\"\na = {}\nalpha = {}\nd = {}\ntheta = {}\n",
+            quote(&j.name),
+            num(j.a / l),
+            num(j.alpha / a),
+            num(j.d / l),
+            num(j.theta / a)
+        );
+        if j.beta != 0.0 {
+            let _ = writeln!(
+                out,
+                "beta = {}  # Hayati: this joint's next axis is nearly parallel to it",
+                num(j.beta / a)
+            );
+        }
+        if let Some((lo, hi)) = j.limits {
+            let f = if j.kind == JointKind::Revolute { a } else { l };
+            let _ = writeln!(out, "limits = [{}, {}]", num(lo / f), num(hi / f));
+        }
+    }
+    out.push_str("\n[mechanism.tool]  # the tool in the last DH frame\n");
+    write_pose(&table.tool, units, out);
 }
 
 #[derive(Deserialize)]
@@ -768,10 +864,27 @@ struct RawJoint {
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
+struct RawDhRow {
+    name: String,
+    #[serde(rename = "type")]
+    kind: JointKind,
+    a: f64,
+    alpha: f64,
+    d: f64,
+    theta: f64,
+    beta: Option<f64>,
+    limits: Option<[f64; 2]>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
 struct RawSerial {
     #[allow(dead_code)]
     kind: String,
-    joints: Vec<Spanned<RawJoint>>,
+    joints: Option<Vec<Spanned<RawJoint>>>,
+    dh: Option<Vec<Spanned<RawDhRow>>>,
+    mdh: Option<Vec<Spanned<RawDhRow>>>,
+    base: Option<Spanned<RawPose>>,
     tool: Option<Spanned<RawPose>>,
 }
 
@@ -903,8 +1016,52 @@ impl Ctx<'_> {
         Ok(Pose::from_parts(Translation3::from(p), rot))
     }
 
+    fn limits(
+        &self,
+        span: &Range<usize>,
+        what: &str,
+        limits: Option<[f64; 2]>,
+        kind: JointKind,
+        units: &Units,
+    ) -> Result<Option<(f64, f64)>, IoError> {
+        let Some([lo, hi]) = limits else { return Ok(None) };
+        if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+            return Err(self.at(
+                span,
+                format!("{what}.limits: need two finite values with min < max, got [{lo}, {hi}]"),
+            ));
+        }
+        let f = match kind {
+            JointKind::Revolute => units.angle.to_rad(),
+            JointKind::Prismatic => units.length.to_mm(),
+        };
+        Ok(Some((lo * f, hi * f)))
+    }
+
     fn serial(&self, name: &str, raw: &RawSerial, units: &Units) -> Result<MechanismSpec, IoError> {
-        if raw.joints.is_empty() {
+        let forms = [raw.joints.is_some(), raw.dh.is_some(), raw.mdh.is_some()];
+        if forms.iter().filter(|f| **f).count() != 1 {
+            return Err(IoError::Invalid {
+                path: self.path.to_path_buf(),
+                message: "mechanism: a serial chain needs exactly one of [[mechanism.joints]] (local POE), [[mechanism.dh]] (standard DH) or [[mechanism.mdh]] (modified DH)".into(),
+            });
+        }
+        if let Some(rows) = raw.dh.as_ref().or(raw.mdh.as_ref()) {
+            let convention = if raw.dh.is_some() {
+                DhConvention::Standard
+            } else {
+                DhConvention::Modified
+            };
+            return self.dh_table(name, convention, rows, raw, units);
+        }
+        if let Some(b) = &raw.base {
+            return Err(self.at(
+                &b.span(),
+                "mechanism.base: only with a DH table ([[mechanism.dh]] or [[mechanism.mdh]]); with [[mechanism.joints]] the first joint's position/rpy is the base".into(),
+            ));
+        }
+        let raw_joints = raw.joints.as_deref().unwrap_or_default();
+        if raw_joints.is_empty() {
             return Err(IoError::Invalid {
                 path: self.path.to_path_buf(),
                 message: "mechanism.joints: a serial chain needs at least one joint".into(),
@@ -912,7 +1069,7 @@ impl Ctx<'_> {
         }
         let mut joints = Vec::new();
         let mut initial = Vec::new();
-        for (j, sj) in raw.joints.iter().enumerate() {
+        for (j, sj) in raw_joints.iter().enumerate() {
             let span = sj.span();
             let rj = sj.get_ref();
             let what = format!("mechanism.joints[{j}] ('{}')", rj.name);
@@ -927,19 +1084,7 @@ impl Ctx<'_> {
                 JointKind::Revolute => ChainJoint::revolute(rj.name.clone(), axis),
                 JointKind::Prismatic => ChainJoint::prismatic(rj.name.clone(), axis),
             };
-            if let Some([lo, hi]) = rj.limits {
-                if !(lo.is_finite() && hi.is_finite() && lo < hi) {
-                    return Err(self.at(
-                        &span,
-                        format!("{what}.limits: need two finite values with min < max, got [{lo}, {hi}]"),
-                    ));
-                }
-                let f = match rj.kind {
-                    JointKind::Revolute => units.angle.to_rad(),
-                    JointKind::Prismatic => units.length.to_mm(),
-                };
-                joint.limits = Some((lo * f, hi * f));
-            }
+            joint.limits = self.limits(&span, &what, rj.limits, rj.kind, units)?;
             joints.push(joint);
             initial.push(self.pose(&span, &what, rj.position, rj.rpy, rj.rotvec, units)?);
         }
@@ -951,6 +1096,67 @@ impl Ctx<'_> {
             None => Pose::identity(),
         };
         Ok(MechanismSpec::Serial(SerialChain::new(name, joints, initial, tool)))
+    }
+
+    fn dh_table(
+        &self,
+        name: &str,
+        convention: DhConvention,
+        rows: &[Spanned<RawDhRow>],
+        raw: &RawSerial,
+        units: &Units,
+    ) -> Result<MechanismSpec, IoError> {
+        let key = convention.key();
+        if rows.is_empty() {
+            return Err(IoError::Invalid {
+                path: self.path.to_path_buf(),
+                message: format!("mechanism.{key}: a DH table needs at least one row"),
+            });
+        }
+        let (l, a) = (units.length.to_mm(), units.angle.to_rad());
+        let mut joints: Vec<DhJoint> = Vec::new();
+        for (j, sr) in rows.iter().enumerate() {
+            let span = sr.span();
+            let r = sr.get_ref();
+            let what = format!("mechanism.{key}[{j}] ('{}')", r.name);
+            if r.name.is_empty() || joints.iter().any(|x| x.name == r.name) {
+                return Err(self.at(&span, format!("{what}: joint names must be non-empty and unique")));
+            }
+            let values = [r.a, r.alpha, r.d, r.theta, r.beta.unwrap_or(0.0)];
+            if values.iter().any(|v| !v.is_finite()) {
+                return Err(self.at(&span, format!("{what}: non-finite value in a, alpha, d, theta or beta")));
+            }
+            if r.beta.is_some() && convention == DhConvention::Modified {
+                return Err(self.at(
+                    &span,
+                    format!("{what}.beta: Hayati's beta belongs to standard DH ([[mechanism.dh]]), not to modified DH"),
+                ));
+            }
+            joints.push(DhJoint {
+                name: r.name.clone(),
+                kind: r.kind,
+                a: r.a * l,
+                alpha: r.alpha * a,
+                d: r.d * l,
+                theta: r.theta * a,
+                beta: r.beta.unwrap_or(0.0) * a,
+                limits: self.limits(&span, &what, r.limits, r.kind, units)?,
+            });
+        }
+        let pose = |p: &Option<Spanned<RawPose>>, what: &str| match p {
+            Some(t) => {
+                let r = t.get_ref();
+                self.pose(&t.span(), what, r.position, r.rpy, r.rotvec, units)
+            }
+            None => Ok(Pose::identity()),
+        };
+        let table = DhTable {
+            convention,
+            base: pose(&raw.base, "mechanism.base")?,
+            joints,
+            tool: pose(&raw.tool, "mechanism.tool")?,
+        };
+        Ok(MechanismSpec::Serial(table.to_chain(name)))
     }
 
     fn finish<M>(&self, raw: RawFile<M>, units: Units, mechanism: MechanismSpec) -> Result<ModelFile, IoError> {

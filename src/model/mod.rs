@@ -20,6 +20,7 @@ use nalgebra::{DVector, Matrix6xX};
 pub mod builtin;
 pub mod chain;
 pub mod closed;
+pub mod dh;
 pub mod framed;
 pub mod irb120;
 pub mod presets;

@@ -89,6 +89,20 @@ pub struct ParamRow {
     pub status: ParamStatus,
 }
 
+/// The covariance of the identified parameters ([`Identification::covariance`] restricted to
+/// them), in display units: rows and columns follow `params` (identified parameters, in
+/// priority order, as [`CalibrationReport::correlation_names`]), entry `(i, j)` in
+/// `units[i]·units[j]` (mm, deg). Its diagonal is the square of [`ParamRow::std_dev`].
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ParamCovariance {
+    /// Names of the identified parameters.
+    pub params: Vec<String>,
+    /// Their display units (`mm`, `deg` or empty).
+    pub units: Vec<String>,
+    /// The matrix, row by row.
+    pub matrix: Vec<Vec<f64>>,
+}
+
 /// The overall judgement of a calibration, shown first in the report and deciding the exit code
 /// of `kinecal identify`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -162,6 +176,8 @@ pub struct CalibrationReport {
     pub no_effect: Vec<String>,
     /// Every parameter.
     pub params: Vec<ParamRow>,
+    /// Covariance of the identified parameters.
+    pub covariance: ParamCovariance,
     /// Identification set.
     pub identification: SetErrors,
     /// Validation set, if one was given.
@@ -235,6 +251,28 @@ impl CalibrationReport {
             })
             .collect();
         let names = |v: &[usize]| v.iter().map(|&i| params[i].name.clone()).collect::<Vec<_>>();
+        let display = |i: usize| match params[i].unit {
+            Unit::Angle => (180.0 / std::f64::consts::PI, "deg"),
+            Unit::Length => (1.0, "mm"),
+            Unit::Dimensionless => (1.0, ""),
+        };
+        let covariance = ParamCovariance {
+            params: names(&id.identifiable),
+            units: id.identifiable.iter().map(|&i| display(i).1.to_string()).collect(),
+            matrix: id
+                .identifiable
+                .iter()
+                .map(|&i| {
+                    id.identifiable
+                        .iter()
+                        .map(|&j| match result.covariance.get((i, j)) {
+                            Some(c) => c * display(i).0 * display(j).0,
+                            None => f64::NAN,
+                        })
+                        .collect()
+                })
+                .collect(),
+        };
         let Noise { position, orientation } = result.noise;
         let mut report = CalibrationReport {
             verdict: Verdict {
@@ -254,6 +292,7 @@ impl CalibrationReport {
             redundant: names(&id.redundant),
             no_effect: names(&id.no_effect),
             params: rows,
+            covariance,
             identification: SetErrors::compute(data_source, nominal, &result.model, data)?,
             validation: match validation {
                 Some((src, v)) => Some(SetErrors::compute(src, nominal, &result.model, v)?),

@@ -218,6 +218,26 @@ fn noisy_reflector_data_calibrates_to_the_noise_level() {
     );
     let before = rep["validation"]["before_stats"]["position_rms_mm"].as_f64().unwrap();
     let after = rep["validation"]["after_stats"]["position_rms_mm"].as_f64().unwrap();
+    // The covariance of the identified parameters: symmetric, its diagonal the squared standard
+    // deviations of the parameter table.
+    let cov = &rep["covariance"];
+    let names: Vec<&str> = cov["params"].as_array().unwrap().iter().map(|v| v.as_str().unwrap()).collect();
+    let m: Vec<Vec<f64>> = cov["matrix"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r.as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect())
+        .collect();
+    assert_eq!(m.len(), rep["rank"].as_u64().unwrap() as usize);
+    for (i, name) in names.iter().enumerate() {
+        let row = rep["params"].as_array().unwrap().iter().find(|p| p["name"] == *name).unwrap();
+        let sd = row["std_dev"].as_f64().unwrap();
+        assert!((m[i][i].sqrt() - sd).abs() <= 1e-12 * (1.0 + sd), "{name}");
+        assert_eq!(cov["units"][i], row["unit"]);
+        for j in 0..m.len() {
+            assert!((m[i][j] - m[j][i]).abs() <= 1e-12 * (m[i][i] * m[j][j]).sqrt(), "{name}");
+        }
+    }
     // Reflector noise 0.02 mm per axis: the frame origin (mean of three) has σ ≈ 0.012 mm per
     // axis, so an RMS position error around 0.02 mm; the calibrated model must get close to it.
     assert!(before > 0.5 && after < 0.05, "before {before} after {after}");
