@@ -543,3 +543,31 @@ pub fn rls_solve(lin: &Linearization, cols: &[usize]) -> Result<DVector<f64>, Ca
     }
     Ok(delta)
 }
+
+/// Identifiability of a mechanism's parameters from full-pose measurements at `inputs`: the
+/// noise-weighted stacked identification Jacobian analysed in `priority` order
+/// ([`crate::identifiability::analyze`]).
+pub fn identifiability_at<M: Mechanism + ?Sized>(
+    mechanism: &M,
+    inputs: &[Vec<f64>],
+    priority: &[usize],
+    noise: &crate::measure::Noise,
+    tolerance: f64,
+) -> Result<crate::identifiability::Identifiability, crate::error::CalibError> {
+    use crate::measure::{Measurement, Observation};
+    let data = inputs
+        .iter()
+        .enumerate()
+        .map(|(i, q)| {
+            mechanism
+                .forward(q)
+                .map(|t| Measurement {
+                    q: q.clone(),
+                    obs: Observation::Pose(t),
+                })
+                .map_err(|source| crate::error::CalibError::Kinematics { pose: i, source })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let lin = linearize(mechanism, &data, noise)?;
+    Ok(crate::identifiability::analyze(&lin.jacobian, priority, tolerance))
+}

@@ -238,7 +238,7 @@ pub struct Pm5Study {
     pub identified: Vec<String>,
     /// Identifiability of both parasitic models (physical first, then the paper's) in the
     /// priority order of [`StudyOptions::sub_loop`], 40 random configurations.
-    pub identifiability: Vec<pm5::Pm5Identifiability>,
+    pub identifiability: Vec<Pm5Identifiability>,
     /// Noise-free trial.
     pub noise_free: Trial,
     /// Trial with noise (same errors and configurations as the noise-free one).
@@ -377,7 +377,7 @@ pub fn pm5_study(opts: &StudyOptions) -> Result<Pm5Study, CalibError> {
     };
     let both = [Parasitic::Physical, Parasitic::NominalGeometry]
         .iter()
-        .map(|&p| pm5::identifiability(p, 40, opts.seed, &priority))
+        .map(|&p| pm5_identifiability(p, 40, opts.seed, &priority))
         .collect::<Result<Vec<_>, _>>()?;
     let ident = both
         .iter()
@@ -500,7 +500,7 @@ fn identified_columns(parasitic: Parasitic, sub_loop: SubLoopChoice, seed: u64) 
         SubLoopChoice::KeepL2L3 => pm5::natural_priority(),
         SubLoopChoice::KeepL4L5 => pm5::paper_priority(),
     };
-    Ok(pm5::identifiability(parasitic, 40, seed, &priority)?.identifiable_indices)
+    Ok(pm5_identifiability(parasitic, 40, seed, &priority)?.identifiable_indices)
 }
 
 /// Plan measurement configurations for the 5-DOF preset: Halton (or paper-grid) candidates over
@@ -768,5 +768,58 @@ pub fn pm5_design_study(plan: Pm5Plan, opts: &DesignStudyOptions) -> Result<Desi
         options: opts.clone(),
         plan,
         rows,
+    })
+}
+
+/// Identifiability of the 5-DOF machine (§3.2).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Pm5Identifiability {
+    /// Parasitic-constraint mode analysed.
+    pub parasitic: Parasitic,
+    /// Configurations used.
+    pub configurations: usize,
+    /// Rank of the identification Jacobian (of 44).
+    pub rank: usize,
+    /// Redundant parameters, by name, for the given priority order.
+    pub redundant: Vec<String>,
+    /// The identifiable vector dW′, by name.
+    pub identifiable: Vec<String>,
+    /// Indices of dW′ in the 44-parameter vector.
+    pub identifiable_indices: Vec<usize>,
+    /// Smallest kept singular value of the column-scaled Jacobian relative to the largest.
+    pub weakest: f64,
+}
+
+/// Rank, redundant parameters and dW′ over `n` random workspace configurations (seeded), with
+/// full-pose measurements weighted by the paper's noise (20 µm, 0.02°).
+pub fn pm5_identifiability(
+    parasitic: Parasitic,
+    n: usize,
+    seed: u64,
+    priority: &[usize],
+) -> Result<Pm5Identifiability, crate::error::CalibError> {
+    use rand::SeedableRng;
+    let m = pm5::Pm5::mechanism(parasitic);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let qs = m
+        .random_configurations(&mut rng, n)
+        .map_err(|source| crate::error::CalibError::Kinematics { pose: 0, source })?;
+    let a = crate::identify::identifiability_at(
+        &m,
+        &qs,
+        priority,
+        &crate::measure::Noise::default(),
+        crate::identifiability::DEFAULT_RANK_TOLERANCE,
+    )?;
+    let smax = a.singular_values.first().copied().unwrap_or(1.0);
+    let weakest = a.singular_values.get(a.rank.saturating_sub(1)).copied().unwrap_or(0.0) / smax;
+    Ok(Pm5Identifiability {
+        parasitic,
+        configurations: n,
+        rank: a.rank,
+        redundant: a.redundant.iter().map(|&i| pm5::PARAM_NAMES[i].to_string()).collect(),
+        identifiable: a.identifiable.iter().map(|&i| pm5::PARAM_NAMES[i].to_string()).collect(),
+        identifiable_indices: a.identifiable.clone(),
+        weakest,
     })
 }

@@ -393,7 +393,7 @@ pub fn general_path(
     use crate::calibrate::{calibrate, CalibrationOptions, ReflectorFit};
     use crate::io::exports::{join_exports, ExportFiles};
     use crate::io::model_file::{AngleUnit, LengthUnit};
-    let model = crate::model::builtin::model_file("irb120").ok_or_else(|| CalibError::InvalidOption("no built-in irb120".into()))?;
+    let model = crate::io::builtin::model_file("irb120").ok_or_else(|| CalibError::InvalidOption("no built-in irb120".into()))?;
     let files = |reflectors: &[usize]| ExportFiles {
         joints: folder.join("joints_deg.csv"),
         angles: AngleUnit::Deg,

@@ -1,10 +1,10 @@
 //! `kinecal model list | export NAME | import ROBOT.urdf`: the built-in models, model files in
 //! their forms (local POE, DH, modified DH, URDF), URDF in.
 use clap::{Args, Subcommand, ValueEnum};
+use kinecal::io::builtin;
 use kinecal::io::model_file::{AngleUnit, LengthUnit, ModelFile};
 use kinecal::io::output::Outputs;
 use kinecal::io::urdf;
-use kinecal::model::builtin;
 use kinecal::model::dh::{DhConvention, DhOptions};
 use std::path::{Path, PathBuf};
 

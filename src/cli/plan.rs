@@ -250,10 +250,7 @@ fn model_candidates(args: &PlanArgs, model: &str) -> anyhow::Result<Planned> {
     let file = ModelFile::load_or_builtin(model)?;
     let mech = file.build();
     // A 5-DOF machine plans in its own platform workspace (the file's geometry, strokes, box).
-    if let Some(pm5) = mech
-        .as_any()
-        .and_then(|a| a.downcast_ref::<kinecal::model::closed::ClosedLoop<kinecal::model::presets::pm5::Pm5>>())
-    {
+    if let kinecal::model::kind::MechanismSpec::Pm5(pm5) = &file.mechanism {
         return pm5_candidates(args, pm5.clone());
     }
     let inputs = file.inputs();

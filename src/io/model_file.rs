@@ -92,11 +92,8 @@ mod parallel;
 use super::IoError;
 use crate::measure::Noise;
 use crate::model::chain::{ChainJoint, JointKind, SerialChain};
-use crate::model::closed::{ClosedLoop, ConstraintSystem};
 use crate::model::dh::{DhConvention, DhError, DhJoint, DhOptions, DhTable};
 use crate::model::framed::Framed;
-use crate::model::presets::pm5::Pm5;
-use crate::model::presets::stewart::Stewart;
 use crate::model::Mechanism;
 use crate::params::{Param, Unit};
 use crate::se3::Pose;
@@ -205,142 +202,47 @@ impl Units {
     }
 }
 
-/// One input (actuator or sensed joint) of a mechanism: its name, unit kind and limits.
-#[derive(Debug, Clone, PartialEq)]
-pub struct InputSpec {
-    /// Name, as in [`Mechanism::input_names`].
-    pub name: String,
-    /// [`Unit::Angle`] (rad) for revolute, [`Unit::Length`] (mm) for prismatic inputs.
-    pub unit: Unit,
-    /// Limits (rad or mm), if any.
-    pub limits: Option<(f64, f64)>,
-}
+pub use crate::model::kind::{InputSpec, MechanismSpec, KINDS};
 
-/// The kind-specific part of a model file (values in mm and rad).
-#[derive(Debug, Clone, PartialEq)]
-pub enum MechanismSpec {
-    /// `kind = "serial"`: a local-POE serial chain.
-    Serial(SerialChain),
-    /// `kind = "pm5"`: the 5-DOF PUU-2PR(RPRR)S machine (44 parameters with the paper's names).
-    Pm5(ClosedLoop<Pm5>),
-    /// `kind = "stewart"`: a 6-UPS Stewart platform (42 parameters).
-    Stewart(ClosedLoop<Stewart>),
-}
-
-/// The mechanism kinds a model file can hold, as written in `[mechanism] kind`.
-pub const KINDS: [&str; 3] = ["serial", "pm5", "stewart"];
-
-fn closed_loop_inputs<C: ConstraintSystem>(m: &ClosedLoop<C>) -> Vec<InputSpec> {
-    let s = m.system();
-    s.input_names()
-        .into_iter()
-        .zip(s.strokes())
-        .map(|(name, st)| InputSpec {
-            name,
-            unit: Unit::Length,
-            limits: Some(st),
-        })
-        .collect()
-}
-
-impl MechanismSpec {
-    /// The kind's name as written in files.
-    pub fn kind(&self) -> &'static str {
-        match self {
-            MechanismSpec::Serial(_) => "serial",
-            MechanismSpec::Pm5(_) => "pm5",
-            MechanismSpec::Stewart(_) => "stewart",
-        }
-    }
-
-    /// The mechanism, ready to compute with.
-    pub fn build(&self) -> Box<dyn Mechanism> {
-        match self {
-            MechanismSpec::Serial(c) => Box::new(c.clone()),
-            MechanismSpec::Pm5(m) => Box::new(m.clone()),
-            MechanismSpec::Stewart(m) => Box::new(m.clone()),
-        }
-    }
-
-    /// The inputs with their units and limits.
-    pub fn inputs(&self) -> Vec<InputSpec> {
-        match self {
-            MechanismSpec::Serial(c) => c
-                .joints()
-                .iter()
-                .map(|j| InputSpec {
-                    name: j.name.clone(),
-                    unit: match j.kind {
-                        JointKind::Revolute => Unit::Angle,
-                        JointKind::Prismatic => Unit::Length,
-                    },
-                    limits: j.limits,
-                })
-                .collect(),
-            MechanismSpec::Pm5(m) => closed_loop_inputs(m),
-            MechanismSpec::Stewart(m) => closed_loop_inputs(m),
-        }
-    }
-
-    /// The same kind with the geometry of `model` (e.g. a calibrated copy of [`Self::build`]'s
-    /// mechanism). Fails when `model` is not of this kind.
-    pub fn with_geometry_of(&self, model: &dyn Mechanism) -> Result<MechanismSpec, String> {
-        let any = model.as_any();
-        match self {
-            MechanismSpec::Serial(_) => any
-                .and_then(|a| a.downcast_ref::<SerialChain>())
-                .map(|c| MechanismSpec::Serial(c.clone()))
-                .ok_or_else(|| format!("model '{}' is not a serial chain", model.name())),
-            MechanismSpec::Pm5(_) => any
-                .and_then(|a| a.downcast_ref::<ClosedLoop<Pm5>>())
-                .map(|c| MechanismSpec::Pm5(c.clone()))
-                .ok_or_else(|| format!("model '{}' is not a pm5 machine", model.name())),
-            MechanismSpec::Stewart(_) => any
-                .and_then(|a| a.downcast_ref::<ClosedLoop<Stewart>>())
-                .map(|c| MechanismSpec::Stewart(c.clone()))
-                .ok_or_else(|| format!("model '{}' is not a Stewart platform", model.name())),
-        }
-    }
-
-    fn write(&self, units: &Units, out: &mut String) -> Result<(), String> {
-        let (l, a) = (units.length.to_mm(), units.angle.to_rad());
-        match self {
-            MechanismSpec::Serial(c) => {
-                out.push_str("[mechanism]\nkind = \"serial\"\n");
-                out.push_str("# Joint j: position/rpy = T_{j-1,j}(0), the joint frame in the previous joint frame at zero\n");
-                out.push_str("# joint values; axis = joint axis in that frame through its origin.\n");
-                for (j, joint) in c.joints().iter().enumerate() {
-                    let t = joint.twist;
-                    let (kind, axis, rest) = match joint.kind {
-                        JointKind::Revolute => ("revolute", [t[3], t[4], t[5]], [t[0], t[1], t[2]]),
-                        JointKind::Prismatic => ("prismatic", [t[0], t[1], t[2]], [t[3], t[4], t[5]]),
-                    };
-                    if rest.iter().any(|v| v.abs() > 1e-12) {
-                        return Err(format!(
-                            "joint '{}': a joint twist with an offset cannot be written; put the offset in the joint's position",
-                            joint.name
-                        ));
-                    }
-                    let _ = write!(
-                        out,
-                        "\n[[mechanism.joints]]\nname = \"{}\"\ntype = \"{kind}\"\naxis = {}\n",
-                        joint.name,
-                        fmt3(axis)
-                    );
-                    if let Some((lo, hi)) = joint.limits {
-                        let f = if joint.kind == JointKind::Revolute { a } else { l };
-                        let _ = writeln!(out, "limits = [{}, {}]", num(lo / f), num(hi / f));
-                    }
-                    write_pose(&c.initial_poses()[j], units, out);
+/// Write the `[mechanism]` part of a model file for `spec` in `units`.
+fn write_mechanism(spec: &MechanismSpec, units: &Units, out: &mut String) -> Result<(), String> {
+    let (l, a) = (units.length.to_mm(), units.angle.to_rad());
+    match spec {
+        MechanismSpec::Serial(c) => {
+            out.push_str("[mechanism]\nkind = \"serial\"\n");
+            out.push_str("# Joint j: position/rpy = T_{j-1,j}(0), the joint frame in the previous joint frame at zero\n");
+            out.push_str("# joint values; axis = joint axis in that frame through its origin.\n");
+            for (j, joint) in c.joints().iter().enumerate() {
+                let t = joint.twist;
+                let (kind, axis, rest) = match joint.kind {
+                    JointKind::Revolute => ("revolute", [t[3], t[4], t[5]], [t[0], t[1], t[2]]),
+                    JointKind::Prismatic => ("prismatic", [t[0], t[1], t[2]], [t[3], t[4], t[5]]),
+                };
+                if rest.iter().any(|v| v.abs() > 1e-12) {
+                    return Err(format!(
+                        "joint '{}': a joint twist with an offset cannot be written; put the offset in the joint's position",
+                        joint.name
+                    ));
                 }
-                out.push_str("\n[mechanism.tool]\n");
-                write_pose(c.tool(), units, out);
+                let _ = write!(
+                    out,
+                    "\n[[mechanism.joints]]\nname = \"{}\"\ntype = \"{kind}\"\naxis = {}\n",
+                    joint.name,
+                    fmt3(axis)
+                );
+                if let Some((lo, hi)) = joint.limits {
+                    let f = if joint.kind == JointKind::Revolute { a } else { l };
+                    let _ = writeln!(out, "limits = [{}, {}]", num(lo / f), num(hi / f));
+                }
+                write_pose(&c.initial_poses()[j], units, out);
             }
-            MechanismSpec::Pm5(m) => parallel::write_pm5(m, units, out),
-            MechanismSpec::Stewart(m) => parallel::write_stewart(m, units, out),
+            out.push_str("\n[mechanism.tool]\n");
+            write_pose(c.tool(), units, out);
         }
-        Ok(())
+        MechanismSpec::Pm5(m) => parallel::write_pm5(m, units, out),
+        MechanismSpec::Stewart(m) => parallel::write_stewart(m, units, out),
     }
+    Ok(())
 }
 
 /// A parsed model file (all values in mm and rad).
@@ -520,13 +422,10 @@ impl ModelFile {
     /// A copy with the geometry of `model` (a calibrated mechanism of the same kind, or such a
     /// mechanism seen through frames, [`Framed`], whose frames are then kept too).
     pub fn with_geometry_of(&self, model: &dyn Mechanism) -> Result<ModelFile, String> {
-        if let Some(f) = model.as_any().and_then(|a| a.downcast_ref::<Framed<Box<dyn Mechanism>>>()) {
+        if let Some((measurement, tool)) = model.frames() {
             return Ok(ModelFile {
-                mechanism: self.mechanism.with_geometry_of(&*f.inner)?,
-                frames: Some(Frames {
-                    measurement: f.measurement,
-                    tool: f.tool,
-                }),
+                mechanism: self.mechanism.with_geometry_of(model)?,
+                frames: Some(Frames { measurement, tool }),
                 ..self.clone()
             });
         }
@@ -538,7 +437,7 @@ impl ModelFile {
 
     /// The file's text, in [`ModelFile::units`].
     pub fn to_toml(&self) -> Result<String, String> {
-        self.render(|out| self.mechanism.write(&self.units, out))
+        self.render(|out| write_mechanism(&self.mechanism, &self.units, out))
     }
 
     /// The file's text with its serial chain written as a DH table in `convention`
@@ -632,22 +531,6 @@ impl ModelFile {
             message,
         })?;
         super::write_atomic(path, text.as_bytes())
-    }
-
-    /// A model file path, or the name of a built-in model ([`crate::model::builtin`]) when no
-    /// file of that name exists.
-    pub fn load_or_builtin(arg: &str) -> Result<ModelFile, IoError> {
-        let path = Path::new(arg);
-        if path.exists() {
-            return Self::load(path);
-        }
-        crate::model::builtin::model_file(arg).ok_or_else(|| IoError::Invalid {
-            path: path.to_path_buf(),
-            message: format!(
-                "no such file, and not a built-in model (built-in: {})",
-                crate::model::builtin::list().iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", ")
-            ),
-        })
     }
 
     /// Read and check a model file.

@@ -1,7 +1,8 @@
 //! Built-in models: nominal geometries a user can export as model files
-//! (`kinecal model list`, `kinecal model export NAME`), edit and load back.
-use crate::io::model_file::{MechanismSpec, ModelFile};
+//! (`kinecal model list`, `kinecal model export NAME`, through [`crate::io::builtin`]), edit and
+//! load back.
 use crate::model::chain::SerialChain;
+use crate::model::kind::MechanismSpec;
 use crate::model::presets::pm5::{Parasitic, Pm5};
 use crate::model::presets::stewart::{Stewart, StewartGeometry};
 
@@ -23,18 +24,14 @@ pub fn list() -> Vec<(&'static str, &'static str)> {
     ]
 }
 
-/// The built-in model called `name` as a model file, if there is one.
-pub fn model_file(name: &str) -> Option<ModelFile> {
-    let description = list().into_iter().find(|(n, _)| *n == name)?.1;
-    let mechanism = match name {
+/// The built-in model called `name`, if there is one.
+pub fn spec(name: &str) -> Option<MechanismSpec> {
+    Some(match name {
         "irb120" => MechanismSpec::Serial(irb120()),
         "pm5" => MechanismSpec::Pm5(Pm5::mechanism(Parasitic::Physical)),
         "stewart" => MechanismSpec::Stewart(Stewart::mechanism(StewartGeometry::default())),
         _ => return None,
-    };
-    let mut file = ModelFile::new(name, mechanism);
-    file.description = Some(description.to_string());
-    Some(file)
+    })
 }
 
 /// The nominal ABB IRB 120 (see [`crate::model::irb120`]).
@@ -58,8 +55,8 @@ mod tests {
     #[test]
     fn every_listed_model_exists() {
         for (n, _) in list() {
-            assert!(model_file(n).is_some(), "{n}");
+            assert!(spec(n).is_some(), "{n}");
         }
-        assert!(model_file("nope").is_none());
+        assert!(spec("nope").is_none());
     }
 }

@@ -113,6 +113,27 @@ impl SerialChain {
         self
     }
 
+    /// This chain with the geometry `values` of [`Mechanism::geometry`] (its `n + 1` initial
+    /// poses: translation, then the rotation matrix column by column); an error when the length
+    /// does not fit this chain.
+    pub fn with_geometry(&self, values: &[f64]) -> Result<SerialChain, String> {
+        if values.len() != 12 * self.initial.len() {
+            return Err(format!(
+                "{} geometry values for a serial chain of {} joints (expected {})",
+                values.len(),
+                self.joints.len(),
+                12 * self.initial.len()
+            ));
+        }
+        let mut out = self.clone();
+        for (k, chunk) in values.chunks(12).enumerate() {
+            let t = nalgebra::Vector3::new(chunk[0], chunk[1], chunk[2]);
+            let r = nalgebra::Matrix3::from_column_slice(&chunk[3..12]);
+            out.initial[k] = crate::se3::pose_from_matrix(&r, &t);
+        }
+        Ok(out)
+    }
+
     /// The joints.
     pub fn joints(&self) -> &[ChainJoint] {
         &self.joints
@@ -291,8 +312,16 @@ impl Mechanism for SerialChain {
         Box::new(self.clone())
     }
 
-    fn as_any(&self) -> Option<&dyn std::any::Any> {
-        Some(self)
+    fn geometry(&self) -> Option<Vec<f64>> {
+        Some(
+            self.initial
+                .iter()
+                .flat_map(|p| {
+                    let r = crate::se3::rotation_matrix(p);
+                    p.translation.vector.iter().copied().chain(r.iter().copied()).collect::<Vec<_>>()
+                })
+                .collect(),
+        )
     }
 }
 

@@ -122,25 +122,7 @@ pub mod v3 {
 
 use v3::{M3, V3};
 
-/// Which part of the tool pose the actuators command.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
-pub enum Task {
-    /// All six degrees of freedom (e.g. a Stewart platform).
-    Full,
-    /// Tool position and tool z-axis direction (5 DOF): rotation about the tool axis is a
-    /// parasitic motion the mechanism cannot command (e.g. the 5-DOF PUU-2PR(RPRR)S machine).
-    PositionAndAxis,
-}
-
-impl Task {
-    /// Number of commanded degrees of freedom.
-    pub fn dof(self) -> usize {
-        match self {
-            Task::Full => 6,
-            Task::PositionAndAxis => 5,
-        }
-    }
-}
+pub use crate::model::Task;
 
 /// A box of platform poses `X = (x, y, z, α, β, γ)` (mm, rad): the prescribed workspace.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -343,6 +325,25 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
     pub fn with_solver(mut self, solver: SolverOptions) -> Self {
         self.solver = solver;
         self
+    }
+
+    /// This machine with the geometry `values` of [`Mechanism::geometry`] (`θ`, then the tool
+    /// offset and the base frame); an error when the length does not fit.
+    pub fn with_geometry(&self, values: &[f64]) -> Result<Self, String> {
+        let (ng, nt) = (self.geometry.len(), self.tool.len() + self.base.len());
+        if values.len() != ng + nt {
+            return Err(format!(
+                "{} geometry values for the {} machine (expected {})",
+                values.len(),
+                self.system.name(),
+                ng + nt
+            ));
+        }
+        let mut out = self.clone();
+        out.geometry.copy_from_slice(&values[..ng]);
+        out.tool.copy_from_slice(&values[ng..ng + 3]);
+        out.base.copy_from_slice(&values[ng + 3..]);
+        Ok(out)
     }
 
     /// The constraint system.
@@ -804,8 +805,8 @@ impl<C: ConstraintSystem> Mechanism for ClosedLoop<C> {
     fn box_clone(&self) -> Box<dyn Mechanism> {
         Box::new(self.clone())
     }
-    fn as_any(&self) -> Option<&dyn std::any::Any> {
-        Some(self)
+    fn geometry(&self) -> Option<Vec<f64>> {
+        Some(self.geometry.iter().chain(&self.tool).chain(&self.base).copied().collect())
     }
     fn task(&self) -> Task {
         self.system.task()
@@ -823,32 +824,4 @@ pub fn rotation_xyz(a: f64, b: f64, g: f64) -> Rotation3<f64> {
     Rotation3::from_matrix_unchecked(Matrix3::new(
         r[0][0], r[0][1], r[0][2], r[1][0], r[1][1], r[1][2], r[2][0], r[2][1], r[2][2],
     ))
-}
-
-/// Identifiability of a mechanism's parameters from full-pose measurements at `inputs`: the
-/// noise-weighted stacked identification Jacobian analysed in `priority` order
-/// ([`crate::identifiability::analyze`]).
-pub fn identifiability_at<M: Mechanism + ?Sized>(
-    mechanism: &M,
-    inputs: &[Vec<f64>],
-    priority: &[usize],
-    noise: &crate::measure::Noise,
-    tolerance: f64,
-) -> Result<crate::identifiability::Identifiability, crate::error::CalibError> {
-    use crate::measure::{Measurement, Observation};
-    let data = inputs
-        .iter()
-        .enumerate()
-        .map(|(i, q)| {
-            mechanism
-                .forward(q)
-                .map(|t| Measurement {
-                    q: q.clone(),
-                    obs: Observation::Pose(t),
-                })
-                .map_err(|source| crate::error::CalibError::Kinematics { pose: i, source })
-        })
-        .collect::<Result<Vec<_>, _>>()?;
-    let lin = crate::identify::linearize(mechanism, &data, noise)?;
-    Ok(crate::identifiability::analyze(&lin.jacobian, priority, tolerance))
 }

@@ -110,8 +110,11 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Framed<M> {
     fn sample_configurations(&self, n: usize, seed: u64) -> Option<Result<Vec<Vec<f64>>, KinError>> {
         self.inner.sample_configurations(n, seed)
     }
-    fn as_any(&self) -> Option<&dyn std::any::Any> {
-        Some(self)
+    fn geometry(&self) -> Option<Vec<f64>> {
+        self.inner.geometry()
+    }
+    fn frames(&self) -> Option<(Pose, Pose)> {
+        Some((self.measurement, self.tool))
     }
 }
 

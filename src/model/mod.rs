@@ -23,9 +23,28 @@ pub mod closed;
 pub mod dh;
 pub mod framed;
 pub mod irb120;
+pub mod kind;
 pub mod presets;
 
-pub use closed::Task;
+/// Which part of the tool pose the actuators command.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub enum Task {
+    /// All six degrees of freedom (e.g. a Stewart platform).
+    Full,
+    /// Tool position and tool z-axis direction (5 DOF): rotation about the tool axis is a
+    /// parasitic motion the mechanism cannot command (e.g. the 5-DOF PUU-2PR(RPRR)S machine).
+    PositionAndAxis,
+}
+
+impl Task {
+    /// Number of commanded degrees of freedom.
+    pub fn dof(self) -> usize {
+        match self {
+            Task::Full => 6,
+            Task::PositionAndAxis => 5,
+        }
+    }
+}
 
 /// A calibratable mechanism.
 pub trait Mechanism: Send + Sync {
@@ -56,9 +75,16 @@ pub trait Mechanism: Send + Sync {
     fn inverse_ignores_seed(&self) -> bool {
         false
     }
-    /// The concrete model, for code that writes a calibrated geometry back to a model file
-    /// ([`crate::io::model_file`]). Mechanisms that a model file can describe return `Some(self)`.
-    fn as_any(&self) -> Option<&dyn std::any::Any> {
+    /// The mechanism's complete geometry as numbers, in its kind's own order (what a calibrated
+    /// model is written back from: [`kind::MechanismSpec::with_geometry_of`]); `None` for
+    /// mechanisms no model file describes. A mechanism seen through frames
+    /// ([`framed::Framed`]) answers with its inner mechanism's.
+    fn geometry(&self) -> Option<Vec<f64>> {
+        None
+    }
+    /// The measurement and tool frames `(X, Y)` of a mechanism seen through frames
+    /// ([`framed::Framed`]: `T = X·M(q)·Y`); `None` otherwise.
+    fn frames(&self) -> Option<(Pose, Pose)> {
         None
     }
     /// Which part of the tool pose the inputs command: [`Task::Full`] (default) or, for a 5-DOF
@@ -114,8 +140,11 @@ impl Mechanism for Box<dyn Mechanism> {
     fn inverse_ignores_seed(&self) -> bool {
         (**self).inverse_ignores_seed()
     }
-    fn as_any(&self) -> Option<&dyn std::any::Any> {
-        (**self).as_any()
+    fn geometry(&self) -> Option<Vec<f64>> {
+        (**self).geometry()
+    }
+    fn frames(&self) -> Option<(Pose, Pose)> {
+        (**self).frames()
     }
     fn task(&self) -> Task {
         (**self).task()

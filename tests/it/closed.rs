@@ -175,17 +175,17 @@ fn pm5_commands_ignore_the_rotation_about_the_tool_axis() {
 
 #[test]
 fn pm5_rank_and_redundant_parameters() {
-    let paper = pm5::identifiability(Parasitic::NominalGeometry, 40, 10, &pm5::paper_priority()).unwrap();
+    let paper = kinecal::study::pm5_identifiability(Parasitic::NominalGeometry, 40, 10, &pm5::paper_priority()).unwrap();
     assert_eq!(paper.rank, 35);
     assert_eq!(paper.redundant, PAPER_REDUNDANT.map(String::from).to_vec());
-    let natural = pm5::identifiability(Parasitic::NominalGeometry, 40, 10, &pm5::natural_priority()).unwrap();
+    let natural = kinecal::study::pm5_identifiability(Parasitic::NominalGeometry, 40, 10, &pm5::natural_priority()).unwrap();
     assert_eq!(
         natural.redundant,
         ["db1y", "db2y", "dl4", "dl5", "db3y", "dl8", "dl9", "dty", "dy0"]
             .map(String::from)
             .to_vec()
     );
-    let physical = pm5::identifiability(Parasitic::Physical, 40, 10, &pm5::natural_priority()).unwrap();
+    let physical = kinecal::study::pm5_identifiability(Parasitic::Physical, 40, 10, &pm5::natural_priority()).unwrap();
     assert_eq!(physical.rank, 32);
     assert_eq!(
         physical.redundant,
@@ -223,7 +223,7 @@ fn pm5_noise_free_identification_is_exact() {
     let truth = simulate::perturbed(&nominal, &delta);
     let qs = nominal.random_configurations(&mut rng, 30).unwrap();
     let data = simulate::measure(&truth, &qs, ObservationKind::Pose, None, &mut rng).unwrap();
-    let ident = pm5::identifiability(Parasitic::Physical, 40, 10, &pm5::natural_priority()).unwrap();
+    let ident = kinecal::study::pm5_identifiability(Parasitic::Physical, 40, 10, &pm5::natural_priority()).unwrap();
     let opts = Options {
         free: Some(ident.identifiable_indices.clone()),
         noise: Noise::default(),

@@ -2,9 +2,9 @@
 //! the geometry allows, Hayati's β for nearly parallel axes.
 use kinecal::identifiability;
 use kinecal::identify::linearize;
+use kinecal::io::builtin;
 use kinecal::io::model_file::{MechanismSpec, ModelFile};
 use kinecal::measure::{Measurement, Noise, Observation};
-use kinecal::model::builtin;
 use kinecal::model::dh::{DhConvention, DhError, DhOptions};
 use kinecal::se3::{self, Pose};
 use kinecal::workflow::random_inputs;

@@ -1,7 +1,7 @@
 //! Model files: export → load round trip, units, and one-line errors naming file and line.
 use approx::assert_relative_eq;
+use kinecal::io::builtin;
 use kinecal::io::model_file::{select_params, ModelFile};
-use kinecal::model::builtin;
 use kinecal::se3;
 use kinecal::Mechanism;
 use nalgebra::DVector;

@@ -2,12 +2,11 @@
 //! load round trips (nominal and calibrated geometry, any units), the whole workflow through the
 //! binary with the numbers checked, and the one-line errors of bad inputs.
 use crate::cli::{fails, json, ok};
+use kinecal::io::builtin;
 use kinecal::io::data_file::{read_data, write_data, InputColumns};
 use kinecal::io::model_file::{MechanismSpec, ModelFile};
 use kinecal::io::table::read_table;
 use kinecal::measure::{Measurement, Observation};
-use kinecal::model::builtin;
-use kinecal::model::closed::ClosedLoop;
 use kinecal::model::presets::pm5::{Parasitic, Pm5};
 use kinecal::se3;
 use kinecal::simulate::{perturbed, random_errors};
@@ -87,16 +86,7 @@ fn calibrated_geometry_round_trips_in_any_units() {
             let back = load(&text).unwrap();
             let m = back.build();
             same_kinematics(&*truth, &*m, 1e-9, 2);
-            let values = |m: &dyn Mechanism| -> Vec<f64> {
-                let any = m.as_any().unwrap();
-                if let Some(c) = any.downcast_ref::<ClosedLoop<Pm5>>() {
-                    c.values()
-                } else {
-                    any.downcast_ref::<ClosedLoop<kinecal::model::presets::stewart::Stewart>>()
-                        .unwrap()
-                        .values()
-                }
-            };
+            let values = |m: &dyn Mechanism| -> Vec<f64> { m.geometry().unwrap() };
             for (a, b) in values(&*truth).iter().zip(values(&*m)) {
                 assert!((a - b).abs() <= 1e-12 * a.abs().max(1.0), "{a} vs {b} ({l}, {a})");
             }

@@ -4,10 +4,10 @@
 //! from the flange/platform; noise-free data recover the geometry (held-out poses to 1e-9 mm),
 //! 20 µm / 0.02° noise gives held-out errors at the noise level.
 use kinecal::calibrate::{calibrate, CalibrationOptions};
+use kinecal::io::builtin;
 use kinecal::io::data_file::{DataSet, MeasurementFormat};
 use kinecal::io::model_file::ModelFile;
 use kinecal::measure::{Measurement, Noise, Observation};
-use kinecal::model::builtin;
 use kinecal::model::framed::Framed;
 use kinecal::se3::{self, Pose};
 use kinecal::workflow::{pose_errors, random_configurations, virtual_prototype, ErrorStats};

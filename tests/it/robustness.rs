@@ -1,10 +1,10 @@
 //! Hostile but realistic input (issue: never hang, never destroy, never pass a failed result):
 //! each case answers at once with one clear message.
 use kinecal::design::{CandidateJacobians, SelectOptions};
+use kinecal::io::builtin;
 use kinecal::io::data_file::{data_from_table, InputColumns};
 use kinecal::io::model_file::ModelFile;
 use kinecal::io::table::parse_table;
-use kinecal::model::builtin;
 use kinecal::Mechanism;
 use std::path::Path;
 

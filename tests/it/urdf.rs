@@ -1,9 +1,9 @@
 //! URDF in and out: the IRB 120 and the UR5e from their published geometry, round trips, and one
 //! clear line for every malformed file.
 use crate::cli::{fails, ok};
+use kinecal::io::builtin;
 use kinecal::io::model_file::ModelFile;
 use kinecal::io::urdf::{self, UrdfError};
-use kinecal::model::builtin;
 use kinecal::se3::{self, Pose};
 use kinecal::workflow::random_inputs;
 use kinecal::Mechanism;

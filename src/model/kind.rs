@@ -1,0 +1,104 @@
+//! The mechanism kinds a model file can describe ([`MechanismSpec`]) and their inputs
+//! ([`InputSpec`]): the model layer's catalogue of kinds. Reading and writing them is
+//! [`crate::io::model_file`]'s job; computing with them is [`MechanismSpec::build`]'s.
+use crate::model::chain::{JointKind, SerialChain};
+use crate::model::closed::{ClosedLoop, ConstraintSystem};
+use crate::model::presets::pm5::Pm5;
+use crate::model::presets::stewart::Stewart;
+use crate::model::Mechanism;
+use crate::params::Unit;
+
+/// One input (actuator or sensed joint) of a mechanism: its name, unit kind and limits.
+#[derive(Debug, Clone, PartialEq)]
+pub struct InputSpec {
+    /// Name, as in [`Mechanism::input_names`].
+    pub name: String,
+    /// [`Unit::Angle`] (rad) for revolute, [`Unit::Length`] (mm) for prismatic inputs.
+    pub unit: Unit,
+    /// Limits (rad or mm), if any.
+    pub limits: Option<(f64, f64)>,
+}
+
+/// The kind-specific part of a model file (values in mm and rad).
+#[derive(Debug, Clone, PartialEq)]
+pub enum MechanismSpec {
+    /// `kind = "serial"`: a local-POE serial chain.
+    Serial(SerialChain),
+    /// `kind = "pm5"`: the 5-DOF PUU-2PR(RPRR)S machine (44 parameters with the paper's names).
+    Pm5(ClosedLoop<Pm5>),
+    /// `kind = "stewart"`: a 6-UPS Stewart platform (42 parameters).
+    Stewart(ClosedLoop<Stewart>),
+}
+
+/// The mechanism kinds a model file can hold, as written in `[mechanism] kind`.
+pub const KINDS: [&str; 3] = ["serial", "pm5", "stewart"];
+
+fn closed_loop_inputs<C: ConstraintSystem>(m: &ClosedLoop<C>) -> Vec<InputSpec> {
+    let s = m.system();
+    s.input_names()
+        .into_iter()
+        .zip(s.strokes())
+        .map(|(name, st)| InputSpec {
+            name,
+            unit: Unit::Length,
+            limits: Some(st),
+        })
+        .collect()
+}
+
+impl MechanismSpec {
+    /// The kind's name as written in files.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            MechanismSpec::Serial(_) => "serial",
+            MechanismSpec::Pm5(_) => "pm5",
+            MechanismSpec::Stewart(_) => "stewart",
+        }
+    }
+
+    /// The mechanism, ready to compute with.
+    pub fn build(&self) -> Box<dyn Mechanism> {
+        match self {
+            MechanismSpec::Serial(c) => Box::new(c.clone()),
+            MechanismSpec::Pm5(m) => Box::new(m.clone()),
+            MechanismSpec::Stewart(m) => Box::new(m.clone()),
+        }
+    }
+
+    /// The inputs with their units and limits.
+    pub fn inputs(&self) -> Vec<InputSpec> {
+        match self {
+            MechanismSpec::Serial(c) => c
+                .joints()
+                .iter()
+                .map(|j| InputSpec {
+                    name: j.name.clone(),
+                    unit: match j.kind {
+                        JointKind::Revolute => Unit::Angle,
+                        JointKind::Prismatic => Unit::Length,
+                    },
+                    limits: j.limits,
+                })
+                .collect(),
+            MechanismSpec::Pm5(m) => closed_loop_inputs(m),
+            MechanismSpec::Stewart(m) => closed_loop_inputs(m),
+        }
+    }
+
+    /// The same kind with the geometry of `model` (e.g. a calibrated copy of [`Self::build`]'s
+    /// mechanism). Fails when `model` is not of this kind.
+    pub fn with_geometry_of(&self, model: &dyn Mechanism) -> Result<MechanismSpec, String> {
+        let not = |what: &str| format!("model '{}' is not {what}", model.name());
+        let values = model.geometry().ok_or_else(|| not("a mechanism a model file describes"))?;
+        match self {
+            MechanismSpec::Serial(c) => c
+                .with_geometry(&values)
+                .map(MechanismSpec::Serial)
+                .map_err(|e| format!("{}: {e}", not("this serial chain"))),
+            MechanismSpec::Pm5(m) if model.name() == m.name() => m.with_geometry(&values).map(MechanismSpec::Pm5),
+            MechanismSpec::Stewart(m) if model.name() == m.name() => m.with_geometry(&values).map(MechanismSpec::Stewart),
+            MechanismSpec::Pm5(_) => Err(not("a pm5 machine")),
+            MechanismSpec::Stewart(_) => Err(not("a Stewart platform")),
+        }
+    }
+}
