@@ -18,10 +18,19 @@ pub mod register;
 pub mod report;
 pub mod se3;
 pub mod simulate;
-pub mod study;
-pub mod t3r1;
-pub mod tracker_calibration;
+#[cfg(feature = "studies")]
+pub mod studies;
 pub mod workflow;
+
+/// The IRB 120 dataset pipeline ([`studies::irb120`]), under its earlier name.
+#[cfg(feature = "studies")]
+pub use studies::irb120 as tracker_calibration;
+/// The 5-DOF paper's study ([`studies::pm5`]), under its earlier name.
+#[cfg(feature = "studies")]
+pub use studies::pm5 as study;
+/// The 3T1R study ([`studies::t3r1`]).
+#[cfg(feature = "studies")]
+pub use studies::t3r1;
 
 pub use error::{CalibError, KinError};
 pub use model::Mechanism;

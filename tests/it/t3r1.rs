@@ -1,8 +1,8 @@
 //! The 3T1R manipulator: preset closure (FK∘IK), the actual machine, the method of the paper.
 use approx::assert_relative_eq;
-use kinecal::model::presets::t3r1::{tilt, ActualMachine, BranchedChain, ChainId, Geometry, PlatformPose, PresetErrors, T3r1, Workspace};
 use kinecal::model::Mechanism;
 use kinecal::se3::{self, Pose};
+use kinecal::studies::t3r1_machine::{tilt, ActualMachine, BranchedChain, ChainId, Geometry, PlatformPose, PresetErrors, T3r1, Workspace};
 use nalgebra::{UnitQuaternion, Vector3};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -166,8 +166,8 @@ mod method {
     use super::poses;
     use kinecal::identify::rls_solve;
     use kinecal::measure::Noise;
-    use kinecal::model::presets::t3r1::{ActualMachine, ChainId, PresetErrors, T3r1};
     use kinecal::se3;
+    use kinecal::studies::t3r1_machine::{ActualMachine, ChainId, PresetErrors, T3r1};
     use kinecal::t3r1::{
         identify_pair, linearize_pair, lower_angles_eq25, rls_sqrt, ChainPair, LowerAngles, PairMeasurement, PairOptions, PairReading,
     };
@@ -359,7 +359,7 @@ mod method {
         for t in poses(5, 11) {
             let (sliders, t_cp) = kinecal::t3r1::compensate(&main.pair, &idle.pair, &m, &t).unwrap();
             let (_, reached) = a.forward(&sliders).unwrap();
-            let p = kinecal::model::presets::t3r1::PlatformPose::from_pose(&reached);
+            let p = kinecal::studies::t3r1_machine::PlatformPose::from_pose(&reached);
             assert!((p.x - t.x).abs() < 1e-8 && (p.y - t.y).abs() < 1e-8 && (p.z - t.z).abs() < 1e-8);
             assert!((p.yaw - t.yaw).abs() < 1e-10);
             // T_cp is the nominal pose of the compensated commands: it differs from T_co by the error.

@@ -1,5 +1,5 @@
 //! The calibration method of the 3T1R paper (§3–§7) on the preset of
-//! [`crate::model::presets::t3r1`], and its §6 simulation study.
+//! [`crate::studies::t3r1_machine`], and its §6 simulation study.
 //!
 //! # What is identified
 //!
@@ -62,9 +62,9 @@ use crate::error::{CalibError, KinError};
 use crate::identifiability::{self, Identifiability};
 use crate::identify::Linearization;
 use crate::measure::Noise;
-use crate::model::presets::t3r1::{platform_rows, BranchedChain, ChainId, Configuration, ErrorModel, PlatformPose, T3r1};
 use crate::model::Mechanism;
 use crate::se3::{self, Pose};
+use crate::studies::t3r1_machine::{platform_rows, BranchedChain, ChainId, Configuration, ErrorModel, PlatformPose, T3r1};
 use nalgebra::{DMatrix, DVector, Matrix2, Vector2};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -487,7 +487,7 @@ pub struct Ranks {
 pub fn ranks(
     pair: &ChainPair,
     data: &[PairMeasurement],
-    geometry: &crate::model::presets::t3r1::Geometry,
+    geometry: &crate::studies::t3r1_machine::Geometry,
     tol: f64,
 ) -> Result<Ranks, CalibError> {
     let n = data.len();
@@ -663,9 +663,9 @@ pub struct StudyConfig {
     /// Validation poses.
     pub validation_poses: usize,
     /// Preset errors of the simulated machine.
-    pub errors: crate::model::presets::t3r1::PresetErrors,
+    pub errors: crate::studies::t3r1_machine::PresetErrors,
     /// Workspace the poses are drawn from.
-    pub workspace: crate::model::presets::t3r1::Workspace,
+    pub workspace: crate::studies::t3r1_machine::Workspace,
 }
 
 impl Default for StudyConfig {
@@ -891,7 +891,7 @@ fn measurements(
 
 fn run_case(
     nominal: &T3r1,
-    actual: &crate::model::presets::t3r1::ActualMachine,
+    actual: &crate::studies::t3r1_machine::ActualMachine,
     ident: &[SimPose],
     valid: &[SimPose],
     noise: Option<StudyNoise>,
@@ -963,7 +963,7 @@ fn run_case(
         comp.before_yaw_deg = comp.before_yaw_deg.max(by);
         comp.after_position_mm = comp.after_position_mm.max(cp);
         comp.after_yaw_deg = comp.after_yaw_deg.max(cy);
-        comp.tilt_deg = comp.tilt_deg.max(crate::model::presets::t3r1::tilt(&reached).to_degrees());
+        comp.tilt_deg = comp.tilt_deg.max(crate::studies::t3r1_machine::tilt(&reached).to_degrees());
         let dprog = nalgebra::Vector3::new(t_cp.x - s.target.x, t_cp.y - s.target.y, t_cp.z - s.target.z).norm();
         comp.program_change_mm = comp.program_change_mm.max(dprog);
     }
@@ -1021,7 +1021,7 @@ fn run_case(
 /// Run the §6 study: draw poses, simulate the actual machine, compute ranks, identify the main and
 /// the idle pair noise-free and with noise, cross-validate and compensate.
 pub fn run_study(config: &StudyConfig) -> Result<StudyReport, CalibError> {
-    use crate::model::presets::t3r1::ActualMachine;
+    use crate::studies::t3r1_machine::ActualMachine;
     use rand::SeedableRng;
     if config.identification_poses < 4 || config.validation_poses == 0 {
         return Err(CalibError::InvalidOption(format!(
