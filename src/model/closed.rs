@@ -46,79 +46,10 @@ use rand::{Rng, RngExt};
 pub trait Scalar: DualNum<Primitive = f64> + Copy + Send + Sync {}
 impl<T: DualNum<Primitive = f64> + Copy + Send + Sync> Scalar for T {}
 
+mod mechanism;
 /// Small generic 3-vector / 3×3-matrix algebra on [`Scalar`]s (row-major arrays), used to write
 /// constraint equations once for `f64` and dual numbers.
-pub mod v3 {
-    use super::Scalar;
-
-    /// A 3-vector.
-    pub type V3<D> = [D; 3];
-    /// A 3×3 matrix, rows first.
-    pub type M3<D> = [[D; 3]; 3];
-
-    /// A constant as a scalar.
-    pub fn c<D: Scalar>(v: f64) -> D {
-        D::from(v)
-    }
-    /// `a + b`.
-    pub fn add<D: Scalar>(a: &V3<D>, b: &V3<D>) -> V3<D> {
-        [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-    }
-    /// `a − b`.
-    pub fn sub<D: Scalar>(a: &V3<D>, b: &V3<D>) -> V3<D> {
-        [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-    }
-    /// `s·a`.
-    pub fn scale<D: Scalar>(a: &V3<D>, s: D) -> V3<D> {
-        [a[0] * s, a[1] * s, a[2] * s]
-    }
-    /// `a·b`.
-    pub fn dot<D: Scalar>(a: &V3<D>, b: &V3<D>) -> D {
-        a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-    }
-    /// `a × b`.
-    pub fn cross<D: Scalar>(a: &V3<D>, b: &V3<D>) -> V3<D> {
-        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-    }
-    /// `|a|`.
-    pub fn norm<D: Scalar>(a: &V3<D>) -> D {
-        dot(a, a).sqrt()
-    }
-    /// `M·a`.
-    pub fn mul<D: Scalar>(m: &M3<D>, a: &V3<D>) -> V3<D> {
-        [dot(&m[0], a), dot(&m[1], a), dot(&m[2], a)]
-    }
-    /// `A·B`.
-    pub fn matmul<D: Scalar>(a: &M3<D>, b: &M3<D>) -> M3<D> {
-        let mut out = [[c::<D>(0.0); 3]; 3];
-        for (i, row) in out.iter_mut().enumerate() {
-            for (j, v) in row.iter_mut().enumerate() {
-                *v = a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j];
-            }
-        }
-        out
-    }
-    /// Column `j` of `M`.
-    pub fn column<D: Scalar>(m: &M3<D>, j: usize) -> V3<D> {
-        [m[0][j], m[1][j], m[2][j]]
-    }
-    /// `R = Rot(x,α)·Rot(y,β)·Rot(z,γ)` (X-Y-Z Euler angles, eq. (2) of the 5-DOF paper).
-    pub fn rot_xyz<D: Scalar>(a: D, b: D, g: D) -> M3<D> {
-        let (sa, ca) = a.sin_cos();
-        let (sb, cb) = b.sin_cos();
-        let (sg, cg) = g.sin_cos();
-        [
-            [cb * cg, -(cb * sg), sb],
-            [ca * sg + sa * sb * cg, ca * cg - sa * sb * sg, -(cb * sa)],
-            [sa * sg - ca * sb * cg, sa * cg + ca * sb * sg, ca * cb],
-        ]
-    }
-    /// `(cos φ, sin φ, 0)`: a rail direction in the base plane.
-    pub fn planar<D: Scalar>(phi: D) -> V3<D> {
-        let (s, co) = phi.sin_cos();
-        [co, s, c(0.0)]
-    }
-}
+pub mod v3;
 
 use v3::{M3, V3};
 
@@ -726,95 +657,6 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
 
     fn n_params_total(&self) -> usize {
         self.geometry.len() + if self.frame_errors { 9 } else { 0 }
-    }
-}
-
-impl<C: ConstraintSystem> Mechanism for ClosedLoop<C> {
-    fn name(&self) -> &str {
-        self.system.name()
-    }
-    /// The inverse starts from the per-limb closed form, never from a seed.
-    fn inverse_ignores_seed(&self) -> bool {
-        true
-    }
-    fn input_names(&self) -> Vec<String> {
-        self.system.input_names()
-    }
-    fn params(&self) -> Vec<Param> {
-        let mut p = self.system.geometry_params();
-        if self.frame_errors {
-            for n in TOOL_PARAMS {
-                p.push(Param::new(n, Unit::Length, "tool"));
-            }
-            for (i, n) in BASE_PARAMS.iter().enumerate() {
-                p.push(Param::new(*n, if i < 3 { Unit::Length } else { Unit::Angle }, "base"));
-            }
-        }
-        p
-    }
-    fn n_params(&self) -> usize {
-        self.n_params_total()
-    }
-    fn forward(&self, q: &[f64]) -> Result<Pose, KinError> {
-        let x = self.platform_pose(q, None)?;
-        Ok(self.tool_pose_of(&x))
-    }
-    fn forward_with_jacobian(&self, q: &[f64]) -> Result<(Pose, Matrix6xX<f64>), KinError> {
-        let (x, dx) = self.pose_sensitivity(q, None)?;
-        let pose = self.tool_pose_of(&x);
-        let p = pose.translation.vector;
-        let r = se3::rotation_matrix(&pose);
-        let np = self.n_params_total();
-        let ng = self.geometry.len();
-        let mut jac = Matrix6xX::zeros(np);
-        for j in 0..np {
-            let xd: [Dual64; 6] = std::array::from_fn(|i| Dual64::new(x[i], dx[(i, j)]));
-            let tool: [Dual64; 3] =
-                std::array::from_fn(|i| Dual64::new(self.tool[i], if self.frame_errors && j == ng + i { 1.0 } else { 0.0 }));
-            let base: [Dual64; 6] =
-                std::array::from_fn(|i| Dual64::new(self.base[i], if self.frame_errors && j == ng + 3 + i { 1.0 } else { 0.0 }));
-            let (pd, rd) = tool_pose_generic(&xd, &tool, &base);
-            let dp = Vector3::new(pd[0].eps, pd[1].eps, pd[2].eps);
-            let dr = Matrix3::from_fn(|a, b| rd[a][b].eps);
-            let w = se3::unskew(&(dr * r.transpose()));
-            let v = dp - w.cross(&p);
-            for k in 0..3 {
-                jac[(k, j)] = v[k];
-                jac[(3 + k, j)] = w[k];
-            }
-        }
-        Ok((pose, jac))
-    }
-    fn retract(&mut self, delta: &DVector<f64>) {
-        let ng = self.geometry.len();
-        for i in 0..ng.min(delta.len()) {
-            self.geometry[i] += delta[i];
-        }
-        if self.frame_errors && delta.len() >= ng + 9 {
-            for i in 0..3 {
-                self.tool[i] += delta[ng + i];
-            }
-            for i in 0..6 {
-                self.base[i] += delta[ng + 3 + i];
-            }
-        }
-    }
-    fn inverse(&self, target: &Pose, _seed: Option<&[f64]>) -> Result<Vec<f64>, KinError> {
-        self.inverse_with_pose(target).map(|r| r.0)
-    }
-    fn box_clone(&self) -> Box<dyn Mechanism> {
-        Box::new(self.clone())
-    }
-    fn geometry(&self) -> Option<Vec<f64>> {
-        Some(self.geometry.iter().chain(&self.tool).chain(&self.base).copied().collect())
-    }
-    fn task(&self) -> Task {
-        self.system.task()
-    }
-    fn sample_configurations(&self, n: usize, seed: u64) -> Option<Result<Vec<Vec<f64>>, KinError>> {
-        use rand::SeedableRng;
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-        Some(self.random_configurations(&mut rng, n))
     }
 }
 

@@ -1,4 +1,5 @@
 //! kinecal integration tests (one binary, one module per concern).
+mod architecture;
 mod chain;
 mod cli;
 mod closed;

@@ -1,0 +1,112 @@
+//! Unit tests of the data-file reader.
+use super::*;
+use crate::io::table::parse_table;
+
+fn inputs() -> Vec<InputSpec> {
+    vec![
+        InputSpec {
+            name: "q1".into(),
+            unit: Unit::Angle,
+            limits: None,
+        },
+        InputSpec {
+            name: "d2".into(),
+            unit: Unit::Length,
+            limits: None,
+        },
+    ]
+}
+
+fn read(text: &str) -> Result<DataSet, String> {
+    let t = parse_table(Path::new("d.csv"), text).map_err(|e| e.to_string())?;
+    data_from_table(&t, &inputs(), InputColumns::Required).map_err(|e| e.to_string())
+}
+
+#[test]
+fn reads_every_format_in_internal_units() {
+    let d = read("q1_deg,d2_m,x_m,y_mm,z_mm\n90,0.5,1,2,3\n").unwrap();
+    assert_eq!(d.format, MeasurementFormat::Position);
+    assert!((d.measurements[0].q[0] - std::f64::consts::FRAC_PI_2).abs() < 1e-15);
+    assert_eq!(d.measurements[0].q[1], 500.0);
+    assert_eq!(d.measurements[0].obs, Observation::Position(Vector3::new(1000.0, 2.0, 3.0)));
+    let d = read("id,q1_rad,d2_mm,x_mm,y_mm,z_mm,roll_deg,pitch_deg,yaw_deg\n7,0,0,0,0,0,0,0,90\n").unwrap();
+    assert_eq!(d.ids, vec![7]);
+    let Observation::Pose(t) = &d.measurements[0].obs else { panic!() };
+    assert!((t.rotation.angle() - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+    let d = read("q1_rad,d2_mm,x_mm,y_mm,z_mm,qw,qx,qy,qz\n0,0,0,0,0,1,0,0,0\n").unwrap();
+    assert_eq!(d.format, MeasurementFormat::PoseQuaternion);
+    let d = read("q1_rad,d2_mm,m1x_mm,m1y_mm,m1z_mm,m2x_mm,m2y_mm,m2z_mm,m3x_mm,m3y_mm,m3z_mm\n0,0,0,60,0,40,-30,0,-40,-30,0\n").unwrap();
+    let Observation::Pose(t) = &d.measurements[0].obs else { panic!() };
+    assert!(t.rotation.angle() < 1e-12 && t.translation.vector.norm() < 1e-12);
+}
+
+#[test]
+fn errors_name_file_line_and_column() {
+    assert_eq!(
+        read("q1_mm,d2_mm,x_mm,y_mm,z_mm\n").unwrap_err(),
+        "d.csv:1: column 'q1_mm': unit 'mm' for the angular input 'q1' (use q1_deg or q1_rad)"
+    );
+    assert_eq!(
+        read("q1,d2_mm,x_mm,y_mm,z_mm\n").unwrap_err(),
+        "d.csv:1: column 'q1': no unit suffix for the angular input 'q1' (use q1_deg or q1_rad)"
+    );
+    assert!(read("q1_deg,d2_mm,x_mm,y_mm,z_mm,w\n")
+        .unwrap_err()
+        .starts_with("d.csv:1: unknown column 'w'"));
+    assert!(read("q1_deg,x_mm,y_mm,z_mm\n")
+        .unwrap_err()
+        .starts_with("d.csv:1: missing column 'd2_mm'"));
+    assert!(read("q1_deg,d2_mm,x_mm,y_mm\n")
+        .unwrap_err()
+        .starts_with("d.csv:1: missing column 'z_mm'"));
+    assert_eq!(
+        read("q1_deg,d2_mm,x_mm,y_mm,z_mm,qw,qx,qy,qz\n0,0,0,0,0,2,0,0,0\n").unwrap_err(),
+        "d.csv:2: qw,qx,qy,qz: not a unit quaternion (norm 2.000000)"
+    );
+}
+
+#[test]
+fn joins_an_inputs_file_and_a_measurement_file() {
+    let dir = std::env::temp_dir().join(format!("kinecal-join-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (j, m) = (dir.join("j.csv"), dir.join("m.csv"));
+    std::fs::write(&j, "id,q1_deg,d2_mm\n5,90,1\n6,0,2\n").unwrap();
+    std::fs::write(&m, "id,x_mm,y_mm,z_mm\n5,1,2,3\n6,4,5,6\n").unwrap();
+    let d = join_files(&j, &m, &inputs()).unwrap();
+    assert_eq!(d.ids, vec![5, 6]);
+    assert_eq!(d.measurements[1].q, vec![0.0, 2.0]);
+    assert_eq!(d.measurements[1].obs, Observation::Position(Vector3::new(4.0, 5.0, 6.0)));
+    let msg = |e: IoError| e.to_string().replace(&format!("{}/", dir.display()), "");
+    std::fs::write(&m, "id,x_mm,y_mm,z_mm\n5,1,2,3\n").unwrap();
+    assert_eq!(
+        msg(join_files(&j, &m, &inputs()).unwrap_err()),
+        "m.csv: 1 rows but j.csv has 2; every file must have one row per pose"
+    );
+    std::fs::write(&m, "id,x_mm,y_mm,z_mm\n5,1,2,3\n7,4,5,6\n").unwrap();
+    assert_eq!(
+        msg(join_files(&j, &m, &inputs()).unwrap_err()),
+        "m.csv:3: pose index 7 where j.csv has 6"
+    );
+    std::fs::write(&m, "id,q1_deg,x_mm,y_mm,z_mm\n5,1,1,2,3\n6,1,4,5,6\n").unwrap();
+    assert!(msg(join_files(&j, &m, &inputs()).unwrap_err()).starts_with("m.csv:1: unknown column 'q1_deg'"));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn write_then_read_round_trips() {
+    let dir = std::env::temp_dir().join(format!("kinecal-data-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("w.csv");
+    let t = crate::se3::pose_from_parts(Vector3::new(1.5, -2.0, 3.25), Vector3::new(0.1, -0.2, 0.3));
+    let m = vec![Measurement {
+        q: vec![0.25, 12.5],
+        obs: Observation::Pose(t),
+    }];
+    write_data(&path, &inputs(), &[3], &m, None).unwrap();
+    let d = read_data(&path, &inputs(), InputColumns::Required).unwrap();
+    assert_eq!(d.ids, vec![3]);
+    assert!((d.measurements[0].q[0] - 0.25).abs() < 1e-15);
+    let Observation::Pose(b) = &d.measurements[0].obs else { panic!() };
+    assert!((b.to_homogeneous() - t.to_homogeneous()).abs().max() < 1e-14);
+    std::fs::remove_dir_all(&dir).unwrap();
+}

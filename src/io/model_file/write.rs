@@ -1,0 +1,132 @@
+//! Writing model files: the `[mechanism]` part of each kind, poses, DH tables, numbers.
+use super::*;
+
+/// Write the `[mechanism]` part of a model file for `spec` in `units`.
+pub(super) fn write_mechanism(spec: &MechanismSpec, units: &Units, out: &mut String) -> Result<(), String> {
+    let (l, a) = (units.length.to_mm(), units.angle.to_rad());
+    match spec {
+        MechanismSpec::Serial(c) => {
+            out.push_str("[mechanism]\nkind = \"serial\"\n");
+            out.push_str("# Joint j: position/rpy = T_{j-1,j}(0), the joint frame in the previous joint frame at zero\n");
+            out.push_str("# joint values; axis = joint axis in that frame through its origin.\n");
+            for (j, joint) in c.joints().iter().enumerate() {
+                let t = joint.twist;
+                let (kind, axis, rest) = match joint.kind {
+                    JointKind::Revolute => ("revolute", [t[3], t[4], t[5]], [t[0], t[1], t[2]]),
+                    JointKind::Prismatic => ("prismatic", [t[0], t[1], t[2]], [t[3], t[4], t[5]]),
+                };
+                if rest.iter().any(|v| v.abs() > 1e-12) {
+                    return Err(format!(
+                        "joint '{}': a joint twist with an offset cannot be written; put the offset in the joint's position",
+                        joint.name
+                    ));
+                }
+                let _ = write!(
+                    out,
+                    "\n[[mechanism.joints]]\nname = \"{}\"\ntype = \"{kind}\"\naxis = {}\n",
+                    joint.name,
+                    fmt3(axis)
+                );
+                if let Some((lo, hi)) = joint.limits {
+                    let f = if joint.kind == JointKind::Revolute { a } else { l };
+                    let _ = writeln!(out, "limits = [{}, {}]", num(lo / f), num(hi / f));
+                }
+                write_pose(&c.initial_poses()[j], units, out);
+            }
+            out.push_str("\n[mechanism.tool]\n");
+            write_pose(c.tool(), units, out);
+        }
+        MechanismSpec::Pm5(m) => parallel::write_pm5(m, units, out),
+        MechanismSpec::Stewart(m) => parallel::write_stewart(m, units, out),
+    }
+    Ok(())
+}
+
+pub(super) fn quote(s: &str) -> String {
+    format!("\"{}\"", s.replace('\\', "\\\\").replace('"', "\\\""))
+}
+
+/// `v` as written in a file: a decimal of at most 12 significant digits when one lies within
+/// 2e-15 (relative) of `v` — unit conversions do not leave `119.99999999999999` where the user
+/// wrote `120` — else the shortest decimal that reads back as exactly `v` (calibrated values lose
+/// nothing). Writing a value read from such a text gives the same text again. `-0.0` is `0.0`.
+pub(super) fn num(v: f64) -> String {
+    if v == 0.0 {
+        return "0.0".into();
+    }
+    for prec in 0..12 {
+        let s = format!("{v:.prec$e}");
+        if let Ok(p) = s.parse::<f64>() {
+            if (p - v).abs() <= 2e-15 * v.abs() {
+                return format!("{p:?}");
+            }
+        }
+    }
+    format!("{v:?}")
+}
+
+pub(super) fn fmt3(v: [f64; 3]) -> String {
+    format!("[{}, {}, {}]", num(v[0]), num(v[1]), num(v[2]))
+}
+
+/// Writes `position` and `rpy` ([`crate::se3::rpy`]), or `rotvec` where roll/pitch/yaw would
+/// not give the rotation back to 1e-14 rad.
+pub(super) fn write_pose(p: &Pose, units: &Units, out: &mut String) {
+    let t = p.translation.vector / units.length.to_mm();
+    let f = units.angle.to_rad();
+    let _ = writeln!(out, "position = {}", fmt3([t.x, t.y, t.z]));
+    let [roll, pitch, yaw] = crate::se3::rpy(&p.rotation);
+    let back = UnitQuaternion::from_euler_angles(roll, pitch, yaw);
+    if crate::se3::so3_log(&(back.inverse() * p.rotation)).norm() <= 1e-14 {
+        let _ = writeln!(out, "rpy = {}", fmt3([roll / f, pitch / f, yaw / f]));
+    } else {
+        let v = crate::se3::so3_log(&p.rotation) / f;
+        let _ = writeln!(out, "rotvec = {}", fmt3([v.x, v.y, v.z]));
+    }
+}
+
+pub(super) fn write_dh(table: &DhTable, units: &Units, out: &mut String) {
+    let (l, a) = (units.length.to_mm(), units.angle.to_rad());
+    let key = table.convention.key();
+    out.push_str("[mechanism]\nkind = \"serial\"\n");
+    match table.convention {
+        DhConvention::Standard => {
+            out.push_str("# Standard DH: A_i(q) = Rz(theta + q)·Tz(d)·Tx(a)·Rx(alpha)·Ry(beta) (q adds to d for prismatic\n");
+            out.push_str("# joints; beta is Hayati's, 0 when absent); g(q) = base · A_1(q_1) ··· A_n(q_n) · tool.\n");
+        }
+        DhConvention::Modified => {
+            out.push_str("# Modified DH (Craig): A_i(q) = Rx(alpha)·Tx(a)·Rz(theta + q)·Tz(d), row i holding alpha_{i-1}\n");
+            out.push_str("# and a_{i-1} (q adds to d for prismatic joints); g(q) = base · A_1(q_1) ··· A_n(q_n) · tool.\n");
+        }
+    }
+    out.push_str("\n[mechanism.base]  # frame 0 in the world frame\n");
+    write_pose(&table.base, units, out);
+    for j in &table.joints {
+        let kind = match j.kind {
+            JointKind::Revolute => "revolute",
+            JointKind::Prismatic => "prismatic",
+        };
+        let _ = write!(
+            out,
+            "\n[[mechanism.{key}]]\nname = {}\ntype = \"{kind}\"\na = {}\nalpha = {}\nd = {}\ntheta = {}\n",
+            quote(&j.name),
+            num(j.a / l),
+            num(j.alpha / a),
+            num(j.d / l),
+            num(j.theta / a)
+        );
+        if j.beta != 0.0 {
+            let _ = writeln!(
+                out,
+                "beta = {}  # Hayati: this joint's next axis is nearly parallel to it",
+                num(j.beta / a)
+            );
+        }
+        if let Some((lo, hi)) = j.limits {
+            let f = if j.kind == JointKind::Revolute { a } else { l };
+            let _ = writeln!(out, "limits = [{}, {}]", num(lo / f), num(hi / f));
+        }
+    }
+    out.push_str("\n[mechanism.tool]  # the tool in the last DH frame\n");
+    write_pose(&table.tool, units, out);
+}
