@@ -9,22 +9,9 @@ use nalgebra::{DMatrix, DVector};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
-/// Central finite differences of the spatial identification Jacobian: retract by ±h along each
-/// coordinate and take log(T(+h)·T(−h)⁻¹)/(2h).
+/// The shared finite-difference Jacobian with one step for every coordinate.
 fn fd_jacobian<M: Mechanism + Clone>(m: &M, q: &[f64], h: f64) -> DMatrix<f64> {
-    let p = m.n_params();
-    let mut out = DMatrix::zeros(6, p);
-    for k in 0..p {
-        let mut e = DVector::zeros(p);
-        e[k] = h;
-        let mut plus = m.clone();
-        plus.retract(&e);
-        let mut minus = m.clone();
-        minus.retract(&(-e));
-        let d = se3::log(&(plus.forward(q).unwrap() * minus.forward(q).unwrap().inverse())) / (2.0 * h);
-        out.set_column(k, &d);
-    }
-    out
+    crate::support::fd_jacobian(m, q, &vec![h; m.n_params()])
 }
 
 #[test]

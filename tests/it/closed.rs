@@ -13,28 +13,7 @@ use nalgebra::{DMatrix, DVector};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
-fn fd_jacobian<M: Mechanism + Clone>(m: &M, q: &[f64], h: &[f64]) -> DMatrix<f64> {
-    let p = m.n_params();
-    let mut out = DMatrix::zeros(6, p);
-    for k in 0..p {
-        let mut e = DVector::zeros(p);
-        e[k] = h[k];
-        let mut plus = m.clone();
-        plus.retract(&e);
-        let mut minus = m.clone();
-        minus.retract(&(-e));
-        let d = se3::log(&(plus.forward(q).unwrap() * minus.forward(q).unwrap().inverse())) / (2.0 * h[k]);
-        out.set_column(k, &d);
-    }
-    out
-}
-
-fn steps<M: Mechanism>(m: &M) -> Vec<f64> {
-    m.params()
-        .iter()
-        .map(|p| if p.unit == kinecal::params::Unit::Angle { 1e-6 } else { 1e-4 })
-        .collect()
-}
+use crate::support::{fd_jacobian, steps};
 
 fn check_jacobian<C: ConstraintSystem>(m: &ClosedLoop<C>, seed: u64) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
