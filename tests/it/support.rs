@@ -5,10 +5,7 @@ use nalgebra::{DMatrix, DVector};
 
 /// Central finite differences of the spatial identification Jacobian: retract by ±h along each
 /// coordinate and take log(T(+h)·T(−h)⁻¹)/(2h).
-pub fn fd_jacobian<M: Mechanism + Clone + ?Sized>(m: &M, q: &[f64], h: &[f64]) -> DMatrix<f64>
-where
-    M: Sized,
-{
+pub fn fd_jacobian<M: Mechanism + Clone>(m: &M, q: &[f64], h: &[f64]) -> DMatrix<f64> {
     let p = m.n_params();
     let mut out = DMatrix::zeros(6, p);
     for k in 0..p {
