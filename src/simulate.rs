@@ -1,15 +1,17 @@
 //! Virtual prototypes: random geometric errors, synthetic measurements with noise, random chains.
 //!
 //! Every random draw takes an explicit seed or RNG, so the same inputs give the same outputs.
-use crate::error::CalibError;
+use crate::error::{CalibError, KinError};
 use crate::measure::{Measurement, Noise, Observation};
 use crate::model::chain::{ChainJoint, SerialChain};
+use crate::model::kind::InputSpec;
 use crate::model::Mechanism;
 use crate::params::Unit;
 use crate::se3::{self, Pose};
 use nalgebra::{DVector, Vector3};
 use rand::{Rng, RngExt};
 use rand_distr::{Distribution, Normal};
+use std::f64::consts::PI;
 
 /// Uniform random error coordinates: lengths in `±length` (mm), angles in `±angle` (rad),
 /// dimensionless ones in `±length`. Only the parameters in `which` (default: all) are drawn.
@@ -121,4 +123,88 @@ pub fn random_joint_values<R: Rng>(chain: &SerialChain, rng: &mut R, angle: f64,
             crate::model::chain::JointKind::Prismatic => rng.random_range(-length..length),
         })
         .collect()
+}
+
+/// The range an input is drawn from: its limits, or ±π rad / ±100 mm without limits.
+pub fn input_range(input: &InputSpec) -> (f64, f64) {
+    input.limits.unwrap_or(match input.unit {
+        Unit::Angle => (-PI, PI),
+        _ => (-100.0, 100.0),
+    })
+}
+
+/// `n` random input vectors, uniform within [`input_range`] of each input.
+pub fn random_inputs<R: Rng>(inputs: &[InputSpec], n: usize, rng: &mut R) -> Vec<Vec<f64>> {
+    (0..n)
+        .map(|_| {
+            inputs
+                .iter()
+                .map(|i| {
+                    let (lo, hi) = input_range(i);
+                    rng.random_range(lo..hi)
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// `n` input vectors at which `model` assembles: the mechanism's own draw
+/// ([`Mechanism::sample_configurations`]: closed loops draw platform poses uniformly in their
+/// workspace and solve the inverse kinematics) when it has one, else inputs uniform within
+/// [`input_range`] ([`random_inputs`], drawn from `rng` directly). Reproducible: for a mechanism
+/// that draws its own, one `u64` is drawn from `rng` as its seed.
+pub fn random_configurations<M: Mechanism + ?Sized, R: Rng>(
+    model: &M,
+    inputs: &[InputSpec],
+    n: usize,
+    rng: &mut R,
+) -> Result<Vec<Vec<f64>>, KinError> {
+    // Asking for no configurations tells whether the mechanism draws its own, without using rng.
+    if model.sample_configurations(0, 0).is_none() {
+        return Ok(random_inputs(inputs, n, rng));
+    }
+    let seed: u64 = rng.random();
+    model
+        .sample_configurations(n, seed)
+        .unwrap_or_else(|| Ok(random_inputs(inputs, n, rng)))
+}
+
+/// Reflector centres (mm) in the tool frame used for simulated three-reflector measurements:
+/// their frame ([`measure::frame_from_reflectors`]) *is* the tool frame (centroid at the origin,
+/// `M2 − M3` along x, `M1` on +y).
+pub const REFLECTORS: [[f64; 3]; 3] = [[0.0, 60.0, 0.0], [40.0, -30.0, 0.0], [-40.0, -30.0, 0.0]];
+
+/// The three reflector centres of [`REFLECTORS`] seen at tool pose `t`, each with Gaussian
+/// position noise `sigma_mm` per axis (0: none).
+pub fn reflector_centres<R: Rng>(t: &Pose, sigma_mm: f64, rng: &mut R) -> Result<[Vector3<f64>; 3], CalibError> {
+    let normal = Normal::new(0.0, sigma_mm).map_err(|e| CalibError::InvalidOption(e.to_string()))?;
+    let mut out = [Vector3::zeros(); 3];
+    for (k, r) in REFLECTORS.iter().enumerate() {
+        let p = t.transform_point(&Vector3::from(*r).into()).coords;
+        let n = if sigma_mm > 0.0 {
+            Vector3::new(normal.sample(rng), normal.sample(rng), normal.sample(rng))
+        } else {
+            Vector3::zeros()
+        };
+        out[k] = p + n;
+    }
+    Ok(out)
+}
+
+/// A virtual prototype: the nominal model with uniform random errors on the parameters `which`
+/// (lengths in `±length_mm`, angles in `±angle_rad`). Returns the "true" model and the error.
+pub fn virtual_prototype<M: Mechanism + Clone, R: Rng>(
+    nominal: &M,
+    which: &[usize],
+    length_mm: f64,
+    angle_rad: f64,
+    rng: &mut R,
+) -> (M, DVector<f64>) {
+    let delta = crate::simulate::random_errors(nominal, rng, length_mm, angle_rad, Some(which));
+    (crate::simulate::perturbed(nominal, &delta), delta)
+}
+
+/// Default noise when neither the command line nor the model file gives one.
+pub fn default_noise() -> Noise {
+    Noise::default()
 }

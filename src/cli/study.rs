@@ -3,7 +3,8 @@ use clap::{Args, Subcommand, ValueEnum};
 use kinecal::design::{Criterion, SelectionMethod};
 use kinecal::model::presets::pm5::Parasitic;
 use kinecal::study::{
-    pm5_design_study, pm5_plan, pm5_study, Compensation, DesignStudyOptions, ErrorStats, PlanOptions, Pm5Study, StudyOptions, SubLoopChoice,
+    pm5_design_study, pm5_plan, pm5_study, CompensatedErrorStats, Compensation, DesignStudyOptions, PlanOptions, Pm5Study, StudyOptions,
+    SubLoopChoice,
 };
 use std::time::Instant;
 
@@ -237,7 +238,7 @@ fn run_design(args: DesignArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn row(label: &str, s: &ErrorStats, paper: Option<(f64, f64)>) -> String {
+fn row(label: &str, s: &CompensatedErrorStats, paper: Option<(f64, f64)>) -> String {
     let p = paper
         .map(|(a, b)| format!("{a:>8.3} {b:>8.3}"))
         .unwrap_or_else(|| format!("{:>8} {:>8}", "–", "–"));

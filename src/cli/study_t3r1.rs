@@ -1,6 +1,6 @@
 //! `kinecal study t3r1`: the §6 simulation study of the 3T1R paper, paper vs kinecal.
 use clap::Args;
-use kinecal::t3r1::{run_study, ErrorStats, StudyCase, StudyConfig};
+use kinecal::t3r1::{run_study, PairErrorStats, StudyCase, StudyConfig};
 
 /// Arguments of `kinecal study t3r1`.
 #[derive(Args, Debug)]
@@ -19,7 +19,7 @@ pub struct StudyT3r1Args {
     pub json: bool,
 }
 
-fn line(label: &str, e: &ErrorStats) -> String {
+fn line(label: &str, e: &PairErrorStats) -> String {
     format!(
         "  {label:<28} position mean {:>10.3e} max {:>10.3e} mm   orientation mean {:>10.3e} max {:>10.3e} deg",
         e.mean_position_mm, e.max_position_mm, e.mean_orientation_deg, e.max_orientation_deg

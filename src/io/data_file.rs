@@ -79,6 +79,25 @@ pub struct DataSet {
 }
 
 impl DataSet {
+    /// A data set made in memory (e.g. from arrays, or simulated): ids 0, 1, …; `name` stands
+    /// for the file in messages. Pose observations are marked as poses, positions as positions.
+    pub fn from_measurements(name: &str, measurements: Vec<Measurement>) -> DataSet {
+        let format = match measurements.first().map(|m| &m.obs) {
+            Some(Observation::Position(_)) => MeasurementFormat::Position,
+            _ => MeasurementFormat::PoseQuaternion,
+        };
+        DataSet {
+            path: name.into(),
+            lines: (1..=measurements.len()).collect(),
+            ids: (0..measurements.len() as i64).collect(),
+            format,
+            has_inputs: measurements.first().is_some_and(|m| !m.q.is_empty()),
+            dropped: Vec::new(),
+            reflectors: Vec::new(),
+            measurements,
+        }
+    }
+
     /// A line saying which rows were dropped as lost measurements, if any:
     /// `d.csv: 3 rows dropped as lost measurements (empty or all-zero cells): lines 4, 17, 90`.
     pub fn dropped_note(&self) -> Option<String> {

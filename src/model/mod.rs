@@ -96,7 +96,7 @@ pub trait Mechanism: Send + Sync {
     /// `n` input vectors at which the mechanism assembles, drawn reproducibly from `seed`, for
     /// mechanisms where independent uniform inputs may not assemble (closed loops draw poses in
     /// their workspace and solve the inverse kinematics). `None` (default): any inputs within the
-    /// limits assemble, draw them uniformly ([`crate::workflow::random_configurations`] does).
+    /// limits assemble, draw them uniformly ([`crate::simulate::random_configurations`] does).
     fn sample_configurations(&self, n: usize, seed: u64) -> Option<Result<Vec<Vec<f64>>, KinError>> {
         let _ = (n, seed);
         None

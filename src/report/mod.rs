@@ -10,7 +10,7 @@ use crate::io::model_file::Tolerances;
 use crate::measure::{Measurement, Noise};
 use crate::model::Mechanism;
 use crate::params::Unit;
-use crate::workflow::{outliers, pose_errors, ErrorStats, Outlier, PoseErrors};
+use crate::validate::{outliers, pose_errors, ErrorStats, Outlier, PoseErrors};
 use serde::Serialize;
 
 /// Errors of one data set before and after calibration.

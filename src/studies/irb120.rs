@@ -33,7 +33,7 @@ use crate::measure::{self, register_points, Measurement, Noise, Observation};
 use crate::model::chain::SerialChain;
 use crate::model::Mechanism;
 use crate::se3::{self, Pose};
-use crate::workflow::{self, ErrorStats};
+use crate::validate::{self as workflow, ErrorStats};
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 use serde::Serialize;
 use std::time::Instant;

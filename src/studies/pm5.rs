@@ -104,9 +104,10 @@ impl Default for StudyOptions {
     }
 }
 
-/// Mean and maximum pose errors over a set of configurations (mm and degrees).
+/// Mean and maximum pose errors after the study's exact compensation over a set of configurations
+/// (mm and degrees; the general statistics are [`crate::validate::ErrorStats`]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Default)]
-pub struct ErrorStats {
+pub struct CompensatedErrorStats {
     /// Mean position error (mm).
     pub position_mean: f64,
     /// Maximum position error (mm).
@@ -121,10 +122,10 @@ pub struct ErrorStats {
     pub axis_max: f64,
 }
 
-impl ErrorStats {
+impl CompensatedErrorStats {
     fn from_errors(e: &[(f64, f64, f64)]) -> Self {
         let n = e.len().max(1) as f64;
-        let mut s = ErrorStats::default();
+        let mut s = CompensatedErrorStats::default();
         for &(p, r, a) in e {
             s.position_mean += p / n;
             s.rotation_mean += r / n;
@@ -141,11 +142,11 @@ impl ErrorStats {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Compensation {
     /// Before calibration (nominal commands).
-    pub before: ErrorStats,
+    pub before: CompensatedErrorStats,
     /// After exact compensation (calibrated inverse kinematics).
-    pub exact: ErrorStats,
+    pub exact: CompensatedErrorStats,
     /// After the paper's first-order compensation `Q_a = Q − H′·dW′`.
-    pub first_order: ErrorStats,
+    pub first_order: CompensatedErrorStats,
 }
 
 /// One trial of the study.
@@ -288,9 +289,9 @@ fn compensate(
         first.push(pose_errors(&truth.forward(&qa).map_err(kin(i))?, target));
     }
     Ok(Compensation {
-        before: ErrorStats::from_errors(&before),
-        exact: ErrorStats::from_errors(&exact),
-        first_order: ErrorStats::from_errors(&first),
+        before: CompensatedErrorStats::from_errors(&before),
+        exact: CompensatedErrorStats::from_errors(&exact),
+        first_order: CompensatedErrorStats::from_errors(&first),
     })
 }
 
@@ -724,7 +725,7 @@ pub fn pm5_design_study(plan: Pm5Plan, opts: &DesignStudyOptions) -> Result<Desi
                         let qc = res.model.inverse(target, Some(q)).map_err(kin(i))?;
                         pos.push(pose_errors(&truth.forward(&qc).map_err(kin(i))?, target));
                     }
-                    let st = ErrorStats::from_errors(&pos);
+                    let st = CompensatedErrorStats::from_errors(&pos);
                     let o2 = if j == nsets { o2_of(qs) } else { f64::NAN };
                     Ok((st.position_mean, st.axis_mean, st.position_max, o2))
                 })

@@ -680,9 +680,10 @@ impl Default for StudyConfig {
     }
 }
 
-/// Pose-error statistics (mm, degrees).
+/// Pose-error statistics of a chain pair, the worse of its two chains per pose (mm, degrees;
+/// the general statistics are [`crate::validate::ErrorStats`]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Default)]
-pub struct ErrorStats {
+pub struct PairErrorStats {
     /// Mean position error (mm).
     pub mean_position_mm: f64,
     /// Largest position error (mm).
@@ -693,10 +694,10 @@ pub struct ErrorStats {
     pub max_orientation_deg: f64,
 }
 
-impl ErrorStats {
+impl PairErrorStats {
     fn from(errs: &[(f64, f64)]) -> Self {
         let n = errs.len().max(1) as f64;
-        ErrorStats {
+        PairErrorStats {
             mean_position_mm: errs.iter().map(|e| e.0).sum::<f64>() / n,
             max_position_mm: errs.iter().map(|e| e.0).fold(0.0, f64::max),
             mean_orientation_deg: errs.iter().map(|e| e.1).sum::<f64>() / n * 180.0 / std::f64::consts::PI,
@@ -706,7 +707,7 @@ impl ErrorStats {
 }
 
 /// Errors of a pair's predictions (the worse of its two chains per pose) against `data`.
-pub fn pair_errors(pair: &ChainPair, data: &[PairMeasurement]) -> Result<ErrorStats, CalibError> {
+pub fn pair_errors(pair: &ChainPair, data: &[PairMeasurement]) -> Result<PairErrorStats, CalibError> {
     let errs = data
         .iter()
         .enumerate()
@@ -723,7 +724,7 @@ pub fn pair_errors(pair: &ChainPair, data: &[PairMeasurement]) -> Result<ErrorSt
             Ok((dp, dw))
         })
         .collect::<Result<Vec<_>, CalibError>>()?;
-    Ok(ErrorStats::from(&errs))
+    Ok(PairErrorStats::from(&errs))
 }
 
 /// Compensation results on the validation targets (§7).
@@ -747,7 +748,7 @@ pub struct CompensationStats {
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CrossValidation {
     /// Validation errors of the calibrated idle pair.
-    pub idle_validation: ErrorStats,
+    pub idle_validation: PairErrorStats,
     /// Largest position difference of the two calibrated pairs' predictions (mm).
     pub agreement_position_mm: f64,
     /// Largest orientation difference (deg).
@@ -762,7 +763,7 @@ pub struct Ablation {
     /// Iterations run.
     pub iterations: usize,
     /// Validation errors at the end.
-    pub validation: ErrorStats,
+    pub validation: PairErrorStats,
     /// `‖X‖` of the last iteration.
     pub last_x_norm: f64,
 }
@@ -775,11 +776,11 @@ pub struct StudyCase {
     /// Identifiable coordinates (of 60).
     pub identified: usize,
     /// Errors of the nominal model: identification and validation poses.
-    pub nominal: [ErrorStats; 2],
+    pub nominal: [PairErrorStats; 2],
     /// Errors after one iteration (the paper's result).
-    pub one_iteration: [ErrorStats; 2],
+    pub one_iteration: [PairErrorStats; 2],
     /// Errors after convergence.
-    pub converged: [ErrorStats; 2],
+    pub converged: [PairErrorStats; 2],
     /// `‖X‖` per iteration.
     pub x_norms: Vec<f64>,
     /// Whether `‖X‖` reached the tolerance.
