@@ -132,7 +132,7 @@ fn bench_pm5(args: &Args) -> anyhow::Result<()> {
     let mech = Pm5::mechanism(Parasitic::Physical);
     let sampling = if args.grid {
         Sampling::Grid {
-            counts: design::PM5_GRID.to_vec(),
+            counts: kinecal::model::presets::pm5::CANDIDATE_GRID.to_vec(),
         }
     } else {
         Sampling::Halton {

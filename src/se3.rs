@@ -208,6 +208,15 @@ pub fn pose_from_matrix(r: &Matrix3<f64>, p: &Vector3<f64>) -> Pose {
     Isometry3::from_parts(Translation3::from(*p), UnitQuaternion::from_rotation_matrix(&rot))
 }
 
+/// X-Y-Z Euler angles `(α, β, γ)` of a rotation matrix, `R = Rot(x,α)·Rot(y,β)·Rot(z,γ)` (the
+/// convention of closed-loop platform coordinates and model-file poses), `β` in `[−π/2, π/2]`.
+pub fn euler_xyz(r: &Matrix3<f64>) -> [f64; 3] {
+    let b = r[(0, 2)].clamp(-1.0, 1.0).asin();
+    let a = (-r[(1, 2)]).atan2(r[(2, 2)]);
+    let g = (-r[(0, 1)]).atan2(r[(0, 0)]);
+    [a, b, g]
+}
+
 /// Roll, pitch, yaw of a rotation, `R = Rz(yaw)·Ry(pitch)·Rx(roll)` (the convention of model
 /// files and of URDF), conditioned for every pitch: pitch from `atan2` (an `asin` loses half the
 /// digits near ±90°), and near ±90° (gimbal lock), where only `roll ∓ yaw` is well determined,
@@ -235,6 +244,19 @@ pub fn rpy(q: &UnitQuaternion<f64>) -> [f64; 3] {
 mod tests {
     use super::*;
     use approx::assert_relative_eq;
+
+    #[test]
+    fn euler_xyz_rebuilds_the_rotation() {
+        for (a, b, g) in [(0.3, -0.7, 2.9), (-3.0, 1.5, 0.1), (0.0, 0.0, 0.0), (1.0, -1.2, -2.0)] {
+            let r = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), a)
+                * UnitQuaternion::from_axis_angle(&Vector3::y_axis(), b)
+                * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), g);
+            let e = euler_xyz(r.to_rotation_matrix().matrix());
+            assert_relative_eq!(e[0], a, epsilon = 1e-12);
+            assert_relative_eq!(e[1], b, epsilon = 1e-12);
+            assert_relative_eq!(e[2], g, epsilon = 1e-12);
+        }
+    }
 
     #[test]
     fn rpy_rebuilds_the_rotation_at_and_near_gimbal_lock() {

@@ -208,3 +208,73 @@ pub fn virtual_prototype<M: Mechanism + Clone, R: Rng>(
 pub fn default_noise() -> Noise {
     Noise::default()
 }
+
+/// What a simulated instrument measures (see [`synthesize`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Instrument {
+    /// The tool pose, noise on the position (mm per axis) and on the orientation (rotation vector,
+    /// rad per axis).
+    Pose,
+    /// The tool-frame origin, noise in mm per axis.
+    Position,
+    /// The three reflector centres of [`REFLECTORS`] in the tool frame, each with position noise;
+    /// the observation is their frame ([`crate::measure::frame_from_reflectors`]).
+    Reflectors,
+}
+
+/// Synthetic measurements of a virtual prototype: [`Measurement`]s in order, and for
+/// [`Instrument::Reflectors`] the raw reflector centres of each pose (what a data file stores).
+#[derive(Debug, Clone)]
+pub struct SyntheticSet {
+    /// One measurement per configuration, in order.
+    pub measurements: Vec<Measurement>,
+    /// The three reflector centres per pose (mm), only for [`Instrument::Reflectors`].
+    pub reflectors: Option<Vec<[Vector3<f64>; 3]>>,
+}
+
+/// Measure `truth` at each configuration with `instrument` and Gaussian `noise` (σ 0: none),
+/// drawing from `rng` (same seed, same data). `progress` is called once per pose. A configuration
+/// the prototype does not reach is [`CalibError::Kinematics`] with its index.
+pub fn synthesize<M: Mechanism + ?Sized, R: Rng>(
+    truth: &M,
+    configurations: Vec<Vec<f64>>,
+    instrument: Instrument,
+    noise: &Noise,
+    rng: &mut R,
+    progress: &dyn Fn(usize),
+) -> Result<SyntheticSet, CalibError> {
+    let normal = |s: f64| Normal::new(0.0, s).map_err(|e| CalibError::InvalidOption(format!("noise σ {s}: {e}")));
+    let (np, nw) = (normal(noise.position)?, normal(noise.orientation)?);
+    let mut measurements = Vec::with_capacity(configurations.len());
+    let mut reflectors = Vec::new();
+    for (k, q) in configurations.into_iter().enumerate() {
+        let t = truth.forward(&q).map_err(|source| CalibError::Kinematics { pose: k, source })?;
+        let mut draw = |d: &Normal<f64>, s: f64| {
+            if s > 0.0 {
+                Vector3::new(d.sample(rng), d.sample(rng), d.sample(rng))
+            } else {
+                Vector3::zeros()
+            }
+        };
+        let obs = match instrument {
+            Instrument::Pose => {
+                let (dp, dw) = (draw(&np, noise.position), draw(&nw, noise.orientation));
+                Observation::Pose(Pose::from_parts((t.translation.vector + dp).into(), se3::so3_exp(&dw) * t.rotation))
+            }
+            Instrument::Position => Observation::Position(t.translation.vector + draw(&np, noise.position)),
+            Instrument::Reflectors => {
+                let c = reflector_centres(&t, noise.position, rng)?;
+                let f = crate::measure::frame_from_reflectors(&c[0], &c[1], &c[2])
+                    .ok_or_else(|| CalibError::InvalidOption(format!("pose {k}: degenerate reflector triangle")))?;
+                reflectors.push(c);
+                Observation::Pose(f)
+            }
+        };
+        measurements.push(Measurement { q, obs });
+        progress(k);
+    }
+    Ok(SyntheticSet {
+        measurements,
+        reflectors: (instrument == Instrument::Reflectors).then_some(reflectors),
+    })
+}

@@ -6,8 +6,8 @@ use kinecal::identifiability::{analyze, DEFAULT_RANK_TOLERANCE};
 use kinecal::identify::linearize;
 use kinecal::io::data_file::{read_data, InputColumns};
 use kinecal::io::model_file::ModelFile;
-use kinecal::measure::{Measurement, Observation};
-use kinecal::workflow::random_configurations;
+use kinecal::measure::{Measurement, Noise};
+use kinecal::simulate::{random_configurations, synthesize, Instrument};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use std::path::PathBuf;
@@ -46,17 +46,16 @@ pub fn run(a: IdentifiabilityArgs) -> anyhow::Result<()> {
         Some(p) => read_data(p, &inputs, InputColumns::Required)?.measurements,
         None => {
             let mut rng = ChaCha8Rng::seed_from_u64(a.seed);
-            random_configurations(&*model, &inputs, a.poses, &mut rng)?
-                .into_iter()
-                .map(|q| {
-                    let t = model.forward(&q)?;
-                    let obs = match a.measure {
-                        MeasureKind::Position => Observation::Position(t.translation.vector),
-                        _ => Observation::Pose(t),
-                    };
-                    Ok(Measurement { q, obs })
-                })
-                .collect::<Result<_, kinecal::KinError>>()?
+            let configurations = random_configurations(&*model, &inputs, a.poses, &mut rng)?;
+            let exact = Noise {
+                position: 0.0,
+                orientation: 0.0,
+            };
+            let instrument = match a.measure {
+                MeasureKind::Position => Instrument::Position,
+                _ => Instrument::Pose,
+            };
+            synthesize(&*model, configurations, instrument, &exact, &mut rng, &|_| {})?.measurements
         }
     };
     let noise = file.noise.unwrap_or_default();

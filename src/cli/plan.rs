@@ -15,7 +15,7 @@
 use anyhow::Context;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use kinecal::design::{self, Candidate, CandidateFilter, CandidateJacobians, Criterion, Sampling, SelectOptions, SelectionMethod};
+use kinecal::design::{self, Candidate, CandidateFilter, Criterion, PlanOptions, Sampling, SelectOptions, SelectionMethod};
 use kinecal::io::model_file::ModelFile;
 use kinecal::io::output::Outputs;
 use kinecal::measure::Noise;
@@ -211,7 +211,7 @@ fn pm5_candidates(args: &PlanArgs, mech: kinecal::model::closed::ClosedLoop<kine
         min: [x.0, y.0, z.0, a.0, b.0, g.0],
         max: [x.1, y.1, z.1, a.1, b.1, g.1],
     };
-    let sampling = sampling(args, Some(&design::PM5_GRID))?;
+    let sampling = sampling(args, Some(&kinecal::model::presets::pm5::CANDIDATE_GRID))?;
     let filter = CandidateFilter {
         input_limits: Some(mech.system().strokes()),
         max_condition: Some(args.max_condition.unwrap_or(100.0)),
@@ -368,66 +368,56 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         candidates: cands,
         angle_inputs,
     } = planned;
-    anyhow::ensure!(
-        cands.len() >= args.n,
-        "only {} candidates survived the filters, fewer than the {} configurations asked for",
-        cands.len(),
-        args.n
-    );
-
-    let t = Instant::now();
-    let cols = design::identifiable_columns(
-        &*mech,
-        &cands,
-        kind,
-        &noise,
-        None,
-        200,
-        kinecal::identifiability::DEFAULT_RANK_TOLERANCE,
-    )?;
+    let opts = PlanOptions {
+        observe: kind,
+        noise,
+        method: args.method,
+        select: SelectOptions {
+            n: args.n,
+            criterion: args.criterion,
+            pool: args.pool,
+            shortlist: args.shortlist,
+            ..Default::default()
+        },
+    };
     let pb = bar(cands.len() as u64, "jacobians");
     let inc = |k: u64| pb.inc(k);
-    let blocks = CandidateJacobians::build(&*mech, &cands, kind, &noise, &cols, Some(&inc))?;
-    pb.finish_and_clear();
-    say!(
-        "identification Jacobian blocks: {} × {}×{} ({} identifiable of {} parameters) in {:.2} s",
-        blocks.len(),
-        blocks.rows_per_candidate(),
-        blocks.n_columns(),
-        cols.len(),
-        mech.n_params(),
-        t.elapsed().as_secs_f64()
-    );
-
-    let opts = SelectOptions {
-        n: args.n,
-        criterion: args.criterion,
-        pool: args.pool,
-        shortlist: args.shortlist,
-        ..Default::default()
-    };
-    let t = Instant::now();
     let spinner = if args.json {
         ProgressBar::hidden()
     } else {
         ProgressBar::new_spinner()
     };
-    let sel = design::select(&blocks, args.method, &opts, &mut |s| {
+    let mut on_step = |s: &design::Step| {
+        if !pb.is_finished() {
+            pb.finish_and_clear();
+        }
         spinner.set_message(format!(
             "{:?} {:?} #{}: size {}, score {:.5e}",
             args.method, s.action, s.candidate, s.size, s.score
         ));
         spinner.tick();
-    })?;
+    };
+    let planned = design::plan(&*mech, &cands, &opts, Some(&inc), &mut on_step)?;
+    pb.finish_and_clear();
     spinner.finish_and_clear();
-    let selection_seconds = t.elapsed().as_secs_f64();
+    let (cols, sel) = (&planned.columns, &planned.selection);
+    say!(
+        "identification Jacobian blocks: {} × {}×{} ({} identifiable of {} parameters) in {:.2} s",
+        cands.len(),
+        planned.rows_per_candidate,
+        cols.len(),
+        cols.len(),
+        mech.n_params(),
+        planned.jacobian_seconds
+    );
+    let selection_seconds = planned.selection_seconds;
     let ix = &sel.indices;
     say!(
         "{:?} on {}: {} configurations in {:.2} s ({} moves, {} chosen D-optimally before full rank)",
         sel.method,
         sel.criterion,
         sel.selected.len(),
-        t.elapsed().as_secs_f64(),
+        selection_seconds,
         sel.history.len(),
         sel.warm_up
     );
@@ -442,7 +432,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         ix.log_det
     );
     let mut text = Vec::new();
-    design::write_plan_csv(&mut text, &mech.input_names(), &angle_inputs, &cands, &sel)
+    design::write_plan_csv(&mut text, &mech.input_names(), &angle_inputs, &cands, sel)
         .with_context(|| format!("cannot write {}", args.output.display()))?;
     outputs.stage(&args.output, &text)?;
     outputs.commit()?;

@@ -2,16 +2,14 @@
 //! noise at random poses → a data file, and the true model written separately.
 use super::progress;
 use clap::{Args, ValueEnum};
+use kinecal::error::CalibError;
 use kinecal::io::data_file::data_text;
 use kinecal::io::model_file::ModelFile;
 use kinecal::io::output::Outputs;
-use kinecal::measure::{Measurement, Noise, Observation};
-use kinecal::se3::{self, Pose};
-use kinecal::workflow::{random_configurations, reflector_centres, virtual_prototype};
-use nalgebra::Vector3;
+use kinecal::measure::Noise;
+use kinecal::simulate::{random_configurations, synthesize, virtual_prototype, Instrument};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, Normal};
 use std::path::{Path, PathBuf};
 
 /// What the simulated instrument measures.
@@ -145,51 +143,29 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
                 .map_err(|e| anyhow::anyhow!("drawing poses on {}: {e}", file.name))?,
         };
         let pb = progress::bar(n, "measuring", a.json);
-        let (np, nw) = (Normal::new(0.0, noise.position)?, Normal::new(0.0, noise.orientation)?);
-        let mut meas = Vec::with_capacity(n);
-        let mut refl = Vec::new();
-        for (k, q) in qs.into_iter().enumerate() {
-            let t = truth.forward(&q).map_err(|e| {
-                anyhow::anyhow!(
-                    "pose {k}: the virtual prototype (errors ±{} mm / ±{} deg, seed {}) does not reach this configuration: {e}{}",
-                    a.error_mm,
-                    a.error_deg,
-                    a.seed,
-                    if a.error_mm > 5.0 || a.error_deg > 2.0 {
-                        "; errors this large make another machine: geometric errors are of the order of machining tolerances (e.g. --error-mm 0.5 --error-deg 0.1)"
-                    } else {
-                        ""
-                    }
-                )
-            })?;
-            let mut draw = |d: &Normal<f64>, s: f64| {
-                if s > 0.0 {
-                    Vector3::new(d.sample(&mut rng), d.sample(&mut rng), d.sample(&mut rng))
+        let instrument = match a.measure {
+            MeasureKind::Pose => Instrument::Pose,
+            MeasureKind::Position => Instrument::Position,
+            MeasureKind::Reflectors => Instrument::Reflectors,
+        };
+        let set = synthesize(&*truth, qs, instrument, &noise, &mut rng, &|_| pb.inc(1)).map_err(|e| match e {
+            CalibError::Kinematics { pose, source } => anyhow::anyhow!(
+                "pose {pose}: the virtual prototype (errors ±{} mm / ±{} deg, seed {}) does not reach this configuration: {source}{}",
+                a.error_mm,
+                a.error_deg,
+                a.seed,
+                if a.error_mm > 5.0 || a.error_deg > 2.0 {
+                    "; errors this large make another machine: geometric errors are of the order of machining tolerances (e.g. --error-mm 0.5 --error-deg 0.1)"
                 } else {
-                    Vector3::zeros()
+                    ""
                 }
-            };
-            let obs = match a.measure {
-                MeasureKind::Pose => {
-                    let (dp, dw) = (draw(&np, noise.position), draw(&nw, noise.orientation));
-                    Observation::Pose(Pose::from_parts((t.translation.vector + dp).into(), se3::so3_exp(&dw) * t.rotation))
-                }
-                MeasureKind::Position => Observation::Position(t.translation.vector + draw(&np, noise.position)),
-                MeasureKind::Reflectors => {
-                    let c = reflector_centres(&t, noise.position, &mut rng)?;
-                    let f = kinecal::measure::frame_from_reflectors(&c[0], &c[1], &c[2])
-                        .ok_or_else(|| anyhow::anyhow!("pose {k}: degenerate reflector triangle"))?;
-                    refl.push(c);
-                    Observation::Pose(f)
-                }
-            };
-            meas.push(Measurement { q, obs });
-            pb.inc(1);
-        }
+            ),
+            e => e.into(),
+        })?;
         pb.finish_and_clear();
         let ids: Vec<i64> = (0..n as i64).map(|i| first_id + i).collect();
-        let r = (a.measure == MeasureKind::Reflectors).then_some(refl.as_slice());
-        outputs.stage(&path, data_text(&path, &inputs, &ids, &meas, r)?.as_bytes())?;
+        let data = data_text(&path, &inputs, &ids, &set.measurements, set.reflectors.as_deref())?;
+        outputs.stage(&path, data.as_bytes())?;
         written.push(Written { path, poses: n });
     }
     outputs.commit()?;

@@ -168,7 +168,3 @@ pub fn candidates_in_platform_box<C: ConstraintSystem>(
     }
     Ok((kept, gen))
 }
-
-/// The paper's candidate grid for the 5-DOF machine has `N = 304,920` points; this grid of the
-/// five commanded coordinates `(x, y, z, α, β)` has `11·11·21·12·10 = 304,920` points (γ fixed).
-pub const PM5_GRID: [usize; 6] = [11, 11, 21, 12, 10, 1];

@@ -18,20 +18,22 @@
 //! All indices are computed on the **scaled** problem: rows divided by the measurement noise,
 //! columns by their root-mean-square over the candidate set ([`jacobians`]).
 //!
-//! [`write_plan_csv`] writes the chosen configurations.
+//! [`plan()`] runs steps 2–4 in one call; [`write_plan_csv`] writes the chosen configurations.
 pub mod candidates;
 pub mod closed;
 pub mod indices;
 pub mod information;
 pub mod jacobians;
 pub mod lazy;
+pub mod plan;
 pub mod select;
 
 pub use candidates::{candidates_in_input_box, candidates_in_workspace, Candidate, CandidateFilter, GenerationReport, Sampling, Workspace};
-pub use closed::{actuator_condition, candidates_in_platform_box, PlatformGeneration, PM5_GRID};
+pub use closed::{actuator_condition, candidates_in_platform_box, PlatformGeneration};
 pub use indices::{Criterion, ObservabilityIndices};
 pub use information::InformationState;
 pub use jacobians::{identifiable_columns, CandidateJacobians};
+pub use plan::{plan, Plan, PlanOptions};
 pub use select::{candidate_pool, exchange, greedy, select, sffs, ExchangeStart, SelectOptions, Selection, SelectionMethod, Step};
 
 use std::io::Write;

@@ -158,13 +158,7 @@ pub const TOOL_PARAMS: [&str; 3] = ["dtx", "dty", "dtz"];
 /// Names of the base-frame parameters.
 pub const BASE_PARAMS: [&str; 6] = ["dx0", "dy0", "dz0", "dα0", "dβ0", "dγ0"];
 
-/// X-Y-Z Euler angles `(α, β, γ)` of a rotation matrix (`β` in `[−π/2, π/2]`).
-pub fn euler_xyz(r: &Matrix3<f64>) -> [f64; 3] {
-    let b = r[(0, 2)].clamp(-1.0, 1.0).asin();
-    let a = (-r[(1, 2)]).atan2(r[(2, 2)]);
-    let g = (-r[(0, 1)]).atan2(r[(0, 0)]);
-    [a, b, g]
-}
+pub use crate::se3::euler_xyz;
 
 /// The pose of platform coordinates `X`.
 pub fn pose_of(x: &[f64; 6]) -> Pose {

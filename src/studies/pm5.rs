@@ -430,7 +430,7 @@ pub fn pm5_study(opts: &StudyOptions) -> Result<Pm5Study, CalibError> {
 pub struct PlanOptions {
     /// Halton samples of the prescribed workspace (before filtering).
     pub candidates: usize,
-    /// Sample the workspace on the paper-sized grid [`crate::design::PM5_GRID`] (304,920 points,
+    /// Sample the workspace on the paper-sized grid [`crate::model::presets::pm5::CANDIDATE_GRID`] (304,920 points,
     /// corners included) instead of `candidates` Halton points.
     pub paper_grid: bool,
     /// Seed of the Halton shift.
@@ -524,7 +524,7 @@ pub fn pm5_plan(opts: &PlanOptions, methods: &[(crate::design::SelectionMethod, 
         &mech.system().workspace(),
         &if opts.paper_grid {
             Sampling::Grid {
-                counts: design::PM5_GRID.to_vec(),
+                counts: crate::model::presets::pm5::CANDIDATE_GRID.to_vec(),
             }
         } else {
             Sampling::Halton {

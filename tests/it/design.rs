@@ -449,3 +449,93 @@ fn plan_command_writes_the_chosen_configurations() {
         "{err}"
     );
 }
+
+#[test]
+fn plan_is_the_pipeline_of_columns_blocks_and_selection_in_one_call() {
+    let (chain, cands, blocks) = chain_setup(400, 11);
+    let select = SelectOptions {
+        n: 12,
+        ..Default::default()
+    };
+    let direct = design::select(&blocks, SelectionMethod::Sffs, &select, &mut |_| {}).unwrap();
+    let opts = design::PlanOptions {
+        select,
+        ..Default::default()
+    };
+    let mut moves = 0;
+    let planned = design::plan(&chain, &cands, &opts, None, &mut |_| moves += 1).unwrap();
+    assert_eq!(planned.columns.len(), 30);
+    assert_eq!(planned.rows_per_candidate, 6);
+    assert_eq!(planned.selection.selected, direct.selected);
+    assert_relative_eq!(planned.selection.indices.o2, direct.indices.o2, max_relative = 1e-12);
+    assert_eq!(moves, direct.history.len());
+    // More configurations than candidates: a clear error, not a panic.
+    let too_many = design::PlanOptions {
+        select: SelectOptions {
+            n: 401,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let err = design::plan(&chain, &cands, &too_many, None, &mut |_| {}).unwrap_err().to_string();
+    assert!(err.contains("fewer than the 401"), "{err}");
+}
+
+#[test]
+fn synthesized_measurements_are_the_prototype_plus_the_stated_noise() {
+    use kinecal::simulate::{synthesize, Instrument};
+    let mut rng = ChaCha8Rng::seed_from_u64(4);
+    let chain = random_serial_chain(&mut rng, 6, 0);
+    let qs: Vec<Vec<f64>> = (0..200).map(|_| (0..6).map(|_| rng.random_range(-2.0..2.0)).collect()).collect();
+    let exact = synthesize(
+        &chain,
+        qs.clone(),
+        Instrument::Pose,
+        &Noise {
+            position: 0.0,
+            orientation: 0.0,
+        },
+        &mut rng,
+        &|_| {},
+    )
+    .unwrap();
+    for (m, q) in exact.measurements.iter().zip(&qs) {
+        let Observation::Pose(p) = m.obs else { panic!("pose expected") };
+        assert!(se3::pose_error(&chain.forward(q).unwrap(), &p).norm() < 1e-12);
+    }
+    let noise = Noise {
+        position: 0.1,
+        orientation: 0.001,
+    };
+    let noisy = synthesize(
+        &chain,
+        qs.clone(),
+        Instrument::Reflectors,
+        &noise,
+        &mut ChaCha8Rng::seed_from_u64(9),
+        &|_| {},
+    )
+    .unwrap();
+    let refl = noisy.reflectors.as_ref().expect("reflector centres kept");
+    assert_eq!(refl.len(), 200);
+    // Each centre's deviation from its noise-free place: RMS per axis ≈ σ (600 centres × 3 axes).
+    let mut sq = 0.0;
+    for (c, q) in refl.iter().zip(&qs) {
+        let t = chain.forward(q).unwrap();
+        for (k, r) in kinecal::simulate::REFLECTORS.iter().enumerate() {
+            sq += (c[k] - t.transform_point(&Vector3::from(*r).into()).coords).norm_squared();
+        }
+    }
+    let rms = (sq / (200.0 * 9.0)).sqrt();
+    assert!((rms - 0.1).abs() < 0.01, "per-axis RMS {rms} for σ 0.1 mm");
+    let again = synthesize(
+        &chain,
+        qs,
+        Instrument::Reflectors,
+        &noise,
+        &mut ChaCha8Rng::seed_from_u64(9),
+        &|_| {},
+    )
+    .unwrap();
+    assert_eq!(again.reflectors, noisy.reflectors, "same seed, same data");
+}

@@ -125,6 +125,11 @@ pub struct Pm5 {
 /// Number of geometric parameters `θ` of [`Pm5`] (dW1, eq. (14)).
 pub const GEOMETRY_PARAMS: usize = 35;
 
+/// The default candidate grid of the machine's platform workspace: the paper samples
+/// `N = 304,920` candidate poses; this grid of the five commanded coordinates `(x, y, z, α, β)`
+/// has `11·11·21·12·10 = 304,920` points (γ, the parasitic rotation, fixed).
+pub const CANDIDATE_GRID: [usize; 6] = [11, 11, 21, 12, 10, 1];
+
 /// Parameter names of dW (44), in the paper's order.
 pub const PARAM_NAMES: [&str; 44] = [
     "dg1", "dc1x", "dc1y", "dc1z", "db1x", "db1y", "db1z", "dl1", "dφ1", "dg2", "dc2x", "dc2y", "dc2z", "db2x", "db2y", "db2z", "dφ2",
