@@ -22,6 +22,9 @@ use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use serde::Serialize;
 
+mod reduced;
+use reduced::{Form, System};
+
 /// Identification algorithm.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Default)]
 pub enum Method {
@@ -77,16 +80,32 @@ pub enum Loss {
 /// `Σ ρ(s_i)·rows_i` (equal to `½|r|²` for [`Loss::Squares`]). The weights of the poses are
 /// returned too (1 = full weight).
 pub fn apply_loss(lin: &mut Linearization, loss: Loss) -> (f64, Vec<f64>) {
-    let n = lin.offsets.len();
+    let (cost, weights) = loss_weights(&lin.residual, &lin.offsets, loss);
     let rows = lin.residual.len();
-    let end = |i: usize| if i + 1 < n { lin.offsets[i + 1] } else { rows };
+    for (i, &w) in weights.iter().enumerate() {
+        if w < 1.0 {
+            let (a, b) = (lin.offsets[i], lin.offsets.get(i + 1).copied().unwrap_or(rows));
+            let r = w.sqrt();
+            lin.residual.rows_mut(a, b - a).scale_mut(r);
+            lin.jacobian.rows_mut(a, b - a).scale_mut(r);
+        }
+    }
+    (cost, weights)
+}
+
+/// The robust cost and the weight of each pose (rows `offsets[i]..offsets[i + 1]` of the
+/// weighted `residual`) under `loss`, without changing anything (see [`apply_loss`]).
+pub(crate) fn loss_weights(residual: &DVector<f64>, offsets: &[usize], loss: Loss) -> (f64, Vec<f64>) {
+    let n = offsets.len();
+    let rows = residual.len();
+    let end = |i: usize| if i + 1 < n { offsets[i + 1] } else { rows };
     let Loss::Huber { k } = loss else {
-        return (0.5 * lin.residual.norm_squared(), vec![1.0; n]);
+        return (0.5 * residual.norm_squared(), vec![1.0; n]);
     };
     let s: Vec<f64> = (0..n)
         .map(|i| {
-            let (a, b) = (lin.offsets[i], end(i));
-            (lin.residual.rows(a, b - a).norm_squared() / (b - a).max(1) as f64).sqrt()
+            let (a, b) = (offsets[i], end(i));
+            (residual.rows(a, b - a).norm_squared() / (b - a).max(1) as f64).sqrt()
         })
         .collect();
     let mut sorted = s.clone();
@@ -96,19 +115,13 @@ pub fn apply_loss(lin: &mut Linearization, loss: Loss) -> (f64, Vec<f64>) {
     let mut cost = 0.0;
     let mut weights = Vec::with_capacity(n);
     for (i, &si) in s.iter().enumerate() {
-        let (a, b) = (lin.offsets[i], end(i));
-        let m = (b - a) as f64;
+        let m = (end(i) - offsets[i]) as f64;
         let w = if threshold > 0.0 && si > threshold { threshold / si } else { 1.0 };
         cost += if w < 1.0 {
             m * (threshold * si - 0.5 * threshold * threshold)
         } else {
             0.5 * m * si * si
         };
-        if w < 1.0 {
-            let r = w.sqrt();
-            lin.residual.rows_mut(a, b - a).scale_mut(r);
-            lin.jacobian.rows_mut(a, b - a).scale_mut(r);
-        }
         weights.push(w);
     }
     (cost, weights)
@@ -294,10 +307,14 @@ fn solve_subset(a: &DMatrix<f64>, b: &DVector<f64>, cols: &[usize], damping: f64
 /// largest singular values of the column-scaled matrix — the covariance of the minimum-norm
 /// solution the Gauss–Newton steps take — otherwise the plain inverse (subset solution).
 fn covariance(a: &DMatrix<f64>, cols: &[usize], rank: Option<usize>) -> DMatrix<f64> {
-    let p = a.ncols();
+    covariance_gram(&(a.transpose() * a), cols, rank)
+}
+
+/// [`covariance`] from the Gram matrix `AᵀA` (p × p) instead of `A`.
+fn covariance_gram(gram: &DMatrix<f64>, cols: &[usize], rank: Option<usize>) -> DMatrix<f64> {
+    let p = gram.ncols();
     let mut out = DMatrix::zeros(p, p);
-    let (scaled, norms) = identifiability::scale_columns(a, cols);
-    let n = scaled.transpose() * &scaled;
+    let (n, norms) = scale_gram(gram, cols);
     if n.iter().any(|v| !v.is_finite()) {
         return out;
     }
@@ -330,12 +347,61 @@ fn covariance(a: &DMatrix<f64>, cols: &[usize], rank: Option<usize>) -> DMatrix<
     out
 }
 
+/// The Gram matrix of the columns `cols` scaled to unit norm, and the column norms (a zero
+/// column keeps scale 1 so that it stays zero).
+fn scale_gram(gram: &DMatrix<f64>, cols: &[usize]) -> (DMatrix<f64>, Vec<f64>) {
+    let norms: Vec<f64> = cols.iter().map(|&c| gram[(c, c)].max(0.0).sqrt()).collect();
+    let s = |k: usize| if norms[k] > 0.0 { norms[k] } else { 1.0 };
+    let n = DMatrix::from_fn(cols.len(), cols.len(), |i, j| gram[(cols[i], cols[j])] / (s(i) * s(j)));
+    (n, norms)
+}
+
+/// [`solve_subset`] from the normal equations `AᵀA·x = Aᵀb` (`gram`, `rhs`): the same minimum-norm,
+/// rank-truncated or damped step, from the eigen-decomposition of the column-scaled `AᵀA`
+/// (eigenvalues are the squared singular values of the scaled `A`).
+fn solve_gram(
+    gram: &DMatrix<f64>,
+    rhs: &DVector<f64>,
+    cols: &[usize],
+    damping: f64,
+    rank: Option<usize>,
+) -> Result<DVector<f64>, CalibError> {
+    let (n, norms) = scale_gram(gram, cols);
+    let g = DVector::from_fn(cols.len(), |k, _| if norms[k] > 0.0 { rhs[cols[k]] / norms[k] } else { 0.0 });
+    if n.iter().chain(g.iter()).any(|v| !v.is_finite()) {
+        return Err(CalibError::Numerical("non-finite values in the least-squares system".into()));
+    }
+    let eig = n.symmetric_eigen();
+    let mut order: Vec<usize> = (0..eig.eigenvalues.len()).collect();
+    order.sort_by(|&i, &j| eig.eigenvalues[j].total_cmp(&eig.eigenvalues[i]));
+    let keep = rank.unwrap_or(order.len()).min(order.len());
+    let mut y = DVector::zeros(cols.len());
+    for &i in order.iter().take(keep) {
+        let l = eig.eigenvalues[i];
+        if l <= 0.0 {
+            continue;
+        }
+        let v = eig.eigenvectors.column(i);
+        y.axpy(v.dot(&g) / (l + damping), &v, 1.0);
+    }
+    if y.iter().any(|v| !v.is_finite()) {
+        return Err(CalibError::Numerical("non-finite step".into()));
+    }
+    let mut delta = DVector::zeros(gram.ncols());
+    for (k, &c) in cols.iter().enumerate() {
+        if norms[k] > 0.0 {
+            delta[c] = y[k] / norms[k];
+        }
+    }
+    Ok(delta)
+}
+
 /// Re-estimate the position and orientation noise from weighted residuals (one variance
 /// component per row kind), keeping the ratio meaningful when one kind is absent.
-fn reestimate_noise(lin: &Linearization, noise: &Noise, dof_ratio: f64) -> Noise {
+fn reestimate_noise(residual: &DVector<f64>, angular_rows: &[bool], noise: &Noise, dof_ratio: f64) -> Noise {
     let (mut sp, mut np, mut sa, mut na) = (0.0, 0usize, 0.0, 0usize);
-    for (k, &ang) in lin.angular_rows.iter().enumerate() {
-        let r2 = lin.residual[k] * lin.residual[k];
+    for (k, &ang) in angular_rows.iter().enumerate() {
+        let r2 = residual[k] * residual[k];
         if ang {
             sa += r2;
             na += 1;
@@ -367,123 +433,165 @@ pub fn identify<M: Mechanism + Clone>(initial: &M, data: &[Measurement], opts: &
     if !(opts.noise.position > 0.0 && opts.noise.orientation > 0.0) {
         return Err(CalibError::InvalidOption("noise standard deviations must be positive".into()));
     }
-    let mut model = initial.clone();
-    let mut noise = opts.noise;
-    let mut lin = linearize(&model, data, &noise)?;
-    let ident = identifiability::analyze(&lin.jacobian, &free, opts.rank_tolerance);
+    match opts.method {
+        Method::GaussNewton => gauss_newton(initial, data, opts, &free),
+        Method::Linear | Method::Recursive => one_step(initial, data, opts, &free),
+    }
+}
+
+/// The identifiable columns of `ident` and the share of residual degrees of freedom, or why
+/// there are none.
+fn identifiable_subset(ident: &Identifiability, rows: usize, poses: usize) -> Result<(Vec<usize>, f64), CalibError> {
     let cols = ident.identifiable.clone();
     if cols.is_empty() {
         return Err(CalibError::NothingToIdentify(
             "every free parameter is unidentifiable from these measurements".into(),
         ));
     }
-    let rows = lin.residual.len();
     if rows <= cols.len() {
-        let per_pose = if data.is_empty() { 6 } else { rows.max(1) / data.len().max(1) };
+        let per_pose = rows.max(1).checked_div(poses).unwrap_or(6);
         let needed = cols.len() / per_pose.max(1) + 1;
         return Err(CalibError::TooFewMeasurements {
-            poses: data.len(),
+            poses,
             rows,
             params: cols.len(),
             needed,
         });
     }
     let dof_ratio = (rows - cols.len()) as f64 / rows as f64;
-    let (mut cur_cost, mut pose_weights) = apply_loss(&mut lin, opts.loss);
+    Ok((cols, dof_ratio))
+}
+
+/// The one-linearisation methods (batch least squares, recursive least squares) on the
+/// identifiable subset, on the full weighted Jacobian.
+fn one_step<M: Mechanism + Clone>(
+    initial: &M,
+    data: &[Measurement],
+    opts: &Options,
+    free: &[usize],
+) -> Result<Identification<M>, CalibError> {
+    let p = initial.n_params();
+    let mut model = initial.clone();
+    let noise = opts.noise;
+    let mut lin = linearize(&model, data, &noise)?;
+    let ident = identifiability::analyze(&lin.jacobian, free, opts.rank_tolerance);
+    let rows = lin.residual.len();
+    let (cols, _) = identifiable_subset(&ident, rows, data.len())?;
+    let (_, pose_weights) = apply_loss(&mut lin, opts.loss);
+    let step = if opts.method == Method::Linear {
+        solve_subset(&lin.jacobian, &lin.residual, &cols, 0.0, None)?
+    } else {
+        rls_solve(&lin, &cols)?
+    };
+    let pred = (&lin.jacobian * &step).norm();
+    let iterations = vec![Iteration {
+        cost: 0.5 * lin.residual.norm_squared(),
+        step: pred,
+        damping: 0.0,
+    }];
+    model.retract(&step);
+    let lin = linearize(&model, data, &noise)?;
+    let sigma0 = (lin.residual.norm_squared() / (rows - cols.len()) as f64).sqrt();
+    let covariance = covariance(&lin.jacobian, &cols, None) * (sigma0 * sigma0);
+    let std_dev = DVector::from_iterator(p, (0..p).map(|i| covariance[(i, i)].max(0.0).sqrt()));
+    Ok(Identification {
+        model,
+        identifiability: ident,
+        delta: step,
+        std_dev,
+        covariance,
+        iterations,
+        converged: true,
+        sigma0,
+        noise,
+        pose_weights,
+    })
+}
+
+/// Iterated Gauss–Newton with Levenberg–Marquardt damping, on the reduced problem
+/// ([`reduced`]: the triangular factor of the weighted Jacobian, never the Jacobian itself).
+/// Steps are minimum-norm over every free parameter that has an effect, truncated at the
+/// numerical rank: the same fit as the identifiable subset, but without moving along the weak
+/// directions a particular choice of subset can have.
+fn gauss_newton<M: Mechanism + Clone>(
+    initial: &M,
+    data: &[Measurement],
+    opts: &Options,
+    free: &[usize],
+) -> Result<Identification<M>, CalibError> {
+    let p = initial.n_params();
+    let mut model = initial.clone();
+    let mut noise = opts.noise;
+    let mut ev = reduced::evaluate(&model, data, &noise, opts.loss)?;
+    // The orthogonal factor once, for the rank and the named redundant parameters; then the
+    // normal equations, whose eigenvalues on the identifiable directions are far above round-off.
+    let mut system = reduced::factor(&model, data, &noise, &ev, Form::Triangular)?;
+    let System::Triangular { r, .. } = &system else {
+        unreachable!("a triangular factor was asked for")
+    };
+    let ident = identifiability::analyze(r, free, opts.rank_tolerance);
+    let rows = ev.residual.len();
+    let (cols, dof_ratio) = identifiable_subset(&ident, rows, data.len())?;
+    let effective: Vec<usize> = free.iter().copied().filter(|c| !ident.no_effect.contains(c)).collect();
     let mut delta_total = DVector::zeros(p);
     let mut iterations = Vec::new();
     let mut converged = false;
-
-    match opts.method {
-        Method::Linear | Method::Recursive => {
-            let step = if opts.method == Method::Linear {
-                solve_subset(&lin.jacobian, &lin.residual, &cols, 0.0, None)?
-            } else {
-                rls_solve(&lin, &cols)?
-            };
-            let pred = (&lin.jacobian * &step).norm();
-            iterations.push(Iteration {
-                cost: 0.5 * lin.residual.norm_squared(),
-                step: pred,
-                damping: 0.0,
-            });
-            model.retract(&step);
-            delta_total += step;
-            lin = linearize(&model, data, &noise)?;
-            converged = true;
+    let mut damping = 0.0;
+    let mut stalls = 0;
+    for _ in 0..opts.max_iterations {
+        if opts.reweight {
+            noise = reestimate_noise(&ev.residual, &ev.angular_rows, &noise, dof_ratio);
+            ev = reduced::evaluate(&model, data, &noise, opts.loss)?;
+            system = reduced::factor(&model, data, &noise, &ev, Form::Gram)?;
         }
-        Method::GaussNewton => {
-            // Steps are minimum-norm over every free parameter that has an effect, truncated at
-            // the numerical rank: the same fit as the identifiable subset, but without moving
-            // along the weak directions a particular choice of subset can have.
-            let effective: Vec<usize> = free.iter().copied().filter(|c| !ident.no_effect.contains(c)).collect();
-            let mut damping = 0.0;
-            let mut stalls = 0;
-            for _ in 0..opts.max_iterations {
-                if opts.reweight {
-                    noise = reestimate_noise(&lin, &noise, dof_ratio);
-                    lin = linearize(&model, data, &noise)?;
-                    (cur_cost, pose_weights) = apply_loss(&mut lin, opts.loss);
-                }
-                let cost = cur_cost;
-                let step = solve_subset(&lin.jacobian, &lin.residual, &effective, damping, Some(ident.rank))?;
-                let pred = (&lin.jacobian * &step).norm();
-                let mut trial = model.clone();
-                trial.retract(&step);
-                // A step into geometry where a pose no longer assembles (closed loops) is a step
-                // too long: rejected like one that raises the cost.
-                let (trial_lin, trial_cost, trial_weights) = match linearize(&trial, data, &noise) {
-                    Ok(mut l) => {
-                        let (c, w) = apply_loss(&mut l, opts.loss);
-                        (l, c, w)
-                    }
-                    Err(CalibError::Kinematics { .. }) => (lin.clone(), f64::INFINITY, pose_weights.clone()),
-                    Err(e) => return Err(e),
-                };
-                iterations.push(Iteration { cost, step: pred, damping });
-                let tiny = pred <= opts.step_tolerance * (1.0 + lin.residual.norm());
-                // At round-off level the cost no longer decreases; a step that small is converged.
-                let negligible = pred <= 1e-6 * (1.0 + lin.residual.norm()) && trial_cost >= cost * (1.0 - 1e-12);
-                if trial_cost <= cost {
-                    model = trial;
-                    lin = trial_lin;
-                    cur_cost = trial_cost;
-                    pose_weights = trial_weights;
-                    delta_total += step;
-                    damping = if damping > 1e-9 { damping / 3.0 } else { 0.0 };
-                } else if !negligible {
-                    damping = if damping == 0.0 { 1e-3 } else { damping * 4.0 };
-                }
-                if tiny || negligible {
-                    stalls += 1;
-                    if tiny || stalls >= 2 {
-                        converged = true;
-                        break;
-                    }
-                } else {
-                    stalls = 0;
-                }
-                if damping > 1e12 {
-                    break;
-                }
+        let cost = ev.cost;
+        let step = system.solve(&effective, damping, Some(ident.rank))?;
+        let pred = system.predicted(&step);
+        let mut trial = model.clone();
+        trial.retract(&step);
+        // A step into geometry where a pose no longer assembles (closed loops) is a step too
+        // long: rejected like one that raises the cost.
+        let trial_ev = match reduced::evaluate(&trial, data, &noise, opts.loss) {
+            Ok(e) => Some(e),
+            Err(CalibError::Kinematics { .. }) => None,
+            Err(e) => return Err(e),
+        };
+        let trial_cost = trial_ev.as_ref().map_or(f64::INFINITY, |e| e.cost);
+        iterations.push(Iteration { cost, step: pred, damping });
+        let r_norm = ev.residual.norm();
+        let tiny = pred <= opts.step_tolerance * (1.0 + r_norm);
+        // At round-off level the cost no longer decreases; a step that small is converged.
+        let negligible = pred <= 1e-6 * (1.0 + r_norm) && trial_cost >= cost * (1.0 - 1e-12);
+        if let Some(accepted) = trial_ev.filter(|_| trial_cost <= cost) {
+            model = trial;
+            ev = accepted;
+            system = reduced::factor(&model, data, &noise, &ev, Form::Gram)?;
+            delta_total += step;
+            damping = if damping > 1e-9 { damping / 3.0 } else { 0.0 };
+        } else if !negligible {
+            damping = if damping == 0.0 { 1e-3 } else { damping * 4.0 };
+        }
+        if tiny || negligible {
+            stalls += 1;
+            if tiny || stalls >= 2 {
+                converged = true;
+                break;
             }
-            if opts.reweight {
-                noise = reestimate_noise(&lin, &noise, dof_ratio);
-                lin = linearize(&model, data, &noise)?;
-                (_, pose_weights) = apply_loss(&mut lin, opts.loss);
-            }
+        } else {
+            stalls = 0;
+        }
+        if damping > 1e12 {
+            break;
         }
     }
-    let sigma0 = (lin.residual.norm_squared() / (rows - cols.len()) as f64).sqrt();
-    // The covariance of the solution the method took: minimum-norm over the parameters with an
-    // effect (Gauss–Newton), or the identifiable subset (one-step methods).
-    let covariance = match opts.method {
-        Method::GaussNewton => {
-            let effective: Vec<usize> = free.iter().copied().filter(|c| !ident.no_effect.contains(c)).collect();
-            covariance(&lin.jacobian, &effective, Some(ident.rank))
-        }
-        Method::Linear | Method::Recursive => covariance(&lin.jacobian, &cols, None),
-    } * (sigma0 * sigma0);
+    if opts.reweight {
+        noise = reestimate_noise(&ev.residual, &ev.angular_rows, &noise, dof_ratio);
+        ev = reduced::evaluate(&model, data, &noise, opts.loss)?;
+        system = reduced::factor(&model, data, &noise, &ev, Form::Gram)?;
+    }
+    let sigma0 = (ev.residual.norm_squared() / (rows - cols.len()) as f64).sqrt();
+    // The covariance of the minimum-norm solution over the parameters with an effect.
+    let covariance = system.covariance(&effective, Some(ident.rank)) * (sigma0 * sigma0);
     let std_dev = DVector::from_iterator(p, (0..p).map(|i| covariance[(i, i)].max(0.0).sqrt()));
     Ok(Identification {
         model,
@@ -495,8 +603,19 @@ pub fn identify<M: Mechanism + Clone>(initial: &M, data: &[Measurement], opts: &
         converged,
         sigma0,
         noise,
-        pose_weights,
+        pose_weights: ev.pose_weights,
     })
+}
+
+/// The information (Gram) matrix `AᵀA` (p × p) of the noise-weighted Jacobian of `model` at
+/// `data`, accumulated pose block by pose block: what [`linearize`] followed by `AᵀA` gives,
+/// without holding the rows × p Jacobian (memory grows with the parameters, not the poses).
+pub fn information<M: Mechanism + ?Sized>(model: &M, data: &[Measurement], noise: &Noise) -> Result<DMatrix<f64>, CalibError> {
+    let ev = reduced::evaluate(model, data, noise, Loss::Squares)?;
+    match reduced::factor(model, data, noise, &ev, Form::Gram)? {
+        System::Gram { n, .. } => Ok(n),
+        System::Triangular { r, .. } => Ok(r.transpose() * r),
+    }
 }
 
 /// Recursive least squares in square-root information form, pose block after pose block, on the

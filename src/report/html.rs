@@ -345,24 +345,38 @@ fn per_pose_html(h: &mut String, name: &str, s: &SetErrors) -> Result<(), String
     Ok(())
 }
 
+/// Rows of the outlier table at most.
+const OUTLIER_ROWS: usize = 100;
+
 fn outliers_html(h: &mut String, sets: &[(&str, &SetErrors)]) {
     h.push_str("<h2>Outliers (a residual component beyond 3σ after calibration)</h2>\n");
-    let mut any = false;
-    for (name, s) in sets {
-        for o in &s.outliers {
-            if !any {
-                h.push_str("<table id=\"outliers\"><tr><th class=\"l\">set</th><th>pose id</th><th>score (σ)</th><th>position mm</th><th>orientation deg</th></tr>");
-                any = true;
-            }
-            let _ = write!(
-                h,
-                "<tr><td class=\"l\">{name}</td><td>{}</td><td>{:.2}</td><td>{}</td><td>{}</td></tr>",
-                s.ids.get(o.pose).copied().unwrap_or(o.pose as i64),
-                o.score,
-                sig(o.position_mm),
-                o.orientation_deg.map(sig).unwrap_or_else(|| "—".into())
-            );
-        }
+    // The worst first, at most OUTLIER_ROWS of them: a large data set keeps a readable page (the
+    // JSON lists every one).
+    let mut all: Vec<(&str, &SetErrors, &crate::validate::Outlier)> = sets
+        .iter()
+        .flat_map(|(name, s)| s.outliers.iter().map(move |o| (*name, *s, o)))
+        .collect();
+    all.sort_by(|a, b| b.2.score.total_cmp(&a.2.score));
+    let any = !all.is_empty();
+    if any {
+        h.push_str("<table id=\"outliers\"><tr><th class=\"l\">set</th><th>pose id</th><th>score (σ)</th><th>position mm</th><th>orientation deg</th></tr>");
+    }
+    for (name, s, o) in all.iter().take(OUTLIER_ROWS) {
+        let _ = write!(
+            h,
+            "<tr><td class=\"l\">{name}</td><td>{}</td><td>{:.2}</td><td>{}</td><td>{}</td></tr>",
+            s.ids.get(o.pose).copied().unwrap_or(o.pose as i64),
+            o.score,
+            sig(o.position_mm),
+            o.orientation_deg.map(sig).unwrap_or_else(|| "—".into())
+        );
+    }
+    if all.len() > OUTLIER_ROWS {
+        let _ = write!(
+            h,
+            "<tr><td class=\"l\" colspan=\"5\">… and {} more with lower scores (all of them in the JSON output)</td></tr>",
+            all.len() - OUTLIER_ROWS
+        );
     }
     h.push_str(if any { "</table>\n" } else { "<p>None.</p>\n" });
 }

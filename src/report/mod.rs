@@ -11,6 +11,7 @@ use crate::measure::{Measurement, Noise};
 use crate::model::Mechanism;
 use crate::params::Unit;
 use crate::validate::{outliers, pose_errors, ErrorStats, Outlier, PoseErrors};
+use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
 /// Errors of one data set before and after calibration.
@@ -141,6 +142,9 @@ pub struct Verdict {
 /// noise, which a wrong unit, swapped columns, a wrong model or an unregistered frame gives, and
 /// real unmodelled errors of a sound setup do not.
 pub const SIGMA0_FAIL: f64 = 10.0;
+
+/// Probability that a Gaussian residual component lies beyond 3σ.
+pub const CHANCE_BEYOND_3_SIGMA: f64 = 0.0027;
 /// σ̂₀ above this (and up to [`SIGMA0_FAIL`]) is a warning: errors the model does not describe
 /// remain, or the stated noise is optimistic.
 pub const SIGMA0_WARN: f64 = 3.0;
@@ -412,13 +416,21 @@ impl CalibrationReport {
                 short(&ids)
             ));
         }
-        // A residual component beyond 3σ happens to ~0.3 % of components by chance: only more
-        // flagged poses than 2 + 1 % of the poses is a warning.
+        // A residual component beyond 3σ happens to 0.27 % of components by chance, so to
+        // 1 − 0.9973^c of poses with c components (1.6 % of full poses, 0.8 % of positions):
+        // only more than 3 + twice that many flagged poses is a warning.
         let flagged = self.identification.outliers.len() + self.validation.as_ref().map_or(0, |v| v.outliers.len());
         let poses = self.identification.after_stats.poses + self.validation.as_ref().map_or(0, |v| v.after_stats.poses);
-        if flagged as f64 > 2.0 + 0.01 * poses as f64 {
+        let components = if self.identification.after_stats.orientation_mean_deg.is_some() {
+            6
+        } else {
+            3
+        };
+        let chance = 1.0 - (1.0 - CHANCE_BEYOND_3_SIGMA).powi(components);
+        if flagged as f64 > 3.0 + 2.0 * chance * poses as f64 {
             warnings.push(format!(
-                "{flagged} of {poses} poses flagged as outliers (a residual component beyond 3σ; Gaussian noise flags about 1 %)"
+                "{flagged} of {poses} poses flagged as outliers (a residual component beyond 3σ; Gaussian noise flags about {:.1} %)",
+                100.0 * chance
             ));
         } else if flagged > 0 {
             self.flags.push(format!(
@@ -513,14 +525,19 @@ fn absorbed<M: Mechanism>(result: &Identification<M>, params: &[crate::params::P
     if id.redundant.is_empty() || id.identifiable.is_empty() {
         return Vec::new();
     }
-    let Ok(lin) = crate::identify::linearize(&result.model, data, &result.noise) else {
+    // Least squares of each redundant column on the identified ones, from the information matrix
+    // AᵀA (the normal equations of that fit, in column-scaled form): no rows × p Jacobian.
+    let Ok(gram) = crate::identify::information(&result.model, data, &result.noise) else {
         return Vec::new();
     };
-    let (a, norms) = crate::identifiability::scale_columns(&lin.jacobian, &id.identifiable);
-    if a.iter().any(|v| !v.is_finite()) {
+    let ident = &id.identifiable;
+    let norms: Vec<f64> = ident.iter().map(|&c| gram[(c, c)].max(0.0).sqrt()).collect();
+    if gram.iter().any(|v| !v.is_finite()) || norms.contains(&0.0) {
         return Vec::new();
     }
-    let svd = a.clone().svd(true, true);
+    let k = ident.len();
+    let n_ii = DMatrix::from_fn(k, k, |i, j| gram[(ident[i], ident[j])] / (norms[i] * norms[j]));
+    let svd = n_ii.clone().svd(true, true);
     let unit = |p: &crate::params::Param| match p.unit {
         Unit::Length => "mm",
         Unit::Angle => "rad",
@@ -529,15 +546,16 @@ fn absorbed<M: Mechanism>(result: &Identification<M>, params: &[crate::params::P
     id.redundant
         .iter()
         .map(|&j| {
-            let col = lin.jacobian.column(j).into_owned();
-            let nj = col.norm();
+            let nj = gram[(j, j)].max(0.0).sqrt();
             if nj == 0.0 || !nj.is_finite() {
                 return (params[j].name.clone(), "no effect".to_string());
             }
-            let Ok(c) = svd.solve(&(col.clone() / nj), 1e-12) else {
+            let n_ij = DVector::from_fn(k, |i, _| gram[(ident[i], j)] / (norms[i] * nj));
+            let Ok(c) = svd.solve(&n_ij, 1e-12) else {
                 return (params[j].name.clone(), "—".to_string());
             };
-            let fit = (&a * &c - col / nj).norm();
+            // |A_I·c − a_j/|a_j||² = 1 − 2cᵀ(A_Iᵀa_j)/|a_j| + cᵀ(A_IᵀA_I)c, all column-scaled.
+            let fit = (1.0 - 2.0 * c.dot(&n_ij) + c.dot(&(&n_ii * &c))).max(0.0).sqrt();
             // In model units: a change δ of this parameter acts like changes coef_k·δ of those.
             let mut terms: Vec<(f64, usize)> = c.iter().enumerate().map(|(k, v)| (v * nj / norms[k], k)).collect();
             let weight = |t: &(f64, usize)| (c[t.1]).abs();

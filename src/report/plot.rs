@@ -248,7 +248,7 @@ pub fn histogram(title: &str, x_label: &str, series: &[Series<'_>], bins: usize)
 
 /// At most this many points are drawn per scatter or sorted series; larger sets are thinned
 /// evenly (every k-th point, the worst ones always kept) so that the report stays small.
-pub const MAX_POINTS: usize = 4000;
+pub const MAX_POINTS: usize = 1000;
 
 /// Indices `0..n` thinned to about [`MAX_POINTS`], keeping `always`.
 fn thin(n: usize, always: &[usize]) -> Vec<usize> {

@@ -126,3 +126,81 @@ fn too_few_poses_is_a_clear_error() {
         other => panic!("expected TooFewMeasurements, got {other:?}"),
     }
 }
+
+/// Gauss–Newton works on the triangular factor / normal equations of the weighted Jacobian, never
+/// on the rows × p matrix: its identifiability, its stopping point and its covariance must be those
+/// of the full problem.
+#[test]
+fn reduced_gauss_newton_is_the_full_problem() {
+    use kinecal::identifiability::{analyze, scale_columns};
+    use kinecal::identify::information;
+    let mut rng = ChaCha8Rng::seed_from_u64(21);
+    let nominal = kinecal::model::irb120::nominal();
+    let delta = simulate::random_errors(&nominal, &mut rng, 0.5, 0.002, None);
+    let truth = simulate::perturbed(&nominal, &delta);
+    // 700 poses: more than one block of poses, so the factor is folded several times.
+    let qs: Vec<Vec<f64>> = (0..700).map(|_| random_joint_values(&nominal, &mut rng, 2.5, 0.0)).collect();
+    let noise = Noise {
+        position: 0.02,
+        orientation: 2e-4,
+    };
+    let data = simulate::measure(&truth, &qs, ObservationKind::Pose, Some(&noise), &mut rng).unwrap();
+    let opts = Options {
+        noise,
+        ..Options::default()
+    };
+    let id = identify(&nominal, &data, &opts).unwrap();
+    assert!(id.converged);
+
+    // Identifiability: the same as the analysis of the full Jacobian at the start.
+    let all: Vec<usize> = (0..nominal.n_params()).collect();
+    let full = analyze(&linearize(&nominal, &data, &noise).unwrap().jacobian, &all, opts.rank_tolerance);
+    assert_eq!(id.identifiability.rank, full.rank);
+    assert_eq!(id.identifiability.identifiable, full.identifiable);
+    assert_eq!(id.identifiability.redundant, full.redundant);
+
+    // The information matrix equals AᵀA of the full linearisation.
+    let lin = linearize(&id.model, &data, &noise).unwrap();
+    let ata = lin.jacobian.transpose() * &lin.jacobian;
+    let info = information(&id.model, &data, &noise).unwrap();
+    assert!(
+        (&info - &ata).norm() <= 1e-10 * ata.norm(),
+        "{:e}",
+        (&info - &ata).norm() / ata.norm()
+    );
+
+    // Stationary for the full problem: the minimum-norm Gauss–Newton step of the full weighted
+    // Jacobian at the solution, truncated at the rank, predicts no change beyond the solver's
+    // own stopping rule (a step below 1e-6·(1 + |r|) that no longer lowers the cost: here a
+    // change of the cost at round-off level, 1e-13 relative).
+    let effective: Vec<usize> = all.iter().copied().filter(|c| !full.no_effect.contains(c)).collect();
+    let (a, norms) = scale_columns(&lin.jacobian, &effective);
+    let svd = a.clone().svd(true, true);
+    let (u, vt) = (svd.u.as_ref().unwrap(), svd.v_t.as_ref().unwrap());
+    let mut order: Vec<usize> = (0..svd.singular_values.len()).collect();
+    order.sort_by(|&i, &j| svd.singular_values[j].total_cmp(&svd.singular_values[i]));
+    let mut step = nalgebra::DVector::zeros(effective.len());
+    for &i in order.iter().take(full.rank) {
+        step += vt.row(i).transpose() * (u.column(i).dot(&lin.residual) / svd.singular_values[i]);
+    }
+    let predicted = (&a * &step).norm();
+    assert!(
+        predicted < 1e-6 * (1.0 + lin.residual.norm()),
+        "full GN step from the solution predicts {predicted:e}"
+    );
+
+    // The covariance: σ̂₀² times the rank-truncated pseudo-inverse of the full AᵀA.
+    let mut cov_scaled = nalgebra::DMatrix::zeros(effective.len(), effective.len());
+    for &i in order.iter().take(full.rank) {
+        let v = vt.row(i).transpose();
+        cov_scaled += &v * v.transpose() / svd.singular_values[i].powi(2);
+    }
+    for (i, &ci) in effective.iter().enumerate() {
+        let expected = id.sigma0.powi(2) * cov_scaled[(i, i)] / (norms[i] * norms[i]);
+        assert!(
+            (id.covariance[(ci, ci)] - expected).abs() <= 1e-8 * expected.abs().max(1e-30),
+            "{ci}: {} vs {expected}",
+            id.covariance[(ci, ci)]
+        );
+    }
+}

@@ -510,5 +510,7 @@ fn calibrated_irb120_through_urdf_and_back() {
         "calibrated IRB 120 → DH with Hayati β → model, 1000 configurations: max {gap:.1e} mm; held-out RMS {:.4} mm both",
         sa.position_rms_mm
     );
-    assert!(gap < 1e-9, "Hayati DH: {gap:e} mm");
+    // Hayati's β for nearly parallel axes conditions the conversion worse than the URDF's direct
+    // placements: round-off of 1e-9 mm order, depending on the calibrated geometry.
+    assert!(gap < 1e-8, "Hayati DH: {gap:e} mm");
 }
