@@ -58,6 +58,9 @@ pub const BLUNDER_WEIGHT: f64 = 0.5;
 /// Rounds of setting blunders aside and fitting again.
 const MAX_REJECTION_ROUNDS: usize = 5;
 
+/// Poses the other starts run on at most (an evenly spread subset of larger sets).
+pub const START_POSES: usize = 20_000;
+
 /// Options of [`calibrate`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct CalibrationOptions {
@@ -229,6 +232,7 @@ pub fn calibrate(
         if rejected.is_empty() {
             break;
         }
+        let rejected: std::collections::HashSet<usize> = rejected.into_iter().collect();
         kept.retain(|i| !rejected.contains(i));
         let subset: Vec<Measurement> = kept.iter().map(|&i| measurements[i].clone()).collect();
         let again = identify(&identification.model, &subset, &id_opts).map_err(|e| match e {
@@ -238,9 +242,15 @@ pub fn calibrate(
         let delta = identification.delta.clone() + &again.delta;
         identification = Identification { delta, ..again };
     }
-    let set_aside: Vec<usize> = (0..data.measurements.len()).filter(|i| !kept.contains(i)).collect();
-    // Other starts: perturbed geometry, the same frames; the best is kept.
-    let subset: Vec<Measurement> = kept.iter().map(|&i| measurements[i].clone()).collect();
+    let mut in_fit = vec![false; data.measurements.len()];
+    for &i in &kept {
+        in_fit[i] = true;
+    }
+    let set_aside: Vec<usize> = (0..data.measurements.len()).filter(|&i| !in_fit[i]).collect();
+    // Other starts: perturbed geometry, the same frames; the best is kept. They test for other
+    // minima, so on large sets they run on an evenly spread subset of START_POSES poses.
+    let stride = kept.len().div_ceil(START_POSES).max(1);
+    let subset: Vec<Measurement> = kept.iter().step_by(stride).map(|&i| measurements[i].clone()).collect();
     let mut others = Vec::new();
     for k in 1..opts.starts.max(1) as usize {
         let pert = perturbation(&*start, &free, &model.tolerances, opts.seed.wrapping_add(k as u64));
@@ -253,7 +263,18 @@ pub fn calibrate(
         });
         others.push(outcome);
     }
-    let mut all: Vec<Option<Identification<Box<dyn Mechanism>>>> = vec![Some(identification)];
+    // On a subset, the fit on every pose is compared with the other starts on the same poses:
+    // polished there first (one or two iterations from its solution).
+    let (first, full_fit) = if stride > 1 {
+        let on_subset = identify(&identification.model, &subset, &id_opts).ok().map(|r| {
+            let delta = identification.delta.clone() + &r.delta;
+            Identification { delta, ..r }
+        });
+        (on_subset, Some(identification))
+    } else {
+        (Some(identification), None)
+    };
+    let mut all: Vec<Option<Identification<Box<dyn Mechanism>>>> = vec![first];
     all.extend(others);
     // The registered start is kept unless another reaches a clearly lower residual: equal fits
     // from perturbed starts differ only in how redundant directions were split.
@@ -269,27 +290,46 @@ pub fn calibrate(
             best = k;
         }
     }
-    let identification = all[best].take().expect("the best start has a result");
+    let reference = all[best].as_ref().map(|r| r.model.box_clone());
     let starts: Vec<StartOutcome> = std::iter::once(best)
         .chain((0..all.len()).filter(|&k| k != best))
-        .map(|k| match &all[k] {
-            None if k == best => StartOutcome {
-                sigma0: identification.sigma0,
-                converged: identification.converged,
-                max_difference_mm: 0.0,
-            },
-            None => StartOutcome {
-                sigma0: f64::NAN,
-                converged: false,
-                max_difference_mm: f64::INFINITY,
-            },
-            Some(r) => StartOutcome {
+        .map(|k| match (&all[k], &reference) {
+            (Some(r), Some(reference)) => StartOutcome {
                 sigma0: r.sigma0,
                 converged: r.converged,
-                max_difference_mm: max_prediction_difference(&*r.model, &*identification.model, &subset),
+                max_difference_mm: if k == best {
+                    0.0
+                } else {
+                    max_prediction_difference(&*r.model, &**reference, &subset)
+                },
+            },
+            (Some(r), None) => StartOutcome {
+                sigma0: r.sigma0,
+                converged: r.converged,
+                max_difference_mm: 0.0,
+            },
+            (None, _) => StartOutcome {
+                sigma0: f64::NAN,
+                converged: false,
+                max_difference_mm: if k == best { 0.0 } else { f64::INFINITY },
             },
         })
         .collect();
+    let chosen = all[best].take();
+    let identification = match (full_fit, best) {
+        (Some(full), 0) => full,
+        // Another start won on the subset: its solution, refitted on every kept pose.
+        (Some(full), _) => match chosen {
+            Some(c) => {
+                let kept_data: Vec<Measurement> = kept.iter().map(|&i| measurements[i].clone()).collect();
+                let r = identify(&c.model, &kept_data, &id_opts).map_err(|e| data.locate(e))?;
+                let delta = c.delta + &r.delta;
+                Identification { delta, ..r }
+            }
+            None => full,
+        },
+        (None, _) => chosen.expect("the best start has a result"),
+    };
     let mut calibrated = model.with_geometry_of(&*identification.model).map_err(|message| IoError::Invalid {
         path: format!("model '{}'", model.name).into(),
         message,
@@ -307,7 +347,10 @@ pub fn calibrate(
         validation.map(|v| (validation_name.as_deref().unwrap_or("validation"), v.measurements.as_slice())),
     )?;
     // Blunders are reported as such, not again as outliers of the identification set.
-    report.identification.outliers.retain(|o| !set_aside.contains(&o.pose));
+    report
+        .identification
+        .outliers
+        .retain(|o| in_fit.get(o.pose).copied().unwrap_or(true));
     report.blunders = set_aside.iter().map(|&i| data.ids[i]).collect();
     report.set_ids(&data.ids, validation.map(|v| v.ids.as_slice()));
     report.set_inputs(&model.inputs());

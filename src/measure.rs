@@ -84,18 +84,18 @@ pub fn residual(obs: &Observation, predicted: &Pose) -> Vec<f64> {
 pub fn residual_jacobian(obs: &Observation, predicted: &Pose, jac: &Matrix6xX<f64>) -> DMatrix<f64> {
     match obs {
         Observation::Pose(_) => {
-            let full = se3::spatial_to_pose_error(&predicted.translation.vector) * jac;
+            let full = se3::mul6(&se3::spatial_to_pose_error(&predicted.translation.vector), jac);
             DMatrix::from_iterator(6, jac.ncols(), full.iter().copied())
         }
         Observation::Position(_) => {
-            let full = se3::spatial_to_pose_error(&predicted.translation.vector) * jac;
+            let full = se3::mul6(&se3::spatial_to_pose_error(&predicted.translation.vector), jac);
             DMatrix::from_fn(3, jac.ncols(), |i, j| full[(i, j)])
         }
         Observation::Points(pts) => {
             let mut out = DMatrix::zeros(3 * pts.len(), jac.ncols());
             for (k, (r, _)) in pts.iter().enumerate() {
                 let p = predicted.transform_point(&(*r).into()).coords;
-                let full = se3::spatial_to_pose_error(&p) * jac;
+                let full = se3::mul6(&se3::spatial_to_pose_error(&p), jac);
                 out.view_mut((3 * k, 0), (3, jac.ncols())).copy_from(&full.rows(0, 3));
             }
             out

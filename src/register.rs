@@ -31,6 +31,9 @@ const AXIS_POINT_MM: f64 = 100.0;
 /// Alternation steps before the Gauss–Newton refinement.
 const ALTERNATION_STEPS: usize = 200;
 
+/// Poses the closed-form alternation runs on at most (an evenly spread subset of larger sets).
+const REGISTRATION_POSES: usize = 2000;
+
 /// The frames found from the data.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Registration {
@@ -186,13 +189,17 @@ pub fn register<M: Mechanism + Clone + 'static>(model: &M, data: &[Measurement],
             "frame registration needs one observation kind for every pose".into(),
         ));
     }
+    // Registration only starts the frames (the calibration refines them with the geometry on
+    // every pose): on large sets it runs on an evenly spread subset of REGISTRATION_POSES poses.
+    let stride = data.len().div_ceil(REGISTRATION_POSES).max(1);
     let mut classes = Vec::new();
     let mut points = Vec::new();
-    let mut flange = Vec::with_capacity(data.len());
-    for (i, m) in data.iter().enumerate() {
+    let mut flange = Vec::with_capacity(data.len().min(REGISTRATION_POSES));
+    for (i, m) in data.iter().enumerate().step_by(stride) {
+        let f = flange.len();
         flange.push(model.forward(&m.q).map_err(|source| CalibError::Kinematics { pose: i, source })?);
         for (k, p) in correspondences(&m.obs, &mut classes) {
-            points.push((i, k, p));
+            points.push((f, k, p));
         }
     }
     let n_classes = points.iter().map(|p| p.1 + 1).max().unwrap_or(1);
@@ -226,7 +233,14 @@ pub fn register<M: Mechanism + Clone + 'static>(model: &M, data: &[Measurement],
         max_iterations: 50,
         ..Options::default()
     };
-    let (measurement, tool) = match identify(&framed, data, &opts) {
+    let sample: Vec<Measurement>;
+    let fit_data = if stride > 1 {
+        sample = data.iter().step_by(stride).cloned().collect();
+        &sample
+    } else {
+        data
+    };
+    let (measurement, tool) = match identify(&framed, fit_data, &opts) {
         Ok(r) => (r.model.measurement, r.model.tool),
         Err(_) => (framed.measurement, framed.tool),
     };

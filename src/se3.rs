@@ -19,7 +19,7 @@
 //!   difference in length units and a rotation vector in radians, both in the parent frame. For a
 //!   spatial perturbation `δ = (v, ω)` its first-order value is `(v − p̂·ω, ω)`
 //!   ([`spatial_to_pose_error`]).
-use nalgebra::{Isometry3, Matrix3, Matrix6, Quaternion, Translation3, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{Isometry3, Matrix3, Matrix6, Matrix6xX, Quaternion, Translation3, UnitQuaternion, Vector3, Vector6};
 
 /// A rigid-body pose, an element of SE(3).
 pub type Pose = Isometry3<f64>;
@@ -185,6 +185,18 @@ pub fn spatial_to_pose_error(p: &Vector3<f64>) -> Matrix6<f64> {
     let mut m = Matrix6::identity();
     m.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-skew(p)));
     m
+}
+
+/// `a · b` for a 6×6 matrix and a 6 × n one, column by column with fixed-size products: for the
+/// many small products of a linearisation, far cheaper than a general (blocked, threaded) matrix
+/// multiplication.
+pub fn mul6(a: &Matrix6<f64>, b: &Matrix6xX<f64>) -> Matrix6xX<f64> {
+    let mut out = Matrix6xX::zeros(b.ncols());
+    for (mut o, c) in out.column_iter_mut().zip(b.column_iter()) {
+        let v: Vector6<f64> = c.into_owned();
+        o.copy_from(&(a * v));
+    }
+    out
 }
 
 /// A pose from a translation and a rotation vector.

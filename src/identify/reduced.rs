@@ -128,8 +128,8 @@ impl System {
     /// The minimum-norm (rank-truncated, optionally damped) step on `cols`.
     pub fn solve(&self, cols: &[usize], damping: f64, rank: Option<usize>) -> Result<DVector<f64>, CalibError> {
         match self {
-            System::Triangular { r, z } => super::solve_subset(r, z, cols, damping, rank),
-            System::Gram { n, g } => super::solve_gram(n, g, cols, damping, rank),
+            System::Triangular { r, z } => super::solve::solve_subset(r, z, cols, damping, rank),
+            System::Gram { n, g } => super::solve::solve_gram(n, g, cols, damping, rank),
         }
     }
 
@@ -141,11 +141,11 @@ impl System {
         }
     }
 
-    /// The unit-weight covariance on `cols` (see [`super::covariance`]).
+    /// The unit-weight covariance on `cols` (see [`super::solve::covariance`]).
     pub fn covariance(&self, cols: &[usize], rank: Option<usize>) -> DMatrix<f64> {
         match self {
-            System::Triangular { r, .. } => super::covariance(r, cols, rank),
-            System::Gram { n, .. } => super::covariance_gram(n, cols, rank),
+            System::Triangular { r, .. } => super::solve::covariance(r, cols, rank),
+            System::Gram { n, .. } => super::solve::covariance_gram(n, cols, rank),
         }
     }
 }
@@ -218,7 +218,8 @@ pub(crate) fn factor<M: Mechanism + ?Sized>(
                     }
                     Form::Gram => {
                         let m = block(b, be, 0)?;
-                        acc.gemm_tr(1.0, &m, &m, 1.0);
+                        // A blocked matrix product (matrixmultiply), not nalgebra's dot-product `gemm_tr`.
+                        acc += m.transpose() * &m;
                     }
                 }
             }

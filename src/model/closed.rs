@@ -39,7 +39,7 @@ use crate::error::KinError;
 use crate::params::{Param, Unit};
 use crate::se3::{self, Pose};
 use nalgebra::{DMatrix, DVector, Matrix3, Matrix6xX, Rotation3, Translation3, UnitQuaternion, Vector3};
-use num_dual::{Dual64, DualNum};
+use num_dual::{Dual64, DualNum, DualSVec64};
 use rand::{Rng, RngExt};
 
 /// Scalar types the constraint equations are written for: `f64` and forward-mode dual numbers.
@@ -320,13 +320,17 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
     }
 
     fn jacobian_x_raw(&self, x: &[f64; 6], q: &[f64]) -> DMatrix<f64> {
-        let qd = dual_vec(q, None);
-        let td = dual_vec(&self.geometry, None);
+        // All six columns in one evaluation: a vector dual number seeded with the unit vectors.
+        let qd: Vec<DualSVec64<6>> = q.iter().map(|&v| DualSVec64::from_re(v)).collect();
+        let td: Vec<DualSVec64<6>> = self.geometry.iter().map(|&v| DualSVec64::from_re(v)).collect();
+        let xd: [DualSVec64<6>; 6] = std::array::from_fn(|j| DualSVec64::from_re(x[j]).derivative(j));
+        let f = self.system.equations(&xd, &qd, &td);
         let mut m = DMatrix::zeros(6, 6);
-        for j in 0..6 {
-            let f = self.system.equations(&dual_arr6(x, Some(j)), &qd, &td);
-            for i in 0..6 {
-                m[(i, j)] = f[i].eps;
+        for (i, fi) in f.iter().enumerate() {
+            if let Some(d) = &fi.eps.0 {
+                for j in 0..6 {
+                    m[(i, j)] = d[j];
+                }
             }
         }
         m
@@ -403,16 +407,9 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
                 break;
             }
             if norm <= self.solver.tolerance {
-                return Ok(x);
+                return self.well_conditioned(x, q);
             }
             let jx = self.jacobian_x_raw(&x, q);
-            let cond = condition(&jx);
-            if cond > self.solver.max_condition {
-                return Err(KinError::Singular {
-                    what: "forward kinematics (constraint Jacobian F_X)".into(),
-                    condition: cond,
-                });
-            }
             let rhs = DVector::from_iterator(6, f.iter().map(|v| -v));
             let step = jx.lu().solve(&rhs).ok_or_else(|| KinError::Singular {
                 what: "forward kinematics (constraint Jacobian F_X)".into(),
@@ -446,13 +443,27 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
             }
         }
         if norm <= self.solver.tolerance {
-            return Ok(x);
+            return self.well_conditioned(x, q);
         }
         Err(KinError::NoConvergence {
             what: format!("{} forward kinematics", self.system.name()),
             iterations: self.solver.max_iterations,
             residual: norm,
         })
+    }
+
+    /// `x` if the constraint Jacobian `F_X` there is within the solver's condition limit (the
+    /// platform is not at a singularity), checked once at the solution rather than at every
+    /// Newton iterate.
+    fn well_conditioned(&self, x: [f64; 6], q: &[f64]) -> Result<[f64; 6], KinError> {
+        let cond = condition(&self.jacobian_x_raw(&x, q));
+        if cond > self.solver.max_condition {
+            return Err(KinError::Singular {
+                what: "forward kinematics (constraint Jacobian F_X)".into(),
+                condition: cond,
+            });
+        }
+        Ok(x)
     }
 
     /// Tool pose of platform coordinates `x` at the current frames.

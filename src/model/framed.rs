@@ -82,7 +82,7 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Framed<M> {
         let mut jac = Matrix6xX::zeros(self.n_params());
         jac.fixed_view_mut::<6, 6>(0, 0).copy_from(&ad_x);
         jac.fixed_view_mut::<6, 6>(0, 6).copy_from(&se3::adjoint(&t));
-        let inner = ad_x * jm;
+        let inner = se3::mul6(&ad_x, &jm);
         jac.view_mut((0, FRAME_PARAMS), (6, inner.ncols())).copy_from(&inner);
         Ok((t, jac))
     }
