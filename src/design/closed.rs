@@ -36,8 +36,8 @@ use rayon::prelude::*;
 /// without bound at both kinds of singularity (`F_X` singular: the platform gains a freedom;
 /// `F_q` rank-deficient: it loses one). `None` when `F_X` is singular.
 pub fn actuator_condition<C: ConstraintSystem>(mech: &ClosedLoop<C>, x: &[f64; 6], q: &[f64], length_scale: f64) -> Option<f64> {
-    let jac = mech.constraint_jacobians(x, q).ok()?;
-    let dxdq = jac.x.lu().solve(&(-jac.q))?;
+    let (fx, fq) = mech.actuator_jacobians(x, q).ok()?;
+    let dxdq = fx.lu().solve(&(-fq))?;
     let rows = mech.system().task().dof();
     let mut m = DMatrix::zeros(rows, q.len());
     for r in 0..rows {

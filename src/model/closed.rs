@@ -39,13 +39,14 @@ use crate::error::KinError;
 use crate::params::{Param, Unit};
 use crate::se3::{self, Pose};
 use nalgebra::{DMatrix, DVector, Matrix3, Matrix6xX, Rotation3, Translation3, UnitQuaternion, Vector3};
-use num_dual::{Dual64, DualNum, DualSVec64};
+use num_dual::DualNum;
 use rand::{Rng, RngExt};
 
 /// Scalar types the constraint equations are written for: `f64` and forward-mode dual numbers.
 pub trait Scalar: DualNum<Primitive = f64> + Copy + Send + Sync {}
 impl<T: DualNum<Primitive = f64> + Copy + Send + Sync> Scalar for T {}
 
+mod derivatives;
 mod mechanism;
 /// Small generic 3-vector / 3×3-matrix algebra on [`Scalar`]s (row-major arrays), used to write
 /// constraint equations once for `f64` and dual numbers.
@@ -172,18 +173,6 @@ pub fn coords_of(t: &Pose) -> [f64; 6] {
     let e = euler_xyz(&se3::rotation_matrix(t));
     let p = t.translation.vector;
     [p.x, p.y, p.z, e[0], e[1], e[2]]
-}
-
-fn dual_vec(v: &[f64], seed: Option<usize>) -> Vec<Dual64> {
-    v.iter()
-        .enumerate()
-        .map(|(i, &x)| Dual64::new(x, if Some(i) == seed { 1.0 } else { 0.0 }))
-        .collect()
-}
-
-fn dual_arr6(v: &[f64; 6], seed: Option<usize>) -> [Dual64; 6] {
-    let d = dual_vec(v, seed);
-    [d[0], d[1], d[2], d[3], d[4], d[5]]
 }
 
 /// Tool position and rotation `T_base · T(X) · Trans(t)` for any scalar.
@@ -317,50 +306,6 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
 
     fn residual_raw(&self, x: &[f64; 6], q: &[f64]) -> [f64; 6] {
         self.system.equations(x, q, &self.geometry)
-    }
-
-    fn jacobian_x_raw(&self, x: &[f64; 6], q: &[f64]) -> DMatrix<f64> {
-        // All six columns in one evaluation: a vector dual number seeded with the unit vectors.
-        let qd: Vec<DualSVec64<6>> = q.iter().map(|&v| DualSVec64::from_re(v)).collect();
-        let td: Vec<DualSVec64<6>> = self.geometry.iter().map(|&v| DualSVec64::from_re(v)).collect();
-        let xd: [DualSVec64<6>; 6] = std::array::from_fn(|j| DualSVec64::from_re(x[j]).derivative(j));
-        let f = self.system.equations(&xd, &qd, &td);
-        let mut m = DMatrix::zeros(6, 6);
-        for (i, fi) in f.iter().enumerate() {
-            if let Some(d) = &fi.eps.0 {
-                for j in 0..6 {
-                    m[(i, j)] = d[j];
-                }
-            }
-        }
-        m
-    }
-
-    fn jacobian_q_raw(&self, x: &[f64; 6], q: &[f64]) -> DMatrix<f64> {
-        let xd = dual_arr6(x, None);
-        let td = dual_vec(&self.geometry, None);
-        let mut m = DMatrix::zeros(6, q.len());
-        for j in 0..q.len() {
-            let f = self.system.equations(&xd, &dual_vec(q, Some(j)), &td);
-            for i in 0..6 {
-                m[(i, j)] = f[i].eps;
-            }
-        }
-        m
-    }
-
-    fn jacobian_theta_raw(&self, x: &[f64; 6], q: &[f64]) -> DMatrix<f64> {
-        let xd = dual_arr6(x, None);
-        let qd = dual_vec(q, None);
-        let n = self.geometry.len();
-        let mut m = DMatrix::zeros(6, n);
-        for j in 0..n {
-            let f = self.system.equations(&xd, &qd, &dual_vec(&self.geometry, Some(j)));
-            for i in 0..6 {
-                m[(i, j)] = f[i].eps;
-            }
-        }
-        m
     }
 
     /// Check inputs against the strokes.
@@ -567,28 +512,11 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
         };
         let mut f = eval(&z);
         let mut norm = max_abs(&f);
-        let td = dual_vec(&self.geometry, None);
         for _ in 0..self.solver.max_iterations {
             if norm <= self.solver.tolerance || !norm.is_finite() {
                 break;
             }
-            let mut jac = DMatrix::zeros(n, n);
-            for j in 0..n {
-                let zd = dual_vec(&z, Some(j));
-                let x = [zd[0], zd[1], zd[2], zd[3], zd[4], zd[5]];
-                let mut e: Vec<Dual64> = self.system.equations(&x, &zd[6..], &td).to_vec();
-                e.extend(self.task_equations(&x, target));
-                for i in 0..n {
-                    jac[(i, j)] = e[i].eps;
-                }
-            }
-            let cond = condition(&jac);
-            if cond > self.solver.max_condition {
-                return Err(KinError::Singular {
-                    what: format!("{} inverse kinematics", self.system.name()),
-                    condition: cond,
-                });
-            }
+            let jac = self.ik_jacobian(&z, target);
             let rhs = DVector::from_iterator(n, f.iter().map(|v| -v));
             let step = jac.lu().solve(&rhs).ok_or_else(|| KinError::Singular {
                 what: format!("{} inverse kinematics", self.system.name()),
@@ -623,9 +551,25 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
                 residual: norm,
             });
         }
+        // Conditioning checked once, at the solution (a singular pose of the task there).
+        let cond = condition(&self.ik_jacobian(&z, target));
+        if cond > self.solver.max_condition {
+            return Err(KinError::Singular {
+                what: format!("{} inverse kinematics", self.system.name()),
+                condition: cond,
+            });
+        }
         let q = z[6..].to_vec();
         self.check_strokes(&q)?;
         Ok((q, [z[0], z[1], z[2], z[3], z[4], z[5]]))
+    }
+
+    /// `F_X` (6×6) and `F_q` (6 × inputs) at `(x, q)`: the actuator Jacobian's ingredients,
+    /// without the geometric `F_θ` of [`ClosedLoop::constraint_jacobians`]. Errors: wrong input
+    /// count.
+    pub fn actuator_jacobians(&self, x: &[f64; 6], q: &[f64]) -> Result<(DMatrix<f64>, DMatrix<f64>), KinError> {
+        check_inputs(q, self.system.input_names().len())?;
+        Ok((self.jacobian_x_raw(x, q), self.jacobian_q_raw(x, q)))
     }
 
     /// Inputs that bring the platform to the commanded coordinates `x` (for

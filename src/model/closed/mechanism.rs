@@ -1,6 +1,7 @@
 //! [`ClosedLoop`] as a [`Mechanism`]: forward kinematics with the identification Jacobian,
 //! inverse kinematics, retraction of the geometry, sampling of configurations.
 use super::*;
+use num_dual::Dual64;
 
 impl<C: ConstraintSystem> Mechanism for ClosedLoop<C> {
     fn name(&self) -> &str {
