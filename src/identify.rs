@@ -14,6 +14,15 @@
 //! Parameter standard deviations are `sqrt(diag(σ̂₀²·(AᵀA)⁻¹))` on the identifiable subset, with
 //! `A` the weighted Jacobian at the solution and `σ̂₀² = |r|²/(m − k)` the a-posteriori variance of
 //! unit weight (the issue's `σ²(JᵀJ)⁻¹`).
+//!
+//! # Scale
+//! Gauss–Newton never holds the rows × p weighted Jacobian: each linearisation is a residual pass
+//! (forward kinematics only; a rejected step costs nothing more) and a pass that folds the
+//! Jacobian pose block by pose block into the normal equations, in parallel over fixed chunks of
+//! poses (same digits on any thread count). The rank and the named redundant parameters come
+//! from a Householder factor of the same rows, computed once (on an evenly spread subset of
+//! [`ANALYSIS_POSES`] poses for larger sets). Memory grows with p², not with the poses; a million
+//! IRB 120 poses identify in about 11 s in-process.
 use crate::error::{CalibError, KinError};
 use crate::identifiability::{self, Identifiability};
 use crate::measure::{self, Measurement, Noise};
