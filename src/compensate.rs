@@ -74,7 +74,7 @@ pub const COMPENSATION_STARTS: usize = 24;
 /// when the mechanism's inverse ignores its seed, [`Mechanism::inverse_ignores_seed`]). Revolute
 /// inputs are moved by whole turns to the equivalent angle nearest the seed (or 0) within their
 /// limits; every solution is checked against the limits and against the forward kinematics
-/// (1e-6 mm, 1e-8 rad; for a 5-DOF mechanism, [`Task::PositionAndAxis`], the position and the tool
+/// (1e-6 mm, 1e-8 rad; for a 5-DOF mechanism, [`crate::model::Task::PositionAndAxis`], the position and the tool
 /// axis only: see [`commanded_error`]). `progress` is called after each target.
 pub fn compensate<M: Mechanism + ?Sized>(
     model: &M,

@@ -170,7 +170,7 @@ pub fn random_configurations<M: Mechanism + ?Sized, R: Rng>(
 }
 
 /// Reflector centres (mm) in the tool frame used for simulated three-reflector measurements:
-/// their frame ([`measure::frame_from_reflectors`]) *is* the tool frame (centroid at the origin,
+/// their frame ([`crate::measure::frame_from_reflectors`]) *is* the tool frame (centroid at the origin,
 /// `M2 − M3` along x, `M1` on +y).
 pub const REFLECTORS: [[f64; 3]; 3] = [[0.0, 60.0, 0.0], [40.0, -30.0, 0.0], [-40.0, -30.0, 0.0]];
 

@@ -38,7 +38,7 @@
 //! which raises the rank of the identification Jacobian (35 in the paper) by making weakly
 //! identifiable combinations that a physical machine does not have.
 //!
-//! Measured with [`identifiability`] (40 random workspace configurations, full poses weighted by
+//! Measured with [`crate::identifiability`] (40 random workspace configurations, full poses weighted by
 //! 20 µm / 0.02°, relative rank tolerance 1e-8; asserted in `tests/it/closed.rs`):
 //!
 //! * paper's model: rank **35** of 44; in the natural order the redundant parameters are
