@@ -40,11 +40,24 @@ pub fn run(a: ValidateArgs) -> anyhow::Result<()> {
         if let (Task::PositionAndAxis, Some(m), Some(x)) = (model.task(), stats.tool_axis_mean_deg, stats.tool_axis_max_deg) {
             println!("tool axis (what this 5-DOF machine commands; the rotation about it is parasitic): mean {m:.5} / max {x:.5} deg");
         }
-        for o in &flagged {
+        // The worst first, at most SHOWN of them (--json lists every one).
+        const SHOWN: usize = 20;
+        let mut worst: Vec<_> = flagged.iter().collect();
+        worst.sort_by(|a, b| b.score.total_cmp(&a.score));
+        if !worst.is_empty() {
+            println!(
+                "{} poses with a residual component beyond 3σ (by chance 1–2 % of poses are); the worst:",
+                worst.len()
+            );
+        }
+        for o in worst.iter().take(SHOWN) {
             println!(
                 "outlier: pose {} (line {}): {:.4} mm, score {:.1}σ",
                 data.ids[o.pose], data.lines[o.pose], o.position_mm, o.score
             );
+        }
+        if worst.len() > SHOWN {
+            println!("… and {} more (all of them with --json)", worst.len() - SHOWN);
         }
     }
     Ok(())
