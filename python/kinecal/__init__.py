@@ -1,0 +1,233 @@
+"""kinecal — kinematic calibration of parallel and serial manipulators, from Python.
+
+A thin layer over the kinecal Rust library (the same calls the ``kinecal`` command line makes):
+
+>>> import kinecal
+>>> model = kinecal.Model.load("irb120")                 # or a model file path
+>>> truth, data = kinecal.simulate(model, 60, noise_mm=0.02, noise_deg=0.01, seed=7)
+>>> cal = kinecal.calibrate(model, data, noise_mm=0.02, noise_deg=0.01)
+>>> cal.verdict
+'calibrated'
+
+Units are millimetres and radians (``Data.read`` converts a file's own units); poses are 4×4
+homogeneous matrices in mm. Errors raise :class:`KinecalError` (a ``ValueError``) carrying the
+message the command line prints.
+"""
+from __future__ import annotations
+
+import json
+from typing import Any, Dict, List, Optional
+
+import numpy as np
+
+from . import _kinecal
+from ._kinecal import Data, KinecalError, Model, __version__
+
+__all__ = [
+    "Model",
+    "Data",
+    "Calibration",
+    "Validation",
+    "KinecalError",
+    "calibrate",
+    "validate",
+    "identifiability",
+    "compensate",
+    "simulate",
+    "plan",
+    "__version__",
+]
+
+
+class Calibration:
+    """The result of :func:`calibrate`: the calibrated model, the parameter table, the error
+    statistics before and after, the verdict and the full report (``report``, the same document
+    ``kinecal identify --json`` prints)."""
+
+    def __init__(self, raw: Any) -> None:
+        self._raw = raw
+        self._report: Optional[Dict[str, Any]] = None
+
+    @property
+    def report(self) -> Dict[str, Any]:
+        """The report as a dict (the document ``kinecal identify --json`` prints), built on first use."""
+        if self._report is None:
+            self._report = json.loads(self._raw.report_json())
+        return self._report
+
+    @property
+    def model(self) -> Model:
+        """The calibrated model (save it with ``open(path, "w").write(cal.model.to_toml())``)."""
+        return self._raw.model
+
+    @property
+    def verdict(self) -> str:
+        """``"calibrated"``, ``"usable-with-warnings"`` or ``"failed"``."""
+        return self.report["verdict"]["status"]
+
+    @property
+    def reasons(self) -> List[str]:
+        """Why the verdict is not ``"calibrated"`` (empty when it is)."""
+        return list(self.report["verdict"]["reasons"])
+
+    @property
+    def converged(self) -> bool:
+        return bool(self.report["converged"])
+
+    @property
+    def iterations(self) -> int:
+        return int(self.report["iterations"])
+
+    @property
+    def sigma0(self) -> float:
+        """A-posteriori standard deviation of unit weight (≈ 1 when the stated noise fits)."""
+        return float(self.report["sigma0"])
+
+    @property
+    def parameters(self) -> List[Dict[str, Any]]:
+        """One dict per parameter: name, group, unit, value, std_dev, status."""
+        return list(self.report["params"])
+
+    @property
+    def identification(self) -> Dict[str, Any]:
+        """Error statistics of the identification set after calibration (mm, deg)."""
+        return dict(self.report["identification"]["after_stats"])
+
+    @property
+    def validation(self) -> Optional[Dict[str, Any]]:
+        """Error statistics of the validation set after calibration (mm, deg), if one was given."""
+        v = self.report.get("validation")
+        return None if v is None else dict(v["after_stats"])
+
+    @property
+    def blunders(self) -> List[int]:
+        """Ids of the poses set aside as gross blunders."""
+        return list(self._raw.blunders)
+
+    def report_html(self) -> str:
+        """The report as one self-contained HTML page."""
+        return self._raw.report_html()
+
+    def __repr__(self) -> str:
+        v = self.validation
+        held = f", held-out RMS {v['position_rms_mm']:.4f} mm" if v else ""
+        return f"Calibration({self.report['model']!r}: {self.verdict}, σ̂₀ {self.sigma0:.3f}{held})"
+
+
+class Validation:
+    """Per-pose errors of a model on a data set and their statistics."""
+
+    def __init__(self, stats: str, position: np.ndarray, orientation: Optional[np.ndarray]) -> None:
+        #: Statistics (mm, deg): poses, position_mean_mm, position_rms_mm, position_max_mm, …
+        self.stats: Dict[str, Any] = json.loads(stats)
+        #: Position error of each pose (mm).
+        self.position: np.ndarray = position
+        #: Orientation error of each pose (rad), None for position data.
+        self.orientation: Optional[np.ndarray] = orientation
+
+    def __repr__(self) -> str:
+        s = self.stats
+        return f"Validation({s['poses']} poses: position RMS {s['position_rms_mm']:.4f} / max {s['position_max_mm']:.4f} mm)"
+
+
+def calibrate(
+    model: Model,
+    data: Data,
+    validation: Optional[Data] = None,
+    *,
+    noise_mm: Optional[float] = None,
+    noise_deg: Optional[float] = None,
+    method: str = "gauss-newton",
+    frames: str = "estimate",
+    reflectors: str = "frame",
+    starts: int = 3,
+    seed: int = 1,
+    reweight: bool = False,
+    huber: float = 5.0,
+) -> Calibration:
+    """Identify the model's free parameters from ``data`` — the call behind ``kinecal identify``,
+    with the same options: the measurement and tool frames found from the data (``frames=
+    "estimate"``) or taken from the model (``"model"``), Gauss–Newton to convergence from
+    ``starts`` starts, noise weights (``noise_mm``, ``noise_deg``; default: the model file's, else
+    0.02 mm / 0.02°), Huber loss (``huber`` robust σ, 0 = plain least squares), ``reflectors=
+    "points"`` to fit three reflector centres."""
+    return Calibration(
+        _kinecal.calibrate(
+            model,
+            data,
+            validation,
+            noise_mm=noise_mm,
+            noise_deg=noise_deg,
+            method=method,
+            frames=frames,
+            reflectors=reflectors,
+            starts=starts,
+            seed=seed,
+            reweight=reweight,
+            huber=huber,
+        )
+    )
+
+
+def validate(model: Model, data: Data) -> Validation:
+    """Per-pose errors of ``model`` on ``data`` (``kinecal validate``)."""
+    return Validation(*_kinecal.validate(model, data))
+
+
+def identifiability(model: Model, data: Data, tolerance: float = 1e-8) -> Dict[str, Any]:
+    """Rank, identifiable and redundant parameters, condition number (``kinecal identifiability``)."""
+    return json.loads(_kinecal.identifiability(model, data, tolerance))
+
+
+def compensate(model: Model, targets: np.ndarray, seeds: Optional[np.ndarray] = None) -> np.ndarray:
+    """Commands (n, inputs) in rad / mm that bring ``model`` to ``targets`` (n, 4, 4), mm
+    (``kinecal compensate``)."""
+    t = np.ascontiguousarray(targets, dtype=np.float64)
+    s = None if seeds is None else np.ascontiguousarray(seeds, dtype=np.float64)
+    return _kinecal.compensate(model, t, s)
+
+
+def simulate(
+    model: Model,
+    poses: int,
+    *,
+    seed: int = 1,
+    error_mm: float = 0.5,
+    error_deg: float = 0.1,
+    noise_mm: float = 0.0,
+    noise_deg: float = 0.0,
+    measure: str = "pose",
+):
+    """A virtual prototype (``kinecal simulate``): returns (true model, data measured at ``poses``
+    random configurations). ``measure``: "pose", "position" or "reflectors"."""
+    return _kinecal.simulate(
+        model,
+        poses,
+        seed=seed,
+        error_mm=error_mm,
+        error_deg=error_deg,
+        noise_mm=noise_mm,
+        noise_deg=noise_deg,
+        measure=measure,
+    )
+
+
+def plan(
+    model: Model,
+    candidates: np.ndarray,
+    n: int = 30,
+    *,
+    criterion: str = "o2",
+    method: str = "sffs",
+    observe: str = "pose",
+    noise_mm: float = 0.02,
+    noise_deg: float = 0.02,
+):
+    """Choose ``n`` of the candidate configurations (N, inputs; rad / mm) to measure at
+    (``kinecal plan``): greedy / SFFS / exchange on ``criterion`` (``d``, ``o1`` … ``o5``).
+    Returns (chosen row indices, observability indices dict)."""
+    c = np.ascontiguousarray(candidates, dtype=np.float64)
+    chosen, indices = _kinecal.plan(
+        model, c, n, criterion=criterion, method=method, observe=observe, noise_mm=noise_mm, noise_deg=noise_deg
+    )
+    return list(chosen), json.loads(indices)

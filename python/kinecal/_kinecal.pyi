@@ -1,0 +1,93 @@
+"""Type stubs of the compiled core (see kinecal/__init__.py for the documented API)."""
+from typing import List, Optional, Tuple
+
+import numpy as np
+
+__version__: str
+
+class KinecalError(ValueError): ...
+
+class Model:
+    @staticmethod
+    def load(name_or_path: str) -> "Model": ...
+    @staticmethod
+    def from_toml(text: str, name: str = "<string>") -> "Model": ...
+    def to_toml(self) -> str: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def inputs(self) -> List[str]: ...
+    @property
+    def input_units(self) -> List[str]: ...
+    @property
+    def parameters(self) -> List[str]: ...
+    def forward(self, q: np.ndarray) -> np.ndarray: ...
+    def inverse(self, poses: np.ndarray, seeds: Optional[np.ndarray] = None) -> np.ndarray: ...
+
+class Data:
+    @staticmethod
+    def read(path: str, model: Model) -> "Data": ...
+    @staticmethod
+    def from_arrays(
+        model: Model,
+        q: np.ndarray,
+        positions: np.ndarray,
+        rotations: Optional[np.ndarray] = None,
+        ids: Optional[List[int]] = None,
+    ) -> "Data": ...
+    def __len__(self) -> int: ...
+    @property
+    def ids(self) -> List[int]: ...
+    @property
+    def q(self) -> np.ndarray: ...
+    @property
+    def positions(self) -> np.ndarray: ...
+
+class Calibration:
+    @property
+    def model(self) -> Model: ...
+    def report_json(self) -> str: ...
+    def report_html(self) -> str: ...
+    @property
+    def blunders(self) -> List[int]: ...
+
+def calibrate(
+    model: Model,
+    data: Data,
+    validation: Optional[Data] = None,
+    *,
+    noise_mm: Optional[float] = None,
+    noise_deg: Optional[float] = None,
+    method: str = "gauss-newton",
+    frames: str = "estimate",
+    reflectors: str = "frame",
+    starts: int = 3,
+    seed: int = 1,
+    reweight: bool = False,
+    huber: float = 5.0,
+) -> Calibration: ...
+def validate(model: Model, data: Data) -> Tuple[str, np.ndarray, Optional[np.ndarray]]: ...
+def identifiability(model: Model, data: Data, tolerance: float = 1e-8) -> str: ...
+def compensate(model: Model, targets: np.ndarray, seeds: Optional[np.ndarray] = None) -> np.ndarray: ...
+def simulate(
+    model: Model,
+    poses: int,
+    *,
+    seed: int = 1,
+    error_mm: float = 0.5,
+    error_deg: float = 0.1,
+    noise_mm: float = 0.0,
+    noise_deg: float = 0.0,
+    measure: str = "pose",
+) -> Tuple[Model, Data]: ...
+def plan(
+    model: Model,
+    candidates: np.ndarray,
+    n: int = 30,
+    *,
+    criterion: str = "o2",
+    method: str = "sffs",
+    observe: str = "pose",
+    noise_mm: float = 0.02,
+    noise_deg: float = 0.02,
+) -> Tuple[List[int], str]: ...

@@ -1,0 +1,617 @@
+//! Python bindings of kinecal: a thin layer over the library calls (`calibrate`, `validate`,
+//! `compensate`, `simulate`, identifiability), with numpy arrays in and out. The Python package
+//! `kinecal` (python/kinecal/__init__.py) wraps these into plain objects.
+//!
+//! Units are the library's: millimetres and radians (a data file read with [`Data::read`] is
+//! converted from its own units). Poses are 4×4 homogeneous matrices (mm).
+use kinecal::calibrate::{calibrate as lib_calibrate, CalibrationOptions, FrameMode, ReflectorFit};
+use kinecal::identify::{linearize, Loss, Method};
+use kinecal::io::data_file::{read_data, DataSet, InputColumns};
+use kinecal::io::model_file::ModelFile;
+use kinecal::measure::{Measurement, Noise, Observation};
+use kinecal::model::Mechanism;
+use kinecal::params::Unit;
+use kinecal::se3::Pose;
+use kinecal::simulate::{random_configurations, synthesize, virtual_prototype, Instrument};
+use nalgebra::{Matrix3, Matrix4, Rotation3, UnitQuaternion, Vector3};
+use numpy::ndarray::{Array1, Array2, Array3};
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
+use pyo3::create_exception;
+use pyo3::prelude::*;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use std::path::Path;
+
+create_exception!(
+    _kinecal,
+    KinecalError,
+    pyo3::exceptions::PyValueError,
+    "An error of kinecal: bad input, a failed solve, a file that cannot be read. The message is the one the command line prints."
+);
+
+fn err<E: std::fmt::Display>(e: E) -> PyErr {
+    KinecalError::new_err(e.to_string())
+}
+
+/// A 4×4 homogeneous matrix of a pose.
+fn pose_matrix(p: &Pose) -> Matrix4<f64> {
+    p.to_homogeneous()
+}
+
+/// A pose from a 4×4 homogeneous matrix (the rotation block re-orthonormalised; not finite or far
+/// from a rotation is an error).
+fn matrix_pose(m: &Matrix4<f64>, what: &str) -> PyResult<Pose> {
+    if m.iter().any(|v| !v.is_finite()) {
+        return Err(err(format!("{what}: the matrix holds NaN or infinite values")));
+    }
+    let r: Matrix3<f64> = m.fixed_view::<3, 3>(0, 0).into_owned();
+    if (r.transpose() * r - Matrix3::identity()).norm() > 1e-6 || r.determinant() < 0.0 {
+        return Err(err(format!("{what}: the upper-left 3×3 block is not a rotation")));
+    }
+    let rot = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix(&r));
+    Ok(Pose::from_parts(Vector3::new(m[(0, 3)], m[(1, 3)], m[(2, 3)]).into(), rot))
+}
+
+fn rows_2d(a: &PyReadonlyArray2<f64>, cols: usize, what: &str) -> PyResult<Vec<Vec<f64>>> {
+    let shape = a.shape();
+    if shape[1] != cols {
+        return Err(err(format!(
+            "{what}: expected an array of shape (n, {cols}), got ({}, {})",
+            shape[0], shape[1]
+        )));
+    }
+    let v = a.as_array();
+    let rows: Vec<Vec<f64>> = v.rows().into_iter().map(|r| r.to_vec()).collect();
+    if let Some(i) = rows.iter().position(|r| r.iter().any(|x| !x.is_finite())) {
+        return Err(err(format!("{what}: row {i} holds NaN or infinite values")));
+    }
+    Ok(rows)
+}
+
+fn poses_3d(a: &PyReadonlyArray3<f64>, what: &str) -> PyResult<Vec<Pose>> {
+    let shape = a.shape();
+    if shape[1] != 4 || shape[2] != 4 {
+        return Err(err(format!(
+            "{what}: expected an array of shape (n, 4, 4), got ({}, {}, {})",
+            shape[0], shape[1], shape[2]
+        )));
+    }
+    let v = a.as_array();
+    (0..shape[0])
+        .map(|i| {
+            let m = Matrix4::from_fn(|r, c| v[[i, r, c]]);
+            matrix_pose(&m, &format!("{what}[{i}]"))
+        })
+        .collect()
+}
+
+fn poses_array<'py>(py: Python<'py>, poses: &[Pose]) -> Bound<'py, PyArray3<f64>> {
+    let mut out = Array3::<f64>::zeros((poses.len(), 4, 4));
+    for (i, p) in poses.iter().enumerate() {
+        let m = pose_matrix(p);
+        for r in 0..4 {
+            for c in 0..4 {
+                out[[i, r, c]] = m[(r, c)];
+            }
+        }
+    }
+    out.into_pyarray(py)
+}
+
+fn rows_array<'py>(py: Python<'py>, rows: &[Vec<f64>], cols: usize) -> Bound<'py, PyArray2<f64>> {
+    let mut out = Array2::<f64>::zeros((rows.len(), cols));
+    for (i, r) in rows.iter().enumerate() {
+        for (k, v) in r.iter().enumerate().take(cols) {
+            out[[i, k]] = *v;
+        }
+    }
+    out.into_pyarray(py)
+}
+
+/// A mechanism model: a kinecal model file (serial, DH, pm5, stewart, or a calibrated one) or a
+/// built-in model by name.
+#[pyclass(module = "kinecal._kinecal")]
+pub struct Model {
+    file: ModelFile,
+    mech: Box<dyn Mechanism>,
+}
+
+impl Model {
+    fn of(file: ModelFile) -> Model {
+        let mech = file.build();
+        Model { file, mech }
+    }
+}
+
+#[pymethods]
+impl Model {
+    /// Load a model file (TOML), or a built-in model by name (`irb120`, `pm5`, `stewart`).
+    #[staticmethod]
+    fn load(name_or_path: &str) -> PyResult<Model> {
+        ModelFile::load_or_builtin(name_or_path).map(Model::of).map_err(err)
+    }
+
+    /// A model from the text of a model file (`name` stands for the file in messages).
+    #[staticmethod]
+    #[pyo3(signature = (text, name = "<string>"))]
+    fn from_toml(text: &str, name: &str) -> PyResult<Model> {
+        ModelFile::load_str(Path::new(name), text).map(Model::of).map_err(err)
+    }
+
+    /// The model file's text (TOML).
+    fn to_toml(&self) -> PyResult<String> {
+        self.file.to_toml().map_err(err)
+    }
+
+    /// The model's name.
+    #[getter]
+    fn name(&self) -> String {
+        self.file.name.clone()
+    }
+
+    /// Input (joint / actuator) names, in order.
+    #[getter]
+    fn inputs(&self) -> Vec<String> {
+        self.file.inputs().into_iter().map(|i| i.name).collect()
+    }
+
+    /// Unit kind of each input: "angle" (rad) or "length" (mm).
+    #[getter]
+    fn input_units(&self) -> Vec<&'static str> {
+        self.file
+            .inputs()
+            .iter()
+            .map(|i| if i.unit == Unit::Angle { "angle" } else { "length" })
+            .collect()
+    }
+
+    /// Names of the geometric error parameters (what a calibration can identify).
+    #[getter]
+    fn parameters(&self) -> Vec<String> {
+        self.mech.params().into_iter().map(|p| p.name).collect()
+    }
+
+    /// Forward kinematics: tool poses (n, 4, 4) in mm of inputs `q` (n, inputs) in rad / mm.
+    fn forward<'py>(&self, py: Python<'py>, q: PyReadonlyArray2<'py, f64>) -> PyResult<Bound<'py, PyArray3<f64>>> {
+        let rows = rows_2d(&q, self.mech.input_names().len(), "q")?;
+        let poses = rows
+            .iter()
+            .enumerate()
+            .map(|(i, q)| self.mech.forward(q).map_err(|e| err(format!("q[{i}]: {e}"))))
+            .collect::<PyResult<Vec<_>>>()?;
+        Ok(poses_array(py, &poses))
+    }
+
+    /// Inverse kinematics: inputs (n, inputs) in rad / mm reaching tool poses (n, 4, 4), from
+    /// optional seeds (n, inputs).
+    #[pyo3(signature = (poses, seeds = None))]
+    fn inverse<'py>(
+        &self,
+        py: Python<'py>,
+        poses: PyReadonlyArray3<'py, f64>,
+        seeds: Option<PyReadonlyArray2<'py, f64>>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let targets = poses_3d(&poses, "poses")?;
+        let k = self.mech.input_names().len();
+        let seeds = match &seeds {
+            Some(s) => Some(rows_2d(s, k, "seeds")?),
+            None => None,
+        };
+        if seeds.as_ref().is_some_and(|s| s.len() != targets.len()) {
+            return Err(err("seeds: one row per pose"));
+        }
+        let qs = targets
+            .iter()
+            .enumerate()
+            .map(|(i, t)| {
+                let seed = seeds.as_ref().map(|s| s[i].as_slice());
+                self.mech.inverse(t, seed).map_err(|e| err(format!("poses[{i}]: {e}")))
+            })
+            .collect::<PyResult<Vec<_>>>()?;
+        Ok(rows_array(py, &qs, k))
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Model('{}', {} inputs, {} parameters)",
+            self.file.name,
+            self.file.inputs().len(),
+            self.mech.n_params()
+        )
+    }
+}
+
+/// A measurement set: joint values and what the instrument measured at each pose.
+#[pyclass(module = "kinecal._kinecal")]
+pub struct Data {
+    set: DataSet,
+}
+
+#[pymethods]
+impl Data {
+    /// Read a kinecal data file (CSV) for `model` (its input columns, in the file's units).
+    #[staticmethod]
+    fn read(path: &str, model: &Model) -> PyResult<Data> {
+        read_data(Path::new(path), &model.file.inputs(), InputColumns::Required)
+            .map(|set| Data { set })
+            .map_err(err)
+    }
+
+    /// Measurements from arrays: inputs `q` (n, inputs) in rad / mm and measured tool positions
+    /// (n, 3) in mm, with measured rotations (n, 3, 3) for full poses; optional integer ids.
+    #[staticmethod]
+    #[pyo3(signature = (model, q, positions, rotations = None, ids = None))]
+    fn from_arrays<'py>(
+        model: &Model,
+        q: PyReadonlyArray2<'py, f64>,
+        positions: PyReadonlyArray2<'py, f64>,
+        rotations: Option<PyReadonlyArray3<'py, f64>>,
+        ids: Option<Vec<i64>>,
+    ) -> PyResult<Data> {
+        let qs = rows_2d(&q, model.mech.input_names().len(), "q")?;
+        let ps = rows_2d(&positions, 3, "positions")?;
+        if ps.len() != qs.len() {
+            return Err(err(format!("positions: {} rows for {} rows of q", ps.len(), qs.len())));
+        }
+        let rots: Option<Vec<Matrix3<f64>>> = match &rotations {
+            None => None,
+            Some(r) => {
+                let shape = r.shape();
+                if shape[0] != qs.len() || shape[1] != 3 || shape[2] != 3 {
+                    return Err(err(format!(
+                        "rotations: expected shape ({}, 3, 3), got ({}, {}, {})",
+                        qs.len(),
+                        shape[0],
+                        shape[1],
+                        shape[2]
+                    )));
+                }
+                let v = r.as_array();
+                Some((0..qs.len()).map(|i| Matrix3::from_fn(|a, b| v[[i, a, b]])).collect())
+            }
+        };
+        let mut measurements = Vec::with_capacity(qs.len());
+        for (i, (q, p)) in qs.into_iter().zip(ps).enumerate() {
+            let p = Vector3::new(p[0], p[1], p[2]);
+            let obs = match &rots {
+                None => Observation::Position(p),
+                Some(r) => {
+                    let mut m = Matrix4::identity();
+                    m.fixed_view_mut::<3, 3>(0, 0).copy_from(&r[i]);
+                    m.fixed_view_mut::<3, 1>(0, 3).copy_from(&p);
+                    Observation::Pose(matrix_pose(&m, &format!("rotations[{i}]"))?)
+                }
+            };
+            measurements.push(Measurement { q, obs });
+        }
+        let mut set = DataSet::from_measurements("<arrays>", measurements);
+        if let Some(ids) = ids {
+            if ids.len() != set.measurements.len() {
+                return Err(err(format!("ids: {} for {} poses", ids.len(), set.measurements.len())));
+            }
+            set.ids = ids;
+        }
+        Ok(Data { set })
+    }
+
+    fn __len__(&self) -> usize {
+        self.set.measurements.len()
+    }
+
+    /// Pose ids.
+    #[getter]
+    fn ids(&self) -> Vec<i64> {
+        self.set.ids.clone()
+    }
+
+    /// Inputs (n, inputs) in rad / mm.
+    #[getter]
+    fn q<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        let rows: Vec<Vec<f64>> = self.set.measurements.iter().map(|m| m.q.clone()).collect();
+        let k = rows.first().map_or(0, Vec::len);
+        rows_array(py, &rows, k)
+    }
+
+    /// Measured tool positions (n, 3) in mm (for three-reflector data: the origin of their frame).
+    #[getter]
+    fn positions<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        let rows: Vec<Vec<f64>> = self
+            .set
+            .measurements
+            .iter()
+            .map(|m| match &m.obs {
+                Observation::Pose(p) => p.translation.vector.as_slice().to_vec(),
+                Observation::Position(p) => p.as_slice().to_vec(),
+                Observation::Points(pts) => pts.first().map_or(vec![f64::NAN; 3], |(_, m)| m.as_slice().to_vec()),
+            })
+            .collect();
+        rows_array(py, &rows, 3)
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Data('{}', {} poses, {})",
+            self.set.path.display(),
+            self.set.measurements.len(),
+            self.set.format.describe()
+        )
+    }
+}
+
+/// The result of [`calibrate`]: the calibrated model and the report.
+#[pyclass(module = "kinecal._kinecal")]
+pub struct Calibration {
+    cal: kinecal::calibrate::Calibration,
+}
+
+#[pymethods]
+impl Calibration {
+    /// The calibrated model.
+    #[getter]
+    fn model(&self) -> Model {
+        Model::of(self.cal.model_file.clone())
+    }
+
+    /// The report as JSON (the same document `kinecal identify --json` prints).
+    fn report_json(&self) -> PyResult<String> {
+        serde_json::to_string(&self.cal.report).map_err(err)
+    }
+
+    /// The report as one self-contained HTML page.
+    fn report_html(&self) -> PyResult<String> {
+        self.cal.report.to_html().map_err(err)
+    }
+
+    /// Ids of the poses set aside as gross blunders.
+    #[getter]
+    fn blunders(&self) -> Vec<i64> {
+        self.cal.blunders.clone()
+    }
+}
+
+fn method_of(name: &str) -> PyResult<Method> {
+    match name {
+        "gauss-newton" | "gauss_newton" => Ok(Method::GaussNewton),
+        "linear" => Ok(Method::Linear),
+        "recursive" => Ok(Method::Recursive),
+        _ => Err(err(format!("method: '{name}' is not one of gauss-newton, linear, recursive"))),
+    }
+}
+
+/// Identify the model's free parameters from `data` (optionally validated on `validation`): the
+/// library call behind `kinecal identify`, with the same options and defaults.
+#[pyfunction]
+#[pyo3(signature = (model, data, validation = None, *, noise_mm = None, noise_deg = None, method = "gauss-newton", frames = "estimate", reflectors = "frame", starts = 3, seed = 1, reweight = false, huber = 5.0))]
+#[allow(clippy::too_many_arguments)]
+fn calibrate(
+    py: Python<'_>,
+    model: &Model,
+    data: &Data,
+    validation: Option<&Data>,
+    noise_mm: Option<f64>,
+    noise_deg: Option<f64>,
+    method: &str,
+    frames: &str,
+    reflectors: &str,
+    starts: u64,
+    seed: u64,
+    reweight: bool,
+    huber: f64,
+) -> PyResult<Calibration> {
+    let base = model.file.noise.unwrap_or_default();
+    let noise = Noise {
+        position: noise_mm.unwrap_or(base.position),
+        orientation: noise_deg.map_or(base.orientation, f64::to_radians),
+    };
+    if !(noise.position > 0.0 && noise.orientation > 0.0 && noise.position.is_finite() && noise.orientation.is_finite()) {
+        return Err(err("noise_mm / noise_deg: must be finite and > 0"));
+    }
+    if !huber.is_finite() || huber < 0.0 {
+        return Err(err("huber: a finite number of standard deviations ≥ 0 (0 = off)"));
+    }
+    let opts = CalibrationOptions {
+        method: method_of(method)?,
+        noise,
+        reweight,
+        frames: match frames {
+            "estimate" => FrameMode::Estimate,
+            "model" => FrameMode::Model,
+            f => return Err(err(format!("frames: '{f}' is not one of estimate, model"))),
+        },
+        loss: if huber > 0.0 { Loss::Huber { k: huber } } else { Loss::Squares },
+        starts,
+        seed,
+        reflectors: match reflectors {
+            "frame" => ReflectorFit::Frame,
+            "points" => ReflectorFit::Points,
+            r => return Err(err(format!("reflectors: '{r}' is not one of frame, points"))),
+        },
+    };
+    let _ = py;
+    lib_calibrate(&model.file, &data.set, validation.map(|v| &v.set), &opts)
+        .map(|cal| Calibration { cal })
+        .map_err(err)
+}
+
+/// Per-pose errors of `model` on `data`: (statistics as JSON, position errors (n,) in mm,
+/// orientation errors (n,) in rad or None for position data).
+#[pyfunction]
+#[allow(clippy::type_complexity)]
+fn validate<'py>(
+    py: Python<'py>,
+    model: &Model,
+    data: &Data,
+) -> PyResult<(String, Bound<'py, PyArray1<f64>>, Option<Bound<'py, PyArray1<f64>>>)> {
+    let e = kinecal::validate::pose_errors(&*model.mech, &data.set.measurements).map_err(|e| err(data.set.locate(e)))?;
+    let stats = kinecal::validate::ErrorStats::of(&e);
+    let json = serde_json::to_string(&stats).map_err(err)?;
+    let pos = Array1::from(e.position.clone()).into_pyarray(py);
+    let ori = e
+        .orientation
+        .iter()
+        .any(Option::is_some)
+        .then(|| Array1::from(e.orientation.iter().map(|o| o.unwrap_or(f64::NAN)).collect::<Vec<_>>()).into_pyarray(py));
+    Ok((json, pos, ori))
+}
+
+/// Rank, identifiable and redundant parameters of `model` on `data` (as JSON).
+#[pyfunction]
+#[pyo3(signature = (model, data, tolerance = 1e-8))]
+fn identifiability(model: &Model, data: &Data, tolerance: f64) -> PyResult<String> {
+    let free = model.file.free_indices().map_err(err)?;
+    let noise = model.file.noise.unwrap_or_default();
+    let lin = linearize(&*model.mech, &data.set.measurements, &noise).map_err(|e| err(data.set.locate(e)))?;
+    let id = kinecal::identifiability::analyze(&lin.jacobian, &free, tolerance);
+    let params = model.mech.params();
+    let names = |v: &[usize]| v.iter().map(|&i| params[i].name.clone()).collect::<Vec<_>>();
+    serde_json::to_string(&serde_json::json!({
+        "poses": data.set.measurements.len(), "free": free.len(), "rank": id.rank,
+        "identifiable": names(&id.identifiable), "redundant": names(&id.redundant),
+        "no_effect": names(&id.no_effect), "condition": id.condition,
+    }))
+    .map_err(err)
+}
+
+/// Actuator commands (n, inputs) in rad / mm that bring `model` to the target poses (n, 4, 4):
+/// its inverse kinematics from several starts, within the joint limits.
+#[pyfunction]
+#[pyo3(signature = (model, targets, seeds = None))]
+fn compensate<'py>(
+    py: Python<'py>,
+    model: &Model,
+    targets: PyReadonlyArray3<'py, f64>,
+    seeds: Option<PyReadonlyArray2<'py, f64>>,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let poses = poses_3d(&targets, "targets")?;
+    let inputs = model.file.inputs();
+    let seeds = match &seeds {
+        Some(s) => Some(rows_2d(s, inputs.len(), "seeds")?),
+        None => None,
+    };
+    let q = kinecal::compensate::compensate(&*model.mech, &inputs, &poses, seeds.as_deref(), &|_| {})
+        .map_err(|e| err(format!("targets[{}]: {}", e.target, e.source)))?;
+    Ok(rows_array(py, &q, inputs.len()))
+}
+
+/// A virtual prototype of `model` (uniform errors ±error_mm / ±error_deg on its free parameters)
+/// measured at `poses` random configurations with Gaussian noise: (true model, data).
+/// `measure`: "pose", "position" or "reflectors".
+#[pyfunction]
+#[pyo3(signature = (model, poses, *, seed = 1, error_mm = 0.5, error_deg = 0.1, noise_mm = 0.0, noise_deg = 0.0, measure = "pose"))]
+#[allow(clippy::too_many_arguments)]
+fn simulate(
+    model: &Model,
+    poses: usize,
+    seed: u64,
+    error_mm: f64,
+    error_deg: f64,
+    noise_mm: f64,
+    noise_deg: f64,
+    measure: &str,
+) -> PyResult<(Model, Data)> {
+    for (name, v) in [
+        ("error_mm", error_mm),
+        ("error_deg", error_deg),
+        ("noise_mm", noise_mm),
+        ("noise_deg", noise_deg),
+    ] {
+        if !(v.is_finite() && v >= 0.0) {
+            return Err(err(format!("{name}: must be a finite value ≥ 0, got {v}")));
+        }
+    }
+    let instrument = match measure {
+        "pose" => Instrument::Pose,
+        "position" => Instrument::Position,
+        "reflectors" => Instrument::Reflectors,
+        m => return Err(err(format!("measure: '{m}' is not one of pose, position, reflectors"))),
+    };
+    let free = model.file.free_indices().map_err(err)?;
+    let inputs = model.file.inputs();
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let (truth, _) = virtual_prototype(&model.mech, &free, error_mm, error_deg.to_radians(), &mut rng);
+    let truth_file = model.file.with_geometry_of(&*truth).map_err(err)?;
+    let qs = random_configurations(&*model.mech, &inputs, poses, &mut rng).map_err(err)?;
+    let noise = Noise {
+        position: noise_mm,
+        orientation: noise_deg.to_radians(),
+    };
+    let set = synthesize(&*truth, qs, instrument, &noise, &mut rng, &|_| {}).map_err(err)?;
+    let mut data = DataSet::from_measurements("<simulated>", set.measurements);
+    if let Some(r) = set.reflectors {
+        data.reflectors = r;
+    }
+    Ok((Model::of(truth_file), Data { set: data }))
+}
+
+/// Choose `n` of the candidate configurations `candidates` (N, inputs; rad / mm) to measure at
+/// (`kinecal plan`): identifiable columns, scaled Jacobian blocks, then greedy / SFFS / exchange
+/// on a criterion (`d`, `o1` … `o5`). Returns (chosen row indices, observability indices as JSON).
+#[pyfunction]
+#[pyo3(signature = (model, candidates, n = 30, *, criterion = "o2", method = "sffs", observe = "pose", noise_mm = 0.02, noise_deg = 0.02))]
+#[allow(clippy::too_many_arguments)]
+fn plan<'py>(
+    model: &Model,
+    candidates: PyReadonlyArray2<'py, f64>,
+    n: usize,
+    criterion: &str,
+    method: &str,
+    observe: &str,
+    noise_mm: f64,
+    noise_deg: f64,
+) -> PyResult<(Vec<usize>, String)> {
+    use kinecal::design::{self, Candidate, PlanOptions, SelectOptions};
+    let rows = rows_2d(&candidates, model.mech.input_names().len(), "candidates")?;
+    let cands = rows
+        .into_iter()
+        .enumerate()
+        .map(|(i, q)| {
+            let target = model.mech.forward(&q).map_err(|e| err(format!("candidates[{i}]: {e}")))?;
+            Ok(Candidate { q, target })
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    if !(noise_mm > 0.0 && noise_deg > 0.0 && noise_mm.is_finite() && noise_deg.is_finite()) {
+        return Err(err("noise_mm / noise_deg: must be finite and > 0"));
+    }
+    let opts = PlanOptions {
+        observe: match observe {
+            "pose" => kinecal::simulate::ObservationKind::Pose,
+            "position" => kinecal::simulate::ObservationKind::Position,
+            o => return Err(err(format!("observe: '{o}' is not one of pose, position"))),
+        },
+        noise: Noise {
+            position: noise_mm,
+            orientation: noise_deg.to_radians(),
+        },
+        method: method.parse().map_err(err)?,
+        select: SelectOptions {
+            n,
+            criterion: criterion.parse().map_err(err)?,
+            ..Default::default()
+        },
+    };
+    let planned = design::plan(&*model.mech, &cands, &opts, None, &mut |_| {}).map_err(err)?;
+    let ix = &planned.selection.indices;
+    let json = serde_json::to_string(&serde_json::json!({
+        "o1": ix.o1, "o2": ix.o2, "o3": ix.o3, "o4": ix.o4, "o5": ix.o5, "o_t": ix.o_t, "log_det": ix.log_det,
+        "identifiable_parameters": planned.columns.len(),
+    }))
+    .map_err(err)?;
+    Ok((planned.selection.selected.clone(), json))
+}
+
+/// The compiled core of the `kinecal` package.
+#[pymodule]
+fn _kinecal(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("KinecalError", m.py().get_type::<KinecalError>())?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add_class::<Model>()?;
+    m.add_class::<Data>()?;
+    m.add_class::<Calibration>()?;
+    m.add_function(wrap_pyfunction!(calibrate, m)?)?;
+    m.add_function(wrap_pyfunction!(validate, m)?)?;
+    m.add_function(wrap_pyfunction!(identifiability, m)?)?;
+    m.add_function(wrap_pyfunction!(compensate, m)?)?;
+    m.add_function(wrap_pyfunction!(simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(plan, m)?)?;
+    Ok(())
+}

@@ -1,0 +1,150 @@
+"""pytest suite of the Python bindings: needs nothing outside the repository (data are simulated;
+the comparison with the command line runs when a built `kinecal` binary is found)."""
+import json
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import kinecal
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def kinecal_binary():
+    for p in [os.environ.get("KINECAL_BIN"), ROOT / "target/release/kinecal", ROOT / "target/debug/kinecal", shutil.which("kinecal")]:
+        if p and Path(p).is_file():
+            return str(p)
+    return None
+
+
+def test_builtin_models_and_kinematics_round_trip():
+    m = kinecal.Model.load("irb120")
+    assert m.name == "irb120" and len(m.inputs) == 6 and m.input_units == ["angle"] * 6
+    rng = np.random.default_rng(1)
+    q = rng.uniform(-1.5, 1.5, size=(50, 6))
+    poses = m.forward(q)
+    assert poses.shape == (50, 4, 4)
+    np.testing.assert_allclose(poses[:, 3, :], np.tile([0, 0, 0, 1.0], (50, 1)))
+    back = m.inverse(poses, seeds=q + 0.01)
+    np.testing.assert_allclose(m.forward(back), poses, atol=1e-8)
+
+
+def test_parallel_model_forward_inverse():
+    m = kinecal.Model.load("pm5")
+    truth, data = kinecal.simulate(m, 5, seed=3, error_mm=0.0, error_deg=0.0)
+    q = data.q
+    poses = m.forward(q)
+    np.testing.assert_allclose(m.inverse(poses), q, atol=1e-7)
+
+
+def test_model_file_text_round_trip():
+    m = kinecal.Model.load("stewart")
+    back = kinecal.Model.from_toml(m.to_toml(), "stewart.toml")
+    q = kinecal.simulate(m, 3, seed=2, error_mm=0, error_deg=0)[1].q
+    np.testing.assert_allclose(back.forward(q), m.forward(q), atol=1e-9)
+
+
+def test_noise_free_calibration_recovers_the_prototype():
+    m = kinecal.Model.load("irb120")
+    truth, data = kinecal.simulate(m, 40, seed=5)
+    _, valid = kinecal.simulate(m, 20, seed=6)
+    cal = kinecal.calibrate(m, data, noise_mm=0.02, noise_deg=0.01)
+    assert cal.converged and cal.verdict == "calibrated"
+    q = valid.q
+    np.testing.assert_allclose(cal.model.forward(q)[:, :3, 3], truth.forward(q)[:, :3, 3], atol=1e-8)
+    names = [p["name"] for p in cal.parameters]
+    assert "mx" in names and all(set(p) >= {"value", "std_dev", "unit", "status"} for p in cal.parameters)
+
+
+def test_noisy_calibration_validates_at_noise_level():
+    m = kinecal.Model.load("irb120")
+    truth, data = kinecal.simulate(m, 60, seed=7, noise_mm=0.02, noise_deg=0.01)
+    before = kinecal.validate(m, data)
+    cal = kinecal.calibrate(m, data, noise_mm=0.02, noise_deg=0.01, frames="model")
+    after = kinecal.validate(cal.model, data)
+    assert after.stats["position_rms_mm"] < 0.05 < before.stats["position_rms_mm"]
+    assert after.position.shape == (60,) and after.orientation is not None
+    ident = kinecal.identifiability(m, data)
+    assert ident["rank"] == 30 and len(ident["redundant"]) == 12
+    assert "<html" in cal.report_html()[:200].lower()
+
+
+def test_data_from_arrays_equals_data_from_the_simulation():
+    m = kinecal.Model.load("irb120")
+    truth, data = kinecal.simulate(m, 30, seed=9)
+    poses = truth.forward(data.q)
+    arrays = kinecal.Data.from_arrays(m, data.q, poses[:, :3, 3], poses[:, :3, :3], ids=list(range(100, 130)))
+    assert len(arrays) == 30 and arrays.ids[0] == 100
+    a = kinecal.calibrate(m, arrays, frames="model", starts=1)
+    b = kinecal.calibrate(m, data, frames="model", starts=1)
+    np.testing.assert_allclose([p["value"] for p in a.parameters], [p["value"] for p in b.parameters], atol=1e-9)
+
+
+def test_compensation_reaches_the_targets_on_the_calibrated_model():
+    m = kinecal.Model.load("irb120")
+    truth, data = kinecal.simulate(m, 40, seed=11)
+    cal = kinecal.calibrate(m, data, frames="model")
+    targets = truth.forward(data.q[:5])
+    q = kinecal.compensate(cal.model, targets)
+    np.testing.assert_allclose(truth.forward(q), targets, atol=1e-6)
+
+
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda m: m.forward(np.zeros((3, 5))), "shape (n, 6)"),
+        (lambda m: m.forward(np.full((2, 6), np.nan)), "NaN"),
+        (lambda m: kinecal.Model.load("no-such-robot"), "no-such-robot"),
+        (lambda m: kinecal.Model.from_toml('name = "x"\n[mechanism]\nkind = "delta"\n'), "delta"),
+        (lambda m: kinecal.simulate(m, 5, measure="laser"), "laser"),
+        (lambda m: kinecal.calibrate(m, kinecal.simulate(m, 2)[1]), "pose"),
+        (lambda m: m.inverse(np.zeros((2, 3, 3))), "(n, 4, 4)"),
+        (lambda m: kinecal.compensate(m, np.eye(4)[None] * 2), "rotation"),
+    ],
+)
+def test_bad_input_raises_a_clear_exception(call, message):
+    m = kinecal.Model.load("irb120")
+    with pytest.raises(kinecal.KinecalError) as e:
+        call(m)
+    assert message in str(e.value)
+    assert "\n" not in str(e.value)
+
+
+def test_python_equals_the_command_line_on_the_quickstart_files(tmp_path):
+    exe = kinecal_binary()
+    if exe is None:
+        pytest.skip("no kinecal binary built (cargo build) next to the package")
+    run = lambda *a: subprocess.run([exe, *a], cwd=tmp_path, check=True, capture_output=True, text=True).stdout
+    run("model", "export", "pm5", "--out", "pm5.toml")
+    run("simulate", "pm5.toml", "--poses", "30", "--seed", "1", "--error-mm", "0.2", "--error-deg", "0.02",
+        "--noise-mm", "0.02", "--noise-deg", "0.02", "--out", "measurements.csv", "--truth", "truth.toml",
+        "--validation-poses", "20", "--validation-out", "validation.csv")
+    cli = json.loads(run("identify", "pm5.toml", "measurements.csv", "--frames", "model", "--validation", "validation.csv",
+                         "--noise-mm", "0.02", "--noise-deg", "0.02", "--out", "cal.toml", "--json"))
+    m = kinecal.Model.load(str(tmp_path / "pm5.toml"))
+    cal = kinecal.calibrate(m, kinecal.Data.read(str(tmp_path / "measurements.csv"), m),
+                            kinecal.Data.read(str(tmp_path / "validation.csv"), m),
+                            noise_mm=0.02, noise_deg=0.02, frames="model")
+    assert [p["name"] for p in cal.parameters] == [p["name"] for p in cli["params"]]
+    for a, b in zip(cal.parameters, cli["params"]):
+        assert abs(a["value"] - b["value"]) <= 1e-12, (a, b)
+        assert abs(a["std_dev"] - b["std_dev"]) <= 1e-12, (a, b)
+    assert abs(cal.sigma0 - cli["sigma0"]) <= 1e-12
+    assert abs(cal.validation["position_rms_mm"] - cli["validation"]["after_stats"]["position_rms_mm"]) <= 1e-12
+
+
+def test_plan_chooses_a_well_conditioned_set():
+    m = kinecal.Model.load("irb120")
+    rng = np.random.default_rng(3)
+    cands = rng.uniform(-1.5, 1.5, size=(400, 6))
+    chosen, ix = kinecal.plan(m, cands, 15, criterion="d")
+    assert len(chosen) == 15 == len(set(chosen)) and max(chosen) < 400
+    assert ix["identifiable_parameters"] == 30 and np.isfinite(ix["log_det"])
+    with pytest.raises(kinecal.KinecalError, match="fewer than the 500"):
+        kinecal.plan(m, cands, 500)
+    with pytest.raises(kinecal.KinecalError, match="criterion"):
+        kinecal.plan(m, cands, 10, criterion="o9")
