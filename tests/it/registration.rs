@@ -107,7 +107,10 @@ fn run(name: &str, kind: Kind, noise: Option<Noise>, poses: usize) -> ErrorStats
 
 fn check_exact(name: &str, kind: Kind) {
     let s = run(name, kind, None, 40);
-    eprintln!("{name}, noise-free, tracker 2 m / 120°, tool 150 mm: held-out max {:.1e} mm", s.position_max_mm);
+    eprintln!(
+        "{name}, noise-free, tracker 2 m / 120°, tool 150 mm: held-out max {:.1e} mm",
+        s.position_max_mm
+    );
     assert!(
         s.position_max_mm < 1e-9,
         "{name}: held-out position error {:e} mm",
@@ -121,7 +124,10 @@ fn check_exact(name: &str, kind: Kind) {
 fn check_noisy(name: &str, kind: Kind) {
     let noise = Noise::default();
     let s = run(name, kind, Some(noise), 60);
-    eprintln!("{name}, 20 µm noise, tracker 2 m / 120°, tool 150 mm: held-out RMS {:.4} mm", s.position_rms_mm);
+    eprintln!(
+        "{name}, 20 µm noise, tracker 2 m / 120°, tool 150 mm: held-out RMS {:.4} mm",
+        s.position_rms_mm
+    );
     // Held-out errors of the calibrated model against exact poses: at the noise level (20 µm per
     // axis, so ~35 µm per point), not at the geometric errors (0.5 mm / 0.1°).
     assert!(
