@@ -12,7 +12,7 @@ import kinecal
 
 m = kinecal.Model.load("irb120")
 truth, data = kinecal.simulate(m, 500, seed=1, error_mm=0.5, error_deg=0.1, noise_mm=0.02, noise_deg=0.01)
-reps = 50
+reps = 200
 t = time.perf_counter()
 for _ in range(reps):
     cal = kinecal.calibrate(m, data, noise_mm=0.02, noise_deg=0.01, frames="model", starts=1)

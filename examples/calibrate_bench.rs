@@ -33,7 +33,7 @@ fn main() {
         starts: 1,
         ..CalibrationOptions::default()
     };
-    let reps = 50;
+    let reps = 200;
     let mut sigma0 = 0.0;
     let t = Instant::now();
     for _ in 0..reps {

@@ -50,16 +50,7 @@ pub(super) fn solve_subset(
         let coef = u.column(i).dot(b) * s / (s * s + damping);
         y.axpy(coef, &vt.row(i).transpose(), 1.0);
     }
-    if y.iter().any(|v| !v.is_finite()) {
-        return Err(CalibError::Numerical("non-finite step".into()));
-    }
-    let mut delta = DVector::zeros(a.ncols());
-    for (k, &c) in cols.iter().enumerate() {
-        if norms[k] > 0.0 {
-            delta[c] = y[k] / norms[k];
-        }
-    }
-    Ok(delta)
+    unscale(&y, cols, &norms, a.ncols())
 }
 
 /// Standard deviations on the columns `cols` from `σ₀²·(AᵀA)⁻¹`.
@@ -145,10 +136,16 @@ pub(super) fn solve_gram(
         let v = eig.eigenvectors.column(i);
         y.axpy(v.dot(&g) / (l + damping), &v, 1.0);
     }
+    unscale(&y, cols, &norms, gram.ncols())
+}
+
+/// The full-length step (`p` parameters) of a solution `y` in column-scaled coordinates on
+/// `cols`; a non-finite solution is an error.
+fn unscale(y: &DVector<f64>, cols: &[usize], norms: &[f64], p: usize) -> Result<DVector<f64>, CalibError> {
     if y.iter().any(|v| !v.is_finite()) {
         return Err(CalibError::Numerical("non-finite step".into()));
     }
-    let mut delta = DVector::zeros(gram.ncols());
+    let mut delta = DVector::zeros(p);
     for (k, &c) in cols.iter().enumerate() {
         if norms[k] > 0.0 {
             delta[c] = y[k] / norms[k];
