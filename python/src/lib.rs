@@ -427,8 +427,9 @@ fn calibrate(
             r => return Err(err(format!("reflectors: '{r}' is not one of frame, points"))),
         },
     };
-    let _ = py;
-    lib_calibrate(&model.file, &data.set, validation.map(|v| &v.set), &opts)
+    // The calibration runs without the GIL: other Python threads go on meanwhile.
+    let (file, set, valid) = (&model.file, &data.set, validation.map(|v| &v.set));
+    py.detach(|| lib_calibrate(file, set, valid, &opts))
         .map(|cal| Calibration { cal })
         .map_err(err)
 }
