@@ -419,6 +419,7 @@ fn gauss_newton<M: Mechanism + Clone>(
     let mut iterations = Vec::new();
     let mut converged = false;
     let mut damping = 0.0;
+    let mut growth = 2.0;
     let mut stalls = 0;
     for _ in 0..opts.max_iterations {
         if opts.reweight {
@@ -444,14 +445,28 @@ fn gauss_newton<M: Mechanism + Clone>(
         let tiny = pred <= opts.step_tolerance * (1.0 + r_norm);
         // At round-off level the cost no longer decreases; a step that small is converged.
         let negligible = pred <= 1e-6 * (1.0 + r_norm) && trial_cost >= cost * (1.0 - 1e-12);
+        // Levenberg–Marquardt damping by the gain ratio ρ = actual / predicted reduction
+        // (Nielsen's rule): kept where the linear model predicts poorly, so that a weakly
+        // determined, curved direction does not make full steps fail again and again.
+        let predicted_reduction = system.predicted_reduction(&step);
         if let Some(accepted) = trial_ev.filter(|_| trial_cost <= cost) {
+            let rho = if predicted_reduction > 0.0 {
+                (cost - trial_cost) / predicted_reduction
+            } else {
+                1.0
+            };
             model = trial;
             ev = accepted;
             system = reduced::factor(&model, data, &noise, &ev, Form::Gram)?;
             delta_total += step;
-            damping = if damping > 1e-9 { damping / 3.0 } else { 0.0 };
+            damping *= (1.0f64 / 3.0).max(1.0 - (2.0 * rho - 1.0).powi(3));
+            if damping < 1e-9 {
+                damping = 0.0;
+            }
+            growth = 2.0;
         } else if !negligible {
-            damping = if damping == 0.0 { 1e-3 } else { damping * 4.0 };
+            damping = if damping == 0.0 { 1e-3 } else { damping * growth };
+            growth *= 2.0;
         }
         if tiny || negligible {
             stalls += 1;

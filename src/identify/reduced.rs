@@ -141,6 +141,16 @@ impl System {
         }
     }
 
+    /// `Aᵀr·δ − ½|A·δ|²`: the cost reduction the linear model predicts for a step `δ`.
+    pub fn predicted_reduction(&self, step: &DVector<f64>) -> f64 {
+        let g = match self {
+            System::Triangular { r, z } => r.transpose() * z,
+            System::Gram { g, .. } => g.clone(),
+        };
+        let p = self.predicted(step);
+        g.dot(step) - 0.5 * p * p
+    }
+
     /// The unit-weight covariance on `cols` (see [`super::solve::covariance`]).
     pub fn covariance(&self, cols: &[usize], rank: Option<usize>) -> DMatrix<f64> {
         match self {
