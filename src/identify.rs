@@ -213,20 +213,31 @@ pub struct Linearization {
     pub angular_rows: Vec<bool>,
 }
 
+/// The predicted pose and the residual Jacobian rows (unweighted) of measurement `m`, number `i`
+/// in its set: a kinematic failure or a non-finite Jacobian is [`CalibError::Kinematics`].
+pub(crate) fn residual_jacobian_at<M: Mechanism + ?Sized>(
+    model: &M,
+    i: usize,
+    m: &Measurement,
+) -> Result<(crate::se3::Pose, DMatrix<f64>), CalibError> {
+    let (pose, jac) = model
+        .forward_with_jacobian(&m.q)
+        .map_err(|source| CalibError::Kinematics { pose: i, source })?;
+    if jac.iter().any(|v| !v.is_finite()) {
+        let source = KinError::NonFinite("the identification Jacobian (check the model's geometry for extreme values)".into());
+        return Err(CalibError::Kinematics { pose: i, source });
+    }
+    let a = measure::residual_jacobian(&m.obs, &pose, &jac);
+    Ok((pose, a))
+}
+
 /// Linearise `model` at every measurement (in parallel), weighting rows by `noise`.
 pub fn linearize<M: Mechanism + ?Sized>(model: &M, data: &[Measurement], noise: &Noise) -> Result<Linearization, CalibError> {
     let blocks: Vec<_> = data
         .par_iter()
         .enumerate()
         .map(|(i, m)| {
-            let (pose, jac) = model
-                .forward_with_jacobian(&m.q)
-                .map_err(|source| CalibError::Kinematics { pose: i, source })?;
-            if jac.iter().any(|v| !v.is_finite()) {
-                let source = KinError::NonFinite("the identification Jacobian (check the model's geometry for extreme values)".into());
-                return Err(CalibError::Kinematics { pose: i, source });
-            }
-            let a = measure::residual_jacobian(&m.obs, &pose, &jac);
+            let (pose, a) = residual_jacobian_at(model, i, m)?;
             let r = measure::residual(&m.obs, &pose);
             if r.iter().any(|v| !v.is_finite()) {
                 let source = KinError::NonFinite("the residual (check the measurement and the model's geometry)".into());

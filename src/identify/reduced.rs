@@ -186,14 +186,7 @@ pub(crate) fn factor<M: Mechanism + ?Sized>(
     let block = |b: usize, be: usize, top: usize| -> Result<DMatrix<f64>, CalibError> {
         let mut m = DMatrix::zeros(top + row_of(be) - row_of(b), p + 1);
         for (i, d) in data.iter().enumerate().take(be).skip(b) {
-            let (pose, jac) = model
-                .forward_with_jacobian(&d.q)
-                .map_err(|source| CalibError::Kinematics { pose: i, source })?;
-            if jac.iter().any(|v| !v.is_finite()) {
-                let source = KinError::NonFinite("the identification Jacobian (check the model's geometry for extreme values)".into());
-                return Err(CalibError::Kinematics { pose: i, source });
-            }
-            let a = measure::residual_jacobian(&d.obs, &pose, &jac);
+            let (_, a) = super::residual_jacobian_at(model, i, d)?;
             let w = measure::row_weights(&d.obs, noise);
             let lw = ev.pose_weights[i].sqrt();
             let r0 = top + ev.offsets[i] - ev.offsets[b];
