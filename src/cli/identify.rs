@@ -245,12 +245,15 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         );
     }
     if !cal.blunders.is_empty() {
-        let ids: Vec<String> = cal.blunders.iter().map(|id| id.to_string()).collect();
+        // At most 50 ids on the line (--json lists every one).
+        let ids: Vec<String> = cal.blunders.iter().take(50).map(|id| id.to_string()).collect();
+        let more = cal.blunders.len().saturating_sub(ids.len());
         println!(
-            "{} poses set aside as blunders (beyond {} robust σ of the per-pose residuals): ids {}",
-            ids.len(),
+            "{} poses set aside as blunders (beyond {} robust σ of the per-pose residuals): ids {}{}",
+            cal.blunders.len(),
             a.huber / kinecal::calibrate::BLUNDER_WEIGHT,
-            ids.join(" ")
+            ids.join(" "),
+            if more > 0 { format!(" … and {more} more (all of them with --json)") } else { String::new() }
         );
     }
     let flagged: usize = report.identification.outliers.len() + report.validation.as_ref().map_or(0, |v| v.outliers.len());
