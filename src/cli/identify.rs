@@ -253,7 +253,11 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
             cal.blunders.len(),
             a.huber / kinecal::calibrate::BLUNDER_WEIGHT,
             ids.join(" "),
-            if more > 0 { format!(" … and {more} more (all of them with --json)") } else { String::new() }
+            if more > 0 {
+                format!(" … and {more} more (all of them with --json)")
+            } else {
+                String::new()
+            }
         );
     }
     let flagged: usize = report.identification.outliers.len() + report.validation.as_ref().map_or(0, |v| v.outliers.len());

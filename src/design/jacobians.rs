@@ -128,7 +128,7 @@ impl CandidateJacobians {
             .with_min_len(256)
             .try_for_each(|(i, (block, cand))| {
                 let (pose, jac) = mech
-                    .forward_with_jacobian(&cand.q)
+                    .forward_with_jacobian_near(&cand.q, &cand.target)
                     .map_err(|source| CalibError::Kinematics { pose: i, source })?;
                 let obs = match kind {
                     ObservationKind::Pose => Observation::Pose(pose),

@@ -63,6 +63,13 @@ pub trait Mechanism: Send + Sync {
     fn forward(&self, q: &[f64]) -> Result<Pose, KinError>;
     /// Tool pose and spatial identification Jacobian (6 × p) at inputs `q`.
     fn forward_with_jacobian(&self, q: &[f64]) -> Result<(Pose, Matrix6xX<f64>), KinError>;
+    /// [`Mechanism::forward_with_jacobian`] when the tool pose at `q` is already known (a planned
+    /// candidate's): a mechanism that solves its forward kinematics iteratively may start from
+    /// `near` instead of its home pose. The default ignores the hint.
+    fn forward_with_jacobian_near(&self, q: &[f64], near: &Pose) -> Result<(Pose, Matrix6xX<f64>), KinError> {
+        let _ = near;
+        self.forward_with_jacobian(q)
+    }
     /// Apply an increment of the error coordinates (length p) to the model's geometry.
     fn retract(&mut self, delta: &DVector<f64>);
     /// Inputs that bring the tool to `target` (inverse kinematics); `seed` is a starting guess for
@@ -127,6 +134,9 @@ impl Mechanism for Box<dyn Mechanism> {
     }
     fn forward_with_jacobian(&self, q: &[f64]) -> Result<(Pose, Matrix6xX<f64>), KinError> {
         (**self).forward_with_jacobian(q)
+    }
+    fn forward_with_jacobian_near(&self, q: &[f64], near: &Pose) -> Result<(Pose, Matrix6xX<f64>), KinError> {
+        (**self).forward_with_jacobian_near(q, near)
     }
     fn retract(&mut self, delta: &DVector<f64>) {
         (**self).retract(delta)

@@ -257,3 +257,18 @@ fn error_paths_are_typed() {
         "{r:?}"
     );
 }
+
+/// Starting forward kinematics from a known pose (planned candidates) gives the pose and the
+/// identification Jacobian of the usual start from home.
+#[test]
+fn jacobian_from_a_known_pose_equals_the_jacobian_from_home() {
+    use rand::SeedableRng;
+    let m = Pm5::mechanism(Parasitic::Physical);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(8);
+    for q in m.random_configurations(&mut rng, 20).unwrap() {
+        let (p0, j0) = m.forward_with_jacobian(&q).unwrap();
+        let (p1, j1) = m.forward_with_jacobian_near(&q, &p0).unwrap();
+        assert!(kinecal::se3::pose_error(&p0, &p1).norm() < 1e-9);
+        assert!((&j0 - &j1).norm() <= 1e-8 * j0.norm(), "{:e}", (&j0 - &j1).norm() / j0.norm());
+    }
+}

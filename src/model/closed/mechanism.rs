@@ -34,30 +34,17 @@ impl<C: ConstraintSystem> Mechanism for ClosedLoop<C> {
         Ok(self.tool_pose_of(&x))
     }
     fn forward_with_jacobian(&self, q: &[f64]) -> Result<(Pose, Matrix6xX<f64>), KinError> {
-        let (x, dx) = self.pose_sensitivity(q, None)?;
-        let pose = self.tool_pose_of(&x);
-        let p = pose.translation.vector;
-        let r = se3::rotation_matrix(&pose);
-        let np = self.n_params_total();
-        let ng = self.geometry.len();
-        let mut jac = Matrix6xX::zeros(np);
-        for j in 0..np {
-            let xd: [Dual64; 6] = std::array::from_fn(|i| Dual64::new(x[i], dx[(i, j)]));
-            let tool: [Dual64; 3] =
-                std::array::from_fn(|i| Dual64::new(self.tool[i], if self.frame_errors && j == ng + i { 1.0 } else { 0.0 }));
-            let base: [Dual64; 6] =
-                std::array::from_fn(|i| Dual64::new(self.base[i], if self.frame_errors && j == ng + 3 + i { 1.0 } else { 0.0 }));
-            let (pd, rd) = tool_pose_generic(&xd, &tool, &base);
-            let dp = Vector3::new(pd[0].eps, pd[1].eps, pd[2].eps);
-            let dr = Matrix3::from_fn(|a, b| rd[a][b].eps);
-            let w = se3::unskew(&(dr * r.transpose()));
-            let v = dp - w.cross(&p);
-            for k in 0..3 {
-                jac[(k, j)] = v[k];
-                jac[(3 + k, j)] = w[k];
-            }
+        self.tool_pose_jacobian(q, None)
+    }
+    /// Newton starts from the platform coordinates of `near` (one residual evaluation when it is
+    /// the pose at `q`).
+    fn forward_with_jacobian_near(&self, q: &[f64], near: &Pose) -> Result<(Pose, Matrix6xX<f64>), KinError> {
+        let seed = self.platform_of_tool(near);
+        if seed.iter().all(|v| v.is_finite()) {
+            self.tool_pose_jacobian(q, Some(&seed))
+        } else {
+            self.tool_pose_jacobian(q, None)
         }
-        Ok((pose, jac))
     }
     fn retract(&mut self, delta: &DVector<f64>) {
         let ng = self.geometry.len();
@@ -89,5 +76,35 @@ impl<C: ConstraintSystem> Mechanism for ClosedLoop<C> {
         use rand::SeedableRng;
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
         Some(self.random_configurations(&mut rng, n))
+    }
+}
+
+impl<C: ConstraintSystem> ClosedLoop<C> {
+    /// Tool pose and its identification Jacobian at `q`, forward kinematics from `seed`.
+    fn tool_pose_jacobian(&self, q: &[f64], seed: Option<&[f64; 6]>) -> Result<(Pose, Matrix6xX<f64>), KinError> {
+        let (x, dx) = self.pose_sensitivity(q, seed)?;
+        let pose = self.tool_pose_of(&x);
+        let p = pose.translation.vector;
+        let r = se3::rotation_matrix(&pose);
+        let np = self.n_params_total();
+        let ng = self.geometry.len();
+        let mut jac = Matrix6xX::zeros(np);
+        for j in 0..np {
+            let xd: [Dual64; 6] = std::array::from_fn(|i| Dual64::new(x[i], dx[(i, j)]));
+            let tool: [Dual64; 3] =
+                std::array::from_fn(|i| Dual64::new(self.tool[i], if self.frame_errors && j == ng + i { 1.0 } else { 0.0 }));
+            let base: [Dual64; 6] =
+                std::array::from_fn(|i| Dual64::new(self.base[i], if self.frame_errors && j == ng + 3 + i { 1.0 } else { 0.0 }));
+            let (pd, rd) = tool_pose_generic(&xd, &tool, &base);
+            let dp = Vector3::new(pd[0].eps, pd[1].eps, pd[2].eps);
+            let dr = Matrix3::from_fn(|a, b| rd[a][b].eps);
+            let w = se3::unskew(&(dr * r.transpose()));
+            let v = dp - w.cross(&p);
+            for k in 0..3 {
+                jac[(k, j)] = v[k];
+                jac[(3 + k, j)] = w[k];
+            }
+        }
+        Ok((pose, jac))
     }
 }
