@@ -450,7 +450,30 @@ fn gauss_newton<M: Mechanism + Clone>(
             Err(CalibError::Kinematics { .. }) => None,
             Err(e) => return Err(e),
         };
-        let trial_cost = trial_ev.as_ref().map_or(f64::INFINITY, |e| e.cost);
+        let mut trial_cost = trial_ev.as_ref().map_or(f64::INFINITY, |e| e.cost);
+        let mut trial_ev = trial_ev;
+        let mut step = step;
+        // Where the cost curves more than the linear model says (a weakly determined direction
+        // with some curvature: the step overshoots), the minimum of the parabola through the
+        // cost, its slope and the trial cost along the step is tried too.
+        let slope = -(system.predicted_reduction(&step) + 0.5 * pred * pred);
+        let curvature = trial_cost - cost - slope;
+        if trial_cost.is_finite() && slope < 0.0 && curvature > 0.0 {
+            let alpha = (-slope / (2.0 * curvature)).clamp(0.1, 1.0);
+            if alpha < 0.9 {
+                let shorter = &step * alpha;
+                let mut t2 = model.clone();
+                t2.retract(&shorter);
+                if let Ok(e2) = reduced::evaluate(&t2, data, &noise, opts.loss) {
+                    if e2.cost < trial_cost {
+                        trial_cost = e2.cost;
+                        trial_ev = Some(e2);
+                        trial = t2;
+                        step = shorter;
+                    }
+                }
+            }
+        }
         iterations.push(Iteration { cost, step: pred, damping });
         let r_norm = ev.residual.norm();
         let tiny = pred <= opts.step_tolerance * (1.0 + r_norm);
