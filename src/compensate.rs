@@ -67,6 +67,54 @@ fn check_limits(inputs: &[InputSpec], q: &[f64]) -> Result<(), KinError> {
 /// Number of random fall-back starting points of [`compensate`]'s inverse kinematics.
 pub const COMPENSATION_STARTS: usize = 24;
 
+/// One target's inverse kinematics from each of `starts` in turn (their approach-direction
+/// inputs set to `approach`) until one reaches the target within the limits; on failure the
+/// limit violation met, if any, and the last error.
+#[allow(clippy::type_complexity)]
+fn solve_one<M: Mechanism + ?Sized>(
+    model: &M,
+    inputs: &[InputSpec],
+    target: &Pose,
+    starts: &[Vec<f64>],
+    approach: &[f64],
+    seed: Option<&Vec<f64>>,
+) -> Result<Vec<f64>, (Option<KinError>, KinError)> {
+    let n = inputs.len();
+    let slots: Vec<usize> = inputs
+        .iter()
+        .enumerate()
+        .filter(|(_, i)| i.approach_of.is_some())
+        .map(|(k, _)| k)
+        .collect();
+    let mut last_err = KinError::Unreachable("no starting point".into());
+    // A solution outside the limits says more than a failed convergence: report it first.
+    let mut limit_err: Option<KinError> = None;
+    for s in starts.iter().filter(|s| s.len() == n) {
+        let mut s = s.clone();
+        for (&k, &a) in slots.iter().zip(approach) {
+            s[k] = a;
+        }
+        match model.inverse(target, Some(&s)) {
+            Ok(mut q) => {
+                wrap_near(inputs, &mut q, seed.map_or(&[][..], |x| x.as_slice()));
+                let reached = model.forward(&q).map(|t| commanded_error(model.task(), target, &t));
+                match reached {
+                    Ok((dp, dw)) if dp < 1e-6 && dw < 1e-8 => match check_limits(inputs, &q) {
+                        Ok(()) => return Ok(q),
+                        Err(e) => limit_err = Some(e),
+                    },
+                    Ok((dp, dw)) => {
+                        last_err = KinError::Unreachable(format!("inverse kinematics ended {dp:.3e} mm / {dw:.3e} rad from the target"))
+                    }
+                    Err(e) => last_err = e,
+                }
+            }
+            Err(e) => last_err = e,
+        }
+    }
+    Err((limit_err, last_err))
+}
+
 /// Actuator commands that bring the (calibrated) `model`'s tool to each target pose: inverse
 /// kinematics from `seeds[k]` when given (e.g. the nominal commands), else from the previous
 /// solution, else from the zero configuration and [`COMPENSATION_STARTS`] fixed pseudo-random
@@ -90,9 +138,18 @@ pub fn compensate<M: Mechanism + ?Sized>(
     let mut fixed_starts: Vec<Vec<f64>> = vec![vec![0.0; n]];
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0x6b696e65);
     fixed_starts.extend(random_inputs(inputs, COMPENSATION_STARTS, &mut rng));
+    // Approach-direction inputs (a model with lost motion): given by the seed (the commands'
+    // order), else those of moving from the previous solution to this one (a fixed point: solve
+    // with the previous approach, then again if the motion turns out to come from the other side).
+    let approach: Vec<(usize, usize)> = inputs
+        .iter()
+        .enumerate()
+        .filter_map(|(k, i)| i.approach_of.map(|j| (k, j)))
+        .collect();
     for (k, target) in targets.iter().enumerate() {
+        let seed = seeds.and_then(|s| s.get(k)).filter(|s| s.len() == n);
         let mut starts: Vec<Vec<f64>> = Vec::new();
-        if let Some(s) = seeds.and_then(|s| s.get(k)) {
+        if let Some(s) = seed {
             starts.push(s.clone());
         }
         if let Some(prev) = out.last() {
@@ -103,36 +160,32 @@ pub fn compensate<M: Mechanism + ?Sized>(
             // One attempt says all: other starting points would give the same answer.
             starts.truncate(1);
         }
-        let mut last_err = KinError::Unreachable("no starting point".into());
-        // A solution outside the limits says more than a failed convergence: report it first.
-        let mut limit_err: Option<KinError> = None;
-        let mut found = None;
-        for s in starts.iter().filter(|s| s.len() == n) {
-            match model.inverse(target, Some(s)) {
-                Ok(mut q) => {
-                    wrap_near(inputs, &mut q, seeds.and_then(|x| x.get(k)).map_or(&[][..], |x| x.as_slice()));
-                    let reached = model.forward(&q).map(|t| commanded_error(model.task(), target, &t));
-                    match reached {
-                        Ok((dp, dw)) if dp < 1e-6 && dw < 1e-8 => match check_limits(inputs, &q) {
-                            Ok(()) => {
-                                found = Some(q);
-                                break;
-                            }
-                            Err(e) => limit_err = Some(e),
-                        },
-                        Ok((dp, dw)) => {
-                            last_err = KinError::Unreachable(format!("inverse kinematics ended {dp:.3e} mm / {dw:.3e} rad from the target"))
-                        }
-                        Err(e) => last_err = e,
+        let assumed: Vec<f64> = approach.iter().map(|&(a, _)| seed.or(out.last()).map_or(0.0, |s| s[a])).collect();
+        let mut attempt = solve_one(model, inputs, target, &starts, &assumed, seed);
+        if let (None, Some(prev), Ok(q)) = (seed, out.last(), &attempt) {
+            let moved: Vec<f64> = approach
+                .iter()
+                .zip(&assumed)
+                .map(|(&(_, j), &s)| {
+                    if (q[j] - prev[j]).abs() > 1e-12 {
+                        (q[j] - prev[j]).signum()
+                    } else {
+                        s
                     }
-                }
-                Err(e) => last_err = e,
+                })
+                .collect();
+            if moved != assumed {
+                attempt = solve_one(model, inputs, target, &starts, &moved, seed);
             }
         }
+        let (found, limit_err, last_err) = match attempt {
+            Ok(q) => (Some(q), None, KinError::Unreachable(String::new())),
+            Err((l, e)) => (None, l, e),
+        };
+        let tried = starts.len();
         match found {
             Some(q) => out.push(q),
             None => {
-                let tried = starts.len();
                 let from = if tried == 1 {
                     String::new()
                 } else {
@@ -203,6 +256,7 @@ mod tests {
             name: "q".into(),
             unit: Unit::Angle,
             limits: Some((lo * d, hi * d)),
+            approach_of: None,
         };
         let inputs = [inp(-400.0, 400.0), inp(-110.0, 70.0), inp(-400.0, 400.0)];
         let mut q = [350.0 * d, 300.0 * d, -10.0 * d];
@@ -214,6 +268,7 @@ mod tests {
             name: "d".into(),
             unit: Unit::Length,
             limits: Some((0.0, 1.0)),
+            approach_of: None,
         }];
         let mut x = [7.0];
         wrap_near(&lin, &mut x, &[]);

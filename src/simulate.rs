@@ -135,17 +135,23 @@ pub fn input_range(input: &InputSpec) -> (f64, f64) {
 
 /// `n` random input vectors, uniform within [`input_range`] of each input.
 pub fn random_inputs<R: Rng>(inputs: &[InputSpec], n: usize, rng: &mut R) -> Vec<Vec<f64>> {
-    (0..n)
+    let mut out: Vec<Vec<f64>> = (0..n)
         .map(|_| {
             inputs
                 .iter()
-                .map(|i| {
-                    let (lo, hi) = input_range(i);
-                    rng.random_range(lo..hi)
+                .map(|i| match i.approach_of {
+                    Some(_) => 0.0,
+                    None => {
+                        let (lo, hi) = input_range(i);
+                        rng.random_range(lo..hi)
+                    }
                 })
                 .collect()
         })
-        .collect()
+        .collect();
+    // Approach directions: those of visiting the configurations in the order drawn.
+    crate::model::kind::approach_from_order(inputs, &vec![false; inputs.len()], &mut out);
+    out
 }
 
 /// `n` input vectors at which `model` assembles: the mechanism's own draw

@@ -76,6 +76,9 @@ pub struct DataSet {
     /// The three reflector centres of each row (mm, measurement frame) when the file gave them
     /// (`m1x_mm … m3z_mm`); empty otherwise. `measurements` holds their frame.
     pub reflectors: Vec<[Vector3<f64>; 3]>,
+    /// Inputs the file did not hold and that were derived from its row order (the approach
+    /// directions `dir_<joint>` of a model with lost motion).
+    pub derived: Vec<String>,
 }
 
 impl DataSet {
@@ -94,6 +97,7 @@ impl DataSet {
             has_inputs: measurements.first().is_some_and(|m| !m.q.is_empty()),
             dropped: Vec::new(),
             reflectors: Vec::new(),
+            derived: Vec::new(),
             measurements,
         }
     }
@@ -161,120 +165,6 @@ pub enum InputColumns {
     Optional,
 }
 
-fn length_factor(suffix: &str) -> Option<f64> {
-    match suffix {
-        "mm" => Some(1.0),
-        "m" => Some(1000.0),
-        _ => None,
-    }
-}
-
-fn angle_factor(suffix: &str) -> Option<f64> {
-    match suffix {
-        "deg" => Some(std::f64::consts::PI / 180.0),
-        "rad" => Some(1.0),
-        _ => None,
-    }
-}
-
-/// The column's base name and unit suffix, split at the last `_`.
-fn split_unit(col: &str) -> (&str, Option<&str>) {
-    match col.rsplit_once('_') {
-        Some((b, u)) if length_factor(u).is_some() || angle_factor(u).is_some() => (b, Some(u)),
-        _ => (col, None),
-    }
-}
-
-/// The names (with unit alternatives) a data file for `inputs` may hold, for messages.
-pub fn expected_columns(inputs: &[InputSpec]) -> String {
-    let mut v: Vec<String> = inputs
-        .iter()
-        .map(|i| match i.unit {
-            Unit::Angle => format!("{}_deg|_rad", i.name),
-            _ => format!("{}_mm|_m", i.name),
-        })
-        .collect();
-    v.push("x_mm,y_mm,z_mm (+ qw,qx,qy,qz or roll_deg,pitch_deg,yaw_deg) or m1x_mm..m3z_mm; optional id".into());
-    v.join(", ")
-}
-
-/// A resolved column: where its values go and the factor to mm or rad.
-#[derive(Clone, Copy)]
-enum Slot {
-    Id,
-    Input(usize),
-    Pos(usize),
-    Quat(usize),
-    Rpy(usize),
-    Reflector(usize, usize),
-}
-
-/// What a column holds and its factor to mm / rad; errors name the file (line 1) and column.
-fn classify(path: &Path, col: &str, inputs: &[InputSpec]) -> Result<(Slot, f64), IoError> {
-    let at_header = |message: String| IoError::AtLine {
-        path: path.to_path_buf(),
-        line: 1,
-        message,
-    };
-    let (base, unit) = split_unit(col);
-    let slot = if col == "id" {
-        (Slot::Id, 1.0)
-    } else if let Some(k) = inputs.iter().position(|i| i.name == base) {
-        let inp = &inputs[k];
-        let (factor, want) = match inp.unit {
-            Unit::Angle => (unit.and_then(angle_factor), "deg or rad"),
-            _ => (unit.and_then(length_factor), "mm or m"),
-        };
-        match factor {
-            Some(f) => (Slot::Input(k), f),
-            None => {
-                let kind = if inp.unit == Unit::Angle { "angular" } else { "linear" };
-                let found = unit.map(|u| format!("unit '{u}'")).unwrap_or_else(|| "no unit suffix".into());
-                return Err(at_header(format!(
-                    "column '{col}': {found} for the {kind} input '{base}' (use {base}_{})",
-                    want.replace(" or ", &format!(" or {base}_"))
-                )));
-            }
-        }
-    } else if let Some(i) = ["x", "y", "z"].iter().position(|c| *c == base) {
-        match unit.and_then(length_factor) {
-            Some(f) => (Slot::Pos(i), f),
-            None => {
-                return Err(at_header(format!(
-                    "column '{col}': a position needs a length unit ({base}_mm or {base}_m)"
-                )))
-            }
-        }
-    } else if let Some(i) = ["qw", "qx", "qy", "qz"].iter().position(|c| *c == col) {
-        (Slot::Quat(i), 1.0)
-    } else if let Some(i) = ["roll", "pitch", "yaw"].iter().position(|c| *c == base) {
-        match unit.and_then(angle_factor) {
-            Some(f) => (Slot::Rpy(i), f),
-            None => {
-                return Err(at_header(format!(
-                    "column '{col}': an angle needs an angle unit ({base}_deg or {base}_rad)"
-                )))
-            }
-        }
-    } else if let Some((r, a)) = reflector_column(base) {
-        match unit.and_then(length_factor) {
-            Some(f) => (Slot::Reflector(r, a), f),
-            None => {
-                return Err(at_header(format!(
-                    "column '{col}': a reflector coordinate needs a length unit ({base}_mm)"
-                )))
-            }
-        }
-    } else {
-        return Err(IoError::UnknownColumn {
-            path: path.to_path_buf(),
-            column: col.to_string(),
-            expected: expected_columns(inputs),
-        });
-    };
-    Ok(slot)
-}
-
 /// Join an inputs file (`id` and the input columns, e.g. a controller log) and a measurement
 /// file (`id` and the measurement columns, e.g. a tracker export) row by row into one data set.
 ///
@@ -303,10 +193,12 @@ pub fn join_files(inputs_path: &Path, measurements_path: &Path, inputs: &[InputS
             .iter()
             .any(|c| matches!(classify(&a.path, c, inputs), Ok((Slot::Input(j), _)) if j == k))
         {
-            let u = if inp.unit == Unit::Angle { "deg" } else { "mm" };
+            if inp.approach_of.is_some() {
+                continue;
+            }
             return Err(IoError::MissingColumn {
                 path: a.path.clone(),
-                column: format!("{}_{u}", inp.name),
+                column: header_of(inp),
                 header: a.columns.join(","),
             });
         }
@@ -394,10 +286,12 @@ pub fn read_inputs(path: &Path, inputs: &[InputSpec]) -> Result<(Vec<i64>, Vec<V
     }
     for (k, inp) in inputs.iter().enumerate() {
         if !slots.iter().any(|(s, _)| matches!(s, Slot::Input(j) if *j == k)) {
-            let u = if inp.unit == Unit::Angle { "deg" } else { "mm" };
+            if inp.approach_of.is_some() {
+                continue;
+            }
             return Err(IoError::MissingColumn {
                 path: path.to_path_buf(),
-                column: format!("{}_{u}", inp.name),
+                column: header_of(inp),
                 header: table.columns.join(","),
             });
         }
@@ -417,6 +311,10 @@ pub fn read_inputs(path: &Path, inputs: &[InputSpec]) -> Result<(Vec<i64>, Vec<V
         ids.push(id);
         qs.push(q);
     }
+    let present: Vec<bool> = (0..inputs.len())
+        .map(|k| slots.iter().any(|(s, _)| matches!(s, Slot::Input(j) if *j == k)))
+        .collect();
+    crate::model::kind::approach_from_order(inputs, &present, &mut qs);
     Ok((ids, qs))
 }
 
@@ -445,9 +343,8 @@ pub fn data_from_table(table: &Table, inputs: &[InputSpec], input_columns: Input
     let has_inputs = n_inputs > 0 || input_columns == InputColumns::Required;
     if has_inputs {
         for (k, inp) in inputs.iter().enumerate() {
-            if !slots.iter().any(|(s, _)| matches!(s, Slot::Input(j) if *j == k)) {
-                let u = if inp.unit == Unit::Angle { "deg" } else { "mm" };
-                return Err(missing(format!("{}_{u}", inp.name)));
+            if !slots.iter().any(|(s, _)| matches!(s, Slot::Input(j) if *j == k)) && inp.approach_of.is_none() {
+                return Err(missing(header_of(inp)));
             }
         }
     }
@@ -505,6 +402,37 @@ pub fn data_from_table(table: &Table, inputs: &[InputSpec], input_columns: Input
             message: "no data rows after the header; a data file needs one row per pose".into(),
         });
     }
+    // Approach directions not in the file: from the row order (the motion order), over every row
+    // (a lost measurement was still a motion).
+    let present: Vec<bool> = (0..inputs.len())
+        .map(|k| slots.iter().any(|(s, _)| matches!(s, Slot::Input(j) if *j == k)))
+        .collect();
+    let mut derived = Vec::new();
+    let approach_rows: Vec<Vec<f64>> = if has_inputs && inputs.iter().zip(&present).any(|(i, p)| i.approach_of.is_some() && !p) {
+        let mut all: Vec<Vec<f64>> = table
+            .rows
+            .iter()
+            .map(|row| {
+                let mut q = vec![0.0; inputs.len()];
+                for ((slot, f), v) in slots.iter().zip(row) {
+                    if let Slot::Input(k) = slot {
+                        q[*k] = v * f;
+                    }
+                }
+                q
+            })
+            .collect();
+        crate::model::kind::approach_from_order(inputs, &present, &mut all);
+        derived = inputs
+            .iter()
+            .zip(&present)
+            .filter(|(i, p)| i.approach_of.is_some() && !**p)
+            .map(|(i, _)| i.name.clone())
+            .collect();
+        all
+    } else {
+        Vec::new()
+    };
     let mut measurements = Vec::with_capacity(table.len());
     let mut ids = Vec::with_capacity(table.len());
     let mut first_line_of_id = std::collections::HashMap::new();
@@ -567,6 +495,13 @@ pub fn data_from_table(table: &Table, inputs: &[InputSpec], input_columns: Input
                 message: format!("id {id} appears twice (first on line {first}); every pose needs its own id"),
             });
         }
+        if let Some(a) = approach_rows.get(r) {
+            for (k, p) in present.iter().enumerate() {
+                if !p {
+                    q[k] = a[k];
+                }
+            }
+        }
         if has_inputs {
             check_limits(path, line, inputs, &q)?;
         }
@@ -619,6 +554,7 @@ pub fn data_from_table(table: &Table, inputs: &[InputSpec], input_columns: Input
         has_inputs,
         dropped,
         reflectors,
+        derived,
     })
 }
 
@@ -631,7 +567,8 @@ fn check_limits(path: &Path, line: usize, inputs: &[InputSpec], q: &[f64]) -> Re
         if v < lo - slack || v > hi + slack {
             let (shown, lo_s, hi_s, unit) = match inp.unit {
                 Unit::Angle => (v.to_degrees(), lo.to_degrees(), hi.to_degrees(), "deg"),
-                _ => (v, lo, hi, "mm"),
+                Unit::Dimensionless => (v, lo, hi, ""),
+                Unit::Length => (v, lo, hi, "mm"),
             };
             return Err(IoError::AtLine {
                 path: path.to_path_buf(),
@@ -646,17 +583,11 @@ fn check_limits(path: &Path, line: usize, inputs: &[InputSpec], q: &[f64]) -> Re
     Ok(())
 }
 
-fn reflector_column(base: &str) -> Option<(usize, usize)> {
-    let b = base.as_bytes();
-    if b.len() == 3 && b[0] == b'm' && (b'1'..=b'3').contains(&b[1]) {
-        let a = ["x", "y", "z"].iter().position(|c| c.as_bytes()[0] == b[2])?;
-        return Some(((b[1] - b'1') as usize, a));
-    }
-    None
-}
-
+mod columns;
 mod write;
-pub use write::{csv_text, data_text, input_headers, input_values_for_file, write_csv, write_data};
+pub use columns::expected_columns;
+use columns::{classify, split_unit, Slot};
+pub use write::{csv_text, data_text, header_of, input_headers, input_values_for_file, write_csv, write_data};
 
 #[cfg(test)]
 mod tests;

@@ -173,7 +173,23 @@ pub fn join_exports(files: &ExportFiles, inputs: &[InputSpec], out: &Path) -> Re
             ),
         });
     }
-    let joints = read_export(&files.joints, inputs.len(), "joint values, in the model's input order")?;
+    // The controller log holds the joint values; approach directions (a model with lost motion)
+    // come from its row order, the motion order, lost beams included.
+    let measured_inputs = inputs.iter().filter(|i| i.approach_of.is_none()).count();
+    let joints = read_export(&files.joints, measured_inputs, "joint values, in the model's input order")?;
+    let mut with_approach: Vec<Vec<f64>> = joints
+        .table
+        .rows
+        .iter()
+        .filter(|row| row[1..].iter().all(|v| v.is_finite()))
+        .map(|row| {
+            let mut q = vec![0.0; inputs.len()];
+            q[..measured_inputs].copy_from_slice(&row[1..]);
+            q
+        })
+        .collect();
+    crate::model::kind::approach_from_order(inputs, &vec![false; inputs.len()], &mut with_approach);
+    let mut approach_rows = with_approach.into_iter();
     let tool: Vec<Export> = files
         .reflectors
         .iter()
@@ -214,8 +230,10 @@ pub fn join_exports(files: &ExportFiles, inputs: &[InputSpec], out: &Path) -> Re
             dropped.push((id, format!("no value of input {} in {}", inputs[c].name, files.joints.display())));
             continue;
         }
+        let approach = approach_rows.next().unwrap_or_default();
         let mut out_row: Vec<f64> = vec![id as f64];
         out_row.extend(row[1..].iter().zip(&factors).map(|(v, f)| v * f));
+        out_row.extend(&approach[measured_inputs.min(approach.len())..]);
         for (k, e) in tool.iter().enumerate() {
             match e.point(id, to_mm) {
                 Ok(Some(p)) => out_row.extend([p.x, p.y, p.z]),

@@ -91,6 +91,7 @@ mod parallel;
 mod parse;
 mod write;
 
+use parse::RawJointTerms;
 use write::{fmt3, num, quote, write_dh, write_mechanism, write_pose};
 
 use super::IoError;
@@ -98,6 +99,7 @@ use crate::measure::Noise;
 use crate::model::chain::{ChainJoint, JointKind, SerialChain};
 use crate::model::dh::{DhConvention, DhError, DhJoint, DhOptions, DhTable};
 use crate::model::framed::Framed;
+use crate::model::joint_terms::{JointTerms, WithJointTerms};
 use crate::model::Mechanism;
 use crate::params::{Param, Unit};
 use crate::se3::Pose;
@@ -423,7 +425,7 @@ impl ModelFile {
     fn render(&self, write_mechanism: impl FnOnce(&mut String) -> Result<(), String>) -> Result<String, String> {
         let mut out = String::new();
         match self.mechanism {
-            MechanismSpec::Serial(_) => {
+            MechanismSpec::Serial(_) | MechanismSpec::SerialTerms(_) => {
                 out.push_str("# kinecal model file. Poses: position + rpy = [roll, pitch, yaw] with R = Rz(yaw)·Ry(pitch)·Rx(roll)\n");
                 out.push_str("# (or rotvec = axis·angle instead of rpy).\n");
             }
@@ -643,6 +645,7 @@ struct RawSerial {
     mdh: Option<Vec<Spanned<RawDhRow>>>,
     base: Option<Spanned<RawPose>>,
     tool: Option<Spanned<RawPose>>,
+    joint_terms: Option<Spanned<RawJointTerms>>,
 }
 
 struct Ctx<'a> {
@@ -653,7 +656,8 @@ struct Ctx<'a> {
 /// Fixed lengths of the numeric arrays of model files, by key: serde reads the first `n` values
 /// of a longer TOML array and drops the rest, so a typo such as `c = [0, 100, 0, 5]` would pass
 /// silently without this check.
-const ARRAY_LENGTHS: [(&str, usize); 19] = [
+const ARRAY_LENGTHS: [(&str, usize); 20] = [
+    ("gravity_direction", 3),
     ("position", 3),
     ("rpy", 3),
     ("rotvec", 3),

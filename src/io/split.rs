@@ -50,6 +50,7 @@ pub fn subset(data: &DataSet, rows: &[usize]) -> DataSet {
         } else {
             rows.iter().map(|&i| data.reflectors[i]).collect()
         },
+        derived: data.derived.clone(),
     }
 }
 

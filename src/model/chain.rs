@@ -268,7 +268,10 @@ impl Mechanism for SerialChain {
         assert_eq!(delta.len(), 6 * self.initial.len(), "one 6-vector per dyad");
         for (k, t0) in self.initial.iter_mut().enumerate() {
             let d = Twist::from_iterator(delta.rows(6 * k, 6).iter().copied());
-            *t0 *= se3::exp(&d);
+            // A zero increment leaves the pose bit for bit (exp(0)·T rounds).
+            if d.iter().any(|v| *v != 0.0) {
+                *t0 *= se3::exp(&d);
+            }
         }
     }
 

@@ -3,6 +3,7 @@
 //! [`crate::io::model_file`]'s job; computing with them is [`MechanismSpec::build`]'s.
 use crate::model::chain::{JointKind, SerialChain};
 use crate::model::closed::{ClosedLoop, ConstraintSystem};
+use crate::model::joint_terms::WithJointTerms;
 use crate::model::presets::pm5::Pm5;
 use crate::model::presets::stewart::Stewart;
 use crate::model::Mechanism;
@@ -17,6 +18,11 @@ pub struct InputSpec {
     pub unit: Unit,
     /// Limits (rad or mm), if any.
     pub limits: Option<(f64, f64)>,
+    /// For an approach-direction input (`dir_<joint>`, [`Unit::Dimensionless`], values −1, 0,
+    /// +1: the sign of that joint's last motion before the pose): the index of the joint input
+    /// it belongs to. A data file without the column gets it from its row order
+    /// ([`crate::io::data_file`]).
+    pub approach_of: Option<usize>,
 }
 
 /// The kind-specific part of a model file (values in mm and rad).
@@ -24,6 +30,9 @@ pub struct InputSpec {
 pub enum MechanismSpec {
     /// `kind = "serial"`: a local-POE serial chain.
     Serial(SerialChain),
+    /// `kind = "serial"` with `[mechanism.joint_terms]`: a local-POE serial chain with
+    /// non-geometric joint terms (lost motion, gravity compliance, first harmonic).
+    SerialTerms(WithJointTerms),
     /// `kind = "pm5"`: the 5-DOF PUU-2PR(RPRR)S machine (44 parameters with the paper's names).
     Pm5(ClosedLoop<Pm5>),
     /// `kind = "stewart"`: a 6-UPS Stewart platform (42 parameters).
@@ -42,6 +51,45 @@ fn closed_loop_inputs<C: ConstraintSystem>(m: &ClosedLoop<C>) -> Vec<InputSpec> 
             name,
             unit: Unit::Length,
             limits: Some(st),
+            approach_of: None,
+        })
+        .collect()
+}
+
+/// Fill the approach-direction inputs that are not `present` from the order of `rows`: the sign
+/// of the last change of their joint's value before each row (0 before the first change).
+pub fn approach_from_order(inputs: &[InputSpec], present: &[bool], rows: &mut [Vec<f64>]) {
+    for (k, inp) in inputs.iter().enumerate() {
+        let Some(j) = inp.approach_of else { continue };
+        if present.get(k).copied().unwrap_or(false) {
+            continue;
+        }
+        let mut sign = 0.0;
+        let mut prev: Option<f64> = None;
+        for q in rows.iter_mut() {
+            let v = q[j];
+            if let Some(p) = prev {
+                if (v - p).abs() > 1e-12 * (1.0 + v.abs()) {
+                    sign = (v - p).signum();
+                }
+            }
+            prev = Some(v);
+            q[k] = sign;
+        }
+    }
+}
+
+fn chain_inputs(c: &SerialChain) -> Vec<InputSpec> {
+    c.joints()
+        .iter()
+        .map(|j| InputSpec {
+            name: j.name.clone(),
+            unit: match j.kind {
+                JointKind::Revolute => Unit::Angle,
+                JointKind::Prismatic => Unit::Length,
+            },
+            limits: j.limits,
+            approach_of: None,
         })
         .collect()
 }
@@ -50,7 +98,7 @@ impl MechanismSpec {
     /// The kind's name as written in files.
     pub fn kind(&self) -> &'static str {
         match self {
-            MechanismSpec::Serial(_) => "serial",
+            MechanismSpec::Serial(_) | MechanismSpec::SerialTerms(_) => "serial",
             MechanismSpec::Pm5(_) => "pm5",
             MechanismSpec::Stewart(_) => "stewart",
         }
@@ -60,6 +108,7 @@ impl MechanismSpec {
     pub fn build(&self) -> Box<dyn Mechanism> {
         match self {
             MechanismSpec::Serial(c) => Box::new(c.clone()),
+            MechanismSpec::SerialTerms(m) => Box::new(m.clone()),
             MechanismSpec::Pm5(m) => Box::new(m.clone()),
             MechanismSpec::Stewart(m) => Box::new(m.clone()),
         }
@@ -68,18 +117,19 @@ impl MechanismSpec {
     /// The inputs with their units and limits.
     pub fn inputs(&self) -> Vec<InputSpec> {
         match self {
-            MechanismSpec::Serial(c) => c
-                .joints()
-                .iter()
-                .map(|j| InputSpec {
-                    name: j.name.clone(),
-                    unit: match j.kind {
-                        JointKind::Revolute => Unit::Angle,
-                        JointKind::Prismatic => Unit::Length,
-                    },
-                    limits: j.limits,
-                })
-                .collect(),
+            MechanismSpec::Serial(c) => chain_inputs(c),
+            MechanismSpec::SerialTerms(m) => {
+                let mut out = chain_inputs(m.chain());
+                for (&j, name) in m.terms().backlash.iter().zip(m.approach_names()) {
+                    out.push(InputSpec {
+                        name,
+                        unit: Unit::Dimensionless,
+                        limits: Some((-1.0, 1.0)),
+                        approach_of: Some(j),
+                    });
+                }
+                out
+            }
             MechanismSpec::Pm5(m) => closed_loop_inputs(m),
             MechanismSpec::Stewart(m) => closed_loop_inputs(m),
         }
@@ -95,6 +145,10 @@ impl MechanismSpec {
                 .with_geometry(&values)
                 .map(MechanismSpec::Serial)
                 .map_err(|e| format!("{}: {e}", not("this serial chain"))),
+            MechanismSpec::SerialTerms(m) => m
+                .with_geometry(&values)
+                .map(MechanismSpec::SerialTerms)
+                .map_err(|e| format!("{}: {e}", not("this serial chain with joint terms"))),
             MechanismSpec::Pm5(m) if model.name() == m.name() => m.with_geometry(&values).map(MechanismSpec::Pm5),
             MechanismSpec::Stewart(m) if model.name() == m.name() => m.with_geometry(&values).map(MechanismSpec::Stewart),
             MechanismSpec::Pm5(_) => Err(not("a pm5 machine")),

@@ -23,6 +23,7 @@ pub mod closed;
 pub mod dh;
 pub mod framed;
 pub mod irb120;
+pub mod joint_terms;
 pub mod kind;
 pub mod presets;
 

@@ -60,7 +60,32 @@ fn t3r1_configurations(_: &dyn Mechanism, n: usize, seed: u64) -> Vec<Vec<f64>> 
         .collect()
 }
 
+/// The IRB 120 with every non-geometric joint term: lost motion on all joints, gravity
+/// compliance of joints 2 and 3, a first harmonic on joint 2 (values as a model file gives them).
+fn irb120_with_terms() -> ModelFile {
+    let text = builtin::model_file("irb120").unwrap().to_toml().unwrap().replace(
+        "\n[calibration]",
+        "\n[mechanism.joint_terms]\nbacklash = [\"q1\", \"q2\", \"q3\", \"q4\", \"q5\", \"q6\"]\ngravity = [\"q2\", \"q3\"]\nharmonic = [\"q2\"]\n[mechanism.joint_terms.values]\n\"q2.backlash\" = 0.01\n\"q2.gravity.q5\" = 0.02\n\"q2.cos\" = 0.003\n\n[calibration]",
+    );
+    ModelFile::load_str(std::path::Path::new("irb120-terms.toml"), &text).unwrap()
+}
+
+/// Configurations within a model file's input limits, approach directions from their order.
+fn file_configurations(file: fn() -> ModelFile) -> impl Fn(&dyn Mechanism, usize, u64) -> Vec<Vec<f64>> {
+    move |m, n, seed| kinecal::workflow::random_configurations(m, &file().inputs(), n, &mut ChaCha8Rng::seed_from_u64(seed)).unwrap()
+}
+
+fn terms_configurations(m: &dyn Mechanism, n: usize, seed: u64) -> Vec<Vec<f64>> {
+    file_configurations(irb120_with_terms)(m, n, seed)
+}
+
 const KINDS: &[Kind] = &[
+    Kind {
+        name: "irb120 with joint terms",
+        build: || irb120_with_terms().build(),
+        file: Some(irb120_with_terms),
+        configurations: terms_configurations,
+    },
     Kind {
         name: "irb120",
         build: || builtin_file("irb120").build(),
@@ -112,7 +137,9 @@ proptest! {
                 let jac = DMatrix::from_iterator(6, jac.ncols(), jac.iter().copied());
                 let fd = fd_jacobian(&m, &q, &steps(&*m));
                 for c in 0..jac.ncols() {
-                    let scale = jac.column(c).amax().max(fd.column(c).amax()).max(1.0);
+                    // Relative 1e-6, above the differences' round-off floor: a pose ~10³ mm
+                    // from the origin known to ~10⁻¹² mm, over a step of 2·10⁻⁶ (≈ 5·10⁻⁷).
+                    let scale = jac.column(c).amax().max(fd.column(c).amax()).max(5.0);
                     let dev = (jac.column(c) - fd.column(c)).amax();
                     prop_assert!(dev < 1e-6 * scale, "{} column {c}: {dev:.3e}", k.name);
                 }
@@ -141,8 +168,9 @@ fn noise_free_data_are_fitted_exactly() {
     for k in KINDS {
         let nominal = (k.build)();
         let mut rng = ChaCha8Rng::seed_from_u64(4);
+        let qs = (k.configurations)(&*nominal, 40, 5);
         let truth = perturbed(&nominal, &random_errors(&*nominal, &mut rng, 0.2, 0.05f64.to_radians(), None));
-        let data = measure(&*truth, &(k.configurations)(&*nominal, 40, 5));
+        let data = measure(&*truth, &qs);
         let held_out = measure(&*truth, &(k.configurations)(&*nominal, 10, 6));
         let fit = identify(&nominal, &data, &Options::default()).unwrap();
         assert!(fit.converged, "{}", k.name);
@@ -160,6 +188,7 @@ fn data_set(name: &str, ids: std::ops::Range<i64>, m: Vec<Measurement>) -> DataS
         has_inputs: true,
         dropped: Vec::new(),
         reflectors: Vec::new(),
+        derived: Vec::new(),
         measurements: m,
     }
 }
@@ -181,8 +210,9 @@ fn model_files_round_trip_and_frames_do_not_change_the_result() {
         }
         // Data in the model frame and the same data moved far away: the same held-out errors.
         let mut rng = ChaCha8Rng::seed_from_u64(8);
+        let qs = (k.configurations)(&*nominal, 40, 9);
         let truth = perturbed(&nominal, &random_errors(&*nominal, &mut rng, 0.2, 0.05f64.to_radians(), None));
-        let ident = measure(&*truth, &(k.configurations)(&*nominal, 40, 9));
+        let ident = measure(&*truth, &qs);
         let valid = measure(&*truth, &(k.configurations)(&*nominal, 10, 10));
         let moved = |d: &[Measurement]| -> Vec<Measurement> {
             d.iter()

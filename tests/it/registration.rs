@@ -75,6 +75,7 @@ fn data_set(name: &str, truth: &dyn Mechanism, qs: &[Vec<f64>], kind: Kind, nois
         has_inputs: true,
         dropped: Vec::new(),
         reflectors: Vec::new(),
+        derived: Vec::new(),
         measurements,
     }
 }

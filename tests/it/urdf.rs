@@ -470,6 +470,7 @@ fn calibrated_irb120_through_urdf_and_back() {
             has_inputs: true,
             dropped: Vec::new(),
             reflectors: Vec::new(),
+            derived: Vec::new(),
             measurements,
         }
     };

@@ -8,11 +8,13 @@ fn inputs() -> Vec<InputSpec> {
             name: "q1".into(),
             unit: Unit::Angle,
             limits: None,
+            approach_of: None,
         },
         InputSpec {
             name: "d2".into(),
             unit: Unit::Length,
             limits: None,
+            approach_of: None,
         },
     ]
 }

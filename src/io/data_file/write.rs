@@ -3,13 +3,17 @@ use super::*;
 
 /// Header names of the input columns: angles in degrees, lengths in mm.
 pub fn input_headers(inputs: &[InputSpec]) -> Vec<String> {
-    inputs
-        .iter()
-        .map(|i| match i.unit {
-            Unit::Angle => format!("{}_deg", i.name),
-            _ => format!("{}_mm", i.name),
-        })
-        .collect()
+    inputs.iter().map(header_of).collect()
+}
+
+/// The column header of one input as kinecal writes it: `<name>_deg`, `<name>_mm`, or the bare
+/// name of a dimensionless input (an approach direction).
+pub fn header_of(i: &InputSpec) -> String {
+    match i.unit {
+        Unit::Angle => format!("{}_deg", i.name),
+        Unit::Dimensionless => i.name.clone(),
+        Unit::Length => format!("{}_mm", i.name),
+    }
 }
 
 /// Input values converted for [`input_headers`] (rad → deg, mm stays).

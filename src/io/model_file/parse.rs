@@ -123,6 +123,113 @@ impl Ctx<'_> {
     }
 
     pub(super) fn serial(&self, name: &str, raw: &RawSerial, units: &Units) -> Result<MechanismSpec, IoError> {
+        let spec = self.serial_chain(name, raw, units)?;
+        let (Some(raw_terms), MechanismSpec::Serial(chain)) = (&raw.joint_terms, &spec) else {
+            return Ok(spec);
+        };
+        self.joint_terms(chain, raw_terms, units)
+    }
+
+    /// `[mechanism.joint_terms]` of a serial chain.
+    fn joint_terms(&self, chain: &SerialChain, raw: &Spanned<RawJointTerms>, units: &Units) -> Result<MechanismSpec, IoError> {
+        let span = raw.span();
+        let r = raw.get_ref();
+        let n = chain.n_joints();
+        let index = |key: &str, name: &Spanned<String>, tool: bool| -> Result<usize, IoError> {
+            if tool && name.get_ref() == "tool" {
+                return Ok(n);
+            }
+            chain.joints().iter().position(|j| &j.name == name.get_ref()).ok_or_else(|| {
+                let names: Vec<&str> = chain.joints().iter().map(|j| j.name.as_str()).collect();
+                self.at(
+                    &name.span(),
+                    format!(
+                        "mechanism.joint_terms.{key}: no joint '{}' in this chain (joints: {}{})",
+                        name.get_ref(),
+                        names.join(", "),
+                        if tool { ", or \"tool\"" } else { "" }
+                    ),
+                )
+            })
+        };
+        let list = |key: &str, v: &Option<Vec<Spanned<String>>>, tool: bool| -> Result<Vec<usize>, IoError> {
+            v.iter().flatten().map(|x| index(key, x, tool)).collect()
+        };
+        let backlash = list("backlash", &r.backlash, false)?;
+        let gravity = list("gravity", &r.gravity, false)?;
+        let harmonic = list("harmonic", &r.harmonic, false)?;
+        let loads = match &r.loads {
+            Some(_) => list("loads", &r.loads, true)?,
+            None => JointTerms::default_loads(chain, &gravity),
+        };
+        let gravity_direction = match r.gravity_direction {
+            Some(g) => {
+                let v = Vector3::from(g);
+                if !v.iter().all(|x| x.is_finite()) || v.norm() < 1e-9 {
+                    return Err(self.at(
+                        &span,
+                        "mechanism.joint_terms.gravity_direction: must be a finite non-zero vector".into(),
+                    ));
+                }
+                v.normalize()
+            }
+            None => -Vector3::z(),
+        };
+        let mut terms = JointTerms {
+            backlash,
+            gravity,
+            loads,
+            gravity_direction,
+            harmonic,
+            values: Vec::new(),
+        };
+        terms.values = vec![0.0; terms.n_params()];
+        let model = WithJointTerms::new(chain.clone(), terms.clone()).map_err(|e| self.at(&span, format!("mechanism.joint_terms: {e}")))?;
+        if let Some(values) = &r.values {
+            let params = model.params();
+            let first = chain.n_params();
+            for (key, v) in values.get_ref() {
+                let Some(k) = params[first..].iter().position(|p| &p.name == key) else {
+                    let names: Vec<&str> = params[first..].iter().map(|p| p.name.as_str()).collect();
+                    return Err(self.at(
+                        &values.span(),
+                        format!(
+                            "mechanism.joint_terms.values: '{key}' is not a term of this model (terms: {})",
+                            names.join(", ")
+                        ),
+                    ));
+                };
+                if !v.is_finite() {
+                    return Err(self.at(&values.span(), format!("mechanism.joint_terms.values.{key}: not a finite number")));
+                }
+                terms.values[k] = v * units.angle.to_rad();
+            }
+        }
+        let mut model = WithJointTerms::new(chain.clone(), terms).map_err(|e| self.at(&span, format!("mechanism.joint_terms: {e}")))?;
+        if let Some(rows) = &r.reference {
+            let bad = |m: String| self.at(&rows.span(), format!("mechanism.joint_terms.reference: {m}"));
+            if rows.get_ref().len() != n + 1 {
+                return Err(bad(format!(
+                    "{} rows for {} joints and the tool (one [x, y, z, roll, pitch, yaw] per joint, then the tool)",
+                    rows.get_ref().len(),
+                    n
+                )));
+            }
+            let mut reference = chain.clone();
+            for (k, row) in rows.get_ref().iter().enumerate() {
+                if row.len() != 6 || row.iter().any(|v| !v.is_finite()) {
+                    return Err(bad(format!("row {k}: need six finite numbers [x, y, z, roll, pitch, yaw]")));
+                }
+                let (l, a) = (units.length.to_mm(), units.angle.to_rad());
+                let rot = UnitQuaternion::from_euler_angles(row[3] * a, row[4] * a, row[5] * a);
+                reference.set_initial_pose(k, Pose::from_parts(Translation3::new(row[0] * l, row[1] * l, row[2] * l), rot));
+            }
+            model = model.with_reference(reference).map_err(bad)?;
+        }
+        Ok(MechanismSpec::SerialTerms(model))
+    }
+
+    fn serial_chain(&self, name: &str, raw: &RawSerial, units: &Units) -> Result<MechanismSpec, IoError> {
         let forms = [raw.joints.is_some(), raw.dh.is_some(), raw.mdh.is_some()];
         if forms.iter().filter(|f| **f).count() != 1 {
             return Err(IoError::Invalid {
@@ -320,4 +427,17 @@ impl Ctx<'_> {
             frames,
         })
     }
+}
+
+/// `[mechanism.joint_terms]` as written.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawJointTerms {
+    pub(super) backlash: Option<Vec<Spanned<String>>>,
+    pub(super) gravity: Option<Vec<Spanned<String>>>,
+    pub(super) loads: Option<Vec<Spanned<String>>>,
+    pub(super) gravity_direction: Option<[f64; 3]>,
+    pub(super) harmonic: Option<Vec<Spanned<String>>>,
+    pub(super) values: Option<Spanned<std::collections::BTreeMap<String, f64>>>,
+    pub(super) reference: Option<Spanned<Vec<Vec<f64>>>>,
 }

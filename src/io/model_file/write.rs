@@ -1,10 +1,15 @@
 //! Writing model files: the `[mechanism]` part of each kind, poses, DH tables, numbers.
 use super::*;
+use crate::model::Mechanism as _;
 
 /// Write the `[mechanism]` part of a model file for `spec` in `units`.
 pub(super) fn write_mechanism(spec: &MechanismSpec, units: &Units, out: &mut String) -> Result<(), String> {
     let (l, a) = (units.length.to_mm(), units.angle.to_rad());
     match spec {
+        MechanismSpec::SerialTerms(m) => {
+            write_mechanism(&MechanismSpec::Serial(m.chain().clone()), units, out)?;
+            write_joint_terms(m, units, out);
+        }
         MechanismSpec::Serial(c) => {
             out.push_str("[mechanism]\nkind = \"serial\"\n");
             out.push_str("# Joint j: position/rpy = T_{j-1,j}(0), the joint frame in the previous joint frame at zero\n");
@@ -40,6 +45,60 @@ pub(super) fn write_mechanism(spec: &MechanismSpec, units: &Units, out: &mut Str
         MechanismSpec::Stewart(m) => parallel::write_stewart(m, units, out),
     }
     Ok(())
+}
+
+/// `[mechanism.joint_terms]`: the terms, the load points written out, and every value by name.
+fn write_joint_terms(m: &WithJointTerms, units: &Units, out: &mut String) {
+    let t = m.terms();
+    let names = |v: &[usize]| v.iter().map(|&j| quote(&m.load_name(j))).collect::<Vec<_>>().join(", ");
+    out.push_str("\n[mechanism.joint_terms]\n");
+    out.push_str(
+        "# Non-geometric joint terms (docs/joint-terms.md): q_eff = q + backlash·dir_<joint> + Σ gravity·lever + cos·cos q + sin·sin q.\n",
+    );
+    let _ = writeln!(
+        out,
+        "backlash = [{}]  # lost motion; data columns dir_<joint> = -1, 0, +1",
+        names(&t.backlash)
+    );
+    let _ = writeln!(out, "gravity = [{}]  # revolute joints that yield under gravity", names(&t.gravity));
+    let _ = writeln!(
+        out,
+        "loads = [{}]  # load points: a joint's axis point, or \"tool\"",
+        names(&t.loads)
+    );
+    let g = t.gravity_direction;
+    let _ = writeln!(out, "gravity_direction = {}  # in the base frame", fmt3([g.x, g.y, g.z]));
+    let _ = writeln!(out, "harmonic = [{}]  # first harmonic of the joint angle", names(&t.harmonic));
+    if m.reference().geometry() != m.chain().geometry() {
+        out.push_str("# The geometry the gravity levers are computed on (frozen when the terms were first identified):\n");
+        out.push_str("# one [x, y, z, roll, pitch, yaw] per joint (its position/rpy), then the tool.\n");
+        out.push_str("reference = [\n");
+        for p in m.reference().initial_poses() {
+            let t = p.translation.vector / units.length.to_mm();
+            let r = crate::se3::rpy(&p.rotation);
+            let a = units.angle.to_rad();
+            let _ = writeln!(
+                out,
+                "    [{}, {}, {}, {}, {}, {}],",
+                num(t.x),
+                num(t.y),
+                num(t.z),
+                num(r[0] / a),
+                num(r[1] / a),
+                num(r[2] / a)
+            );
+        }
+        out.push_str("]\n");
+    }
+    let _ = writeln!(
+        out,
+        "[mechanism.joint_terms.values]  # {}; gravity terms per metre of lever",
+        units.angle.symbol()
+    );
+    let first = m.chain().n_params();
+    for (p, v) in m.params()[first..].iter().zip(&t.values) {
+        let _ = writeln!(out, "{} = {}", quote(&p.name), num(v / units.angle.to_rad()));
+    }
 }
 
 pub(super) fn quote(s: &str) -> String {
