@@ -10,6 +10,7 @@ mod exports;
 mod fuzz;
 mod identify;
 mod irb120;
+mod joint_terms;
 mod model_file;
 mod parallel_workflow;
 mod plan_pm5;
