@@ -4,6 +4,8 @@
 //! frame registration ([`crate::register`]) → iterated identification ([`crate::identify`]) →
 //! the calibrated model file (with its `[frames]` and `[provenance]`), the report with its verdict
 //! ([`CalibrationReport`]), from which the command line, the JSON output and the HTML are written.
+mod variants;
+
 use crate::error::CalibError;
 use crate::identify::{identify, Identification, Loss, Method, Options};
 use crate::io::data_file::DataSet;
@@ -83,6 +85,9 @@ pub struct CalibrationOptions {
     pub seed: u64,
     /// How reflector triples enter the fit (ignored for other measurement kinds).
     pub reflectors: ReflectorFit,
+    /// For a model with joint terms: fit the geometric model alone and each kind of term alone
+    /// too, for the report's comparison ([`crate::report::CalibrationReport::variants`]).
+    pub compare_terms: bool,
 }
 
 impl Default for CalibrationOptions {
@@ -96,6 +101,7 @@ impl Default for CalibrationOptions {
             starts: DEFAULT_STARTS,
             seed: 1,
             reflectors: ReflectorFit::Frame,
+            compare_terms: true,
         }
     }
 }
@@ -364,6 +370,9 @@ pub fn calibrate(
             opts.noise.position,
             sigmas.join(" / ")
         ));
+    }
+    if opts.compare_terms {
+        report.variants = variants::variants(model, data, validation, opts);
     }
     let blunders = set_aside.iter().map(|&i| data.ids[i]).collect();
     Ok(Calibration {

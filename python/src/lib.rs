@@ -410,6 +410,7 @@ fn calibrate(
         return Err(err("huber: a finite number of standard deviations ≥ 0 (0 = off)"));
     }
     let opts = CalibrationOptions {
+        compare_terms: true,
         method: method_of(method)?,
         noise,
         reweight,

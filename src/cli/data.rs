@@ -106,6 +106,9 @@ fn summary(d: &DataSet, json: bool) -> anyhow::Result<()> {
         );
     } else {
         println!("{}: {} poses, measured: {format}", d.path.display(), d.measurements.len());
+        if let Some(note) = d.derived_note() {
+            eprintln!("note: {note}");
+        }
         if let Some(note) = d.dropped_note() {
             println!("{note}");
         }

@@ -131,6 +131,7 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         None => None,
     };
     let opts = CalibrationOptions {
+        compare_terms: true,
         method: match a.method {
             MethodArg::GaussNewton => Method::GaussNewton,
             MethodArg::Linear => Method::Linear,
@@ -159,6 +160,9 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         },
     };
     for d in std::iter::once(&data).chain(validation.as_ref()) {
+        if let Some(note) = d.derived_note() {
+            eprintln!("note: {note}");
+        }
         if let Some(note) = d.dropped_note() {
             eprintln!("{note}");
         }
@@ -230,6 +234,16 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
     if let Some(v) = &report.validation {
         println!("validation set before:     {}", v.before_stats);
         println!("validation set after:      {}", v.after_stats);
+    }
+    for v in &report.variants {
+        let (set, stats) = match &v.validation {
+            Some(s) => ("validation", s),
+            None => ("identification", &v.identification),
+        };
+        println!(
+            "  compared, {}: {set} set after: {stats} (σ̂₀ = {:.3}, {} of {} parameters)",
+            v.name, v.sigma0, v.rank, v.free
+        );
     }
     if cal.starts.len() > 1 {
         let spread = cal.starts.iter().map(|s| s.max_difference_mm).fold(0.0, f64::max);

@@ -23,6 +23,9 @@ pub fn run(a: ValidateArgs) -> anyhow::Result<()> {
     let file = ModelFile::load_or_builtin(&a.model)?;
     let model = file.build();
     let data = read_data(&a.data, &file.inputs(), InputColumns::Required)?;
+    if let Some(note) = data.derived_note() {
+        eprintln!("note: {note}");
+    }
     if let Some(note) = data.dropped_note() {
         eprintln!("{note}");
     }

@@ -118,6 +118,19 @@ impl DataSet {
         ))
     }
 
+    /// A line saying which inputs were derived from the row order, if any:
+    /// `d.csv: dir_q1, dir_q2 not in the file: taken from its row order (the motion order?)`.
+    pub fn derived_note(&self) -> Option<String> {
+        if self.derived.is_empty() {
+            return None;
+        }
+        Some(format!(
+            "{}: {} not in the file: taken from its row order, as the order the robot moved in (give the columns when it is not)",
+            self.path.display(),
+            self.derived.join(", ")
+        ))
+    }
+
     /// The measurements as three-point observations of the reflectors (9 rows per pose: the
     /// tracker's own measurement model) instead of their frame: each reflector's position in the
     /// reflector frame is its mean over the set ([`crate::measure::reflector_offsets`]). `None`

@@ -56,6 +56,7 @@ impl CalibrationReport {
             sets.push(("validation", v));
         }
         self.errors_table(&mut h, &sets);
+        self.variants_html(&mut h);
         for (name, s) in &sets {
             per_pose_html(&mut h, name, s)?;
         }
@@ -158,6 +159,45 @@ impl CalibrationReport {
         h.push_str("</table>\n");
     }
 
+    /// The same data fitted with fewer terms (a model with joint terms only).
+    fn variants_html(&self, h: &mut String) {
+        if self.variants.is_empty() {
+            return;
+        }
+        let held_out = self.validation.is_some();
+        h.push_str("<h2 id=\"variants\">What the joint terms contribute</h2>\n<p>The same data fitted by the geometric model alone and with each kind of joint term alone (one start each), beside this model. A term that does not lower the error on held-out poses is not worth its parameters.</p>");
+        let _ = write!(
+            h,
+            "<table><tr><th class=\"l\">model</th><th>identified / free</th><th>σ̂₀</th><th>identification RMS mm</th><th>{0} mean mm</th><th>{0} RMS mm</th><th>{0} max mm</th><th>{0} rotation mean deg</th></tr>",
+            if held_out { "held-out" } else { "identification" }
+        );
+        let this = super::ModelVariant {
+            name: format!("{} (this model)", self.model),
+            rank: self.rank,
+            free: self.free,
+            sigma0: self.sigma0,
+            identification: self.identification.after_stats,
+            validation: self.validation.as_ref().map(|v| v.after_stats),
+        };
+        for v in self.variants.iter().chain(std::iter::once(&this)) {
+            let s = v.validation.as_ref().unwrap_or(&v.identification);
+            let _ = write!(
+                h,
+                "<tr><td class=\"l\">{}</td><td>{} / {}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+                esc(&v.name),
+                v.rank,
+                v.free,
+                sig(v.sigma0),
+                sig(v.identification.position_rms_mm),
+                sig(s.position_mean_mm),
+                sig(s.position_rms_mm),
+                sig(s.position_max_mm),
+                s.orientation_mean_deg.map(sig).unwrap_or_else(|| "—".into())
+            );
+        }
+        h.push_str("</table>\n");
+    }
+
     /// The error after calibration against each input (validation set when there is one).
     fn inputs_html(&self, h: &mut String, sets: &[(&str, &SetErrors)]) -> Result<(), String> {
         let (name, s) = sets.last().copied().ok_or("no data set")?;
@@ -166,7 +206,7 @@ impl CalibrationReport {
         }
         let _ = write!(
             h,
-            "<h2>Error after calibration against each input, {name} set</h2>\n<p class=\"muted\">What the geometric model leaves: a trend against one input points at what it does not describe there (compliance, backlash, a wrong joint offset).</p><div class=\"plots\">"
+            "<h2>Error after calibration against each input, {name} set</h2>\n<p class=\"muted\">What the model leaves: a trend against one input points at what it does not describe there (compliance, backlash, a wrong joint offset: see the joint terms, docs/joint-terms.md).</p><div class=\"plots\">"
         );
         for (k, (input, unit)) in self.inputs.iter().enumerate() {
             let f = if unit == "deg" { 180.0 / std::f64::consts::PI } else { 1.0 };

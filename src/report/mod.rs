@@ -204,6 +204,26 @@ pub struct CalibrationReport {
     pub provenance: Option<crate::io::model_file::Provenance>,
     /// Ids of the identification poses set aside as gross blunders (not in the final fit).
     pub blunders: Vec<i64>,
+    /// For a model with joint terms: the same data fitted by the geometric model alone and with
+    /// each kind of term alone (empty otherwise), to show what each term contributes.
+    pub variants: Vec<ModelVariant>,
+}
+
+/// The same data fitted by a model with fewer terms (see [`CalibrationReport::variants`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ModelVariant {
+    /// What the model holds, e.g. `"geometric only"`, `"geometry + backlash"`.
+    pub name: String,
+    /// Identified parameters (rank) of the free ones.
+    pub rank: usize,
+    /// Free parameters.
+    pub free: usize,
+    /// A-posteriori standard deviation of unit weight.
+    pub sigma0: f64,
+    /// Errors on the identification set after calibration.
+    pub identification: ErrorStats,
+    /// Errors on the validation set after calibration, when there is one.
+    pub validation: Option<ErrorStats>,
 }
 
 /// Identified parameters correlated beyond this (in absolute value) are flagged.
@@ -310,6 +330,7 @@ impl CalibrationReport {
             inputs: nominal.input_names().into_iter().map(|n| (n, String::new())).collect(),
             provenance: None,
             blunders: Vec::new(),
+            variants: Vec::new(),
         };
         report.correlations(result, &params);
         report.absorbed = absorbed(result, &params, data);
@@ -373,7 +394,7 @@ impl CalibrationReport {
             ));
         } else if excess > SIGMA0_WARN {
             warnings.push(format!(
-                "the residual is {excess:.1}× the stated noise: errors the geometric model does not describe remain (see the residual plots), or the stated noise is optimistic"
+                "the residual is {excess:.1}× the stated noise: errors the model does not describe remain (see the residual plots), or the stated noise is optimistic"
             ));
         }
         self.flags.clear();

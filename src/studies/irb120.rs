@@ -411,6 +411,7 @@ pub fn general_path(
     ] {
         let (ident, valid) = crate::io::split::split(data, rule);
         let opts = CalibrationOptions {
+            compare_terms: true,
             noise,
             reflectors,
             ..CalibrationOptions::default()

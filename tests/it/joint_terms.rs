@@ -221,3 +221,74 @@ fn compensation_with_the_terms_reaches_the_targets() {
     assert!(a < 2.0 * NOISE_MM * 3f64.sqrt(), "{a}");
     assert!(b > 3.0 * a);
 }
+
+#[test]
+fn the_report_compares_the_geometric_model_and_each_term() {
+    let file = with_terms();
+    let t = true_terms(&file);
+    let truth = prototype(&file, Some(&t));
+    let c = fit(&file, &data(&file, &*truth, 200, 8), &data(&file, &*truth, 100, 9));
+    let names: Vec<&str> = c.report.variants.iter().map(|v| v.name.as_str()).collect();
+    assert_eq!(names, ["geometric only", "geometry + backlash", "geometry + gravity"]);
+    let rms = |v: &kinecal::report::ModelVariant| v.validation.as_ref().unwrap().position_rms_mm;
+    let full = held_out_rms(&c);
+    for v in &c.report.variants {
+        assert!(rms(v) > 2.0 * full, "{}: {} against {full}", v.name, rms(v));
+    }
+    let html = c.report.to_html().unwrap();
+    assert!(html.contains("What the joint terms contribute") && html.contains("geometry + backlash"));
+}
+
+#[test]
+fn approach_directions_follow_the_motion_order() {
+    let inputs = with_terms().inputs();
+    let mut rows: Vec<Vec<f64>> = [0.0, 0.2, 0.2, 0.1, 0.1, 0.3]
+        .iter()
+        .map(|&v| {
+            let mut q = vec![0.0; 12];
+            q[1] = v;
+            q
+        })
+        .collect();
+    kinecal::model::kind::approach_from_order(&inputs, &[false; 12], &mut rows);
+    let dir_q2: Vec<f64> = rows.iter().map(|q| q[7]).collect();
+    // Unknown before the first motion; a joint at rest keeps the direction it came from.
+    assert_eq!(dir_q2, [0.0, 1.0, 1.0, -1.0, -1.0, 1.0]);
+    // Joints that never moved: unknown (0).
+    assert!(rows.iter().all(|q| q[6] == 0.0));
+}
+
+#[test]
+fn a_data_file_without_approach_columns_gets_them_from_its_row_order() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("d.csv");
+    std::fs::write(
+        &p,
+        "id,q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,x_mm,y_mm,z_mm\n0,0,0,0,0,10,0,1,2,3\n1,5,-3,0,0,10,0,1,2,3\n2,5,-1,0,0,12,0,1,2,3\n",
+    )
+    .unwrap();
+    let d = kinecal::io::data_file::read_data(&p, &with_terms().inputs(), kinecal::io::data_file::InputColumns::Required).unwrap();
+    assert_eq!(d.derived.len(), 6);
+    let dirs: Vec<Vec<f64>> = d.measurements.iter().map(|m| m.q[6..].to_vec()).collect();
+    assert_eq!(dirs[2], [1.0, 1.0, 0.0, 0.0, 1.0, 0.0]);
+    assert_eq!(dirs[1], [1.0, -1.0, 0.0, 0.0, 0.0, 0.0]);
+}
+
+#[test]
+fn mistakes_in_the_joint_terms_are_named_with_their_line() {
+    let base = builtin::model_file("irb120").unwrap().to_toml().unwrap();
+    let with = |section: &str| base.replace("\n[calibration]", &format!("\n[mechanism.joint_terms]\n{section}\n\n[calibration]"));
+    let err = |section: &str| {
+        ModelFile::load_str(std::path::Path::new("m.toml"), &with(section))
+            .unwrap_err()
+            .to_string()
+    };
+    let e = err("backlash = [\"q2\", \"q7\"]");
+    assert!(e.contains("m.toml:6") && e.contains("no joint 'q7'") && e.contains("q1, q2"), "{e}");
+    let e = err("gravity = [\"q2\"]\n[mechanism.joint_terms.values]\n\"q2.gravity.q9\" = 0.1");
+    assert!(e.contains("'q2.gravity.q9' is not a term") && e.contains("q2.gravity.q3"), "{e}");
+    let e = err("gravity = [\"q2\"]\nreference = [[0, 0, 0, 0, 0, 0]]");
+    assert!(e.contains("1 rows for 6 joints"), "{e}");
+    let e = err("stiffness = [\"q2\"]");
+    assert!(e.contains("stiffness"), "{e}");
+}
