@@ -12,24 +12,25 @@
 //!    fixed, each `s_k` is the linear least-squares solution `mean_i R_iᵀ(X⁻¹·m_ik − p_i)`.
 //!    It starts from two guesses (the points on the flange, and the model file's tool frame) and
 //!    keeps the better.
-//! 3. `Y` is the rigid frame of the points `s_k`; then a Gauss–Newton refinement on the 12 frame
-//!    parameters only ([`crate::identify::identify`] with the frame columns free).
+//! 3. Gauss–Newton on `X` and the points `s_k` together from the alternation's estimate (the
+//!    alternation converges linearly, slowly where the nominal geometry is off; Newton finishes in
+//!    a few steps); `Y` is the rigid frame of the points `s_k`. The calibration then refines both
+//!    frames with the geometry.
 //!
 //! Nothing depends on where the tracker stood: data in any rigid frame (any rotation, kilometres
 //! away) gives the same frames relative to the data, so the same identified geometry.
 use crate::error::CalibError;
-use crate::identify::{identify, Options};
-use crate::measure::{register_points, Measurement, Noise, Observation};
+use crate::measure::{register_points, Measurement, Observation};
 use crate::model::framed::{Framed, FRAME_PARAMS};
 use crate::model::Mechanism;
 use crate::se3::Pose;
-use nalgebra::{Point3, Vector3};
+use nalgebra::{DMatrix, DVector, Point3, Vector3};
 
 /// Length (mm) of the axis points a pose observation contributes: rotations then weigh like
 /// position errors at 100 mm from the tool origin.
 const AXIS_POINT_MM: f64 = 100.0;
-/// Alternation steps before the Gauss–Newton refinement.
-const ALTERNATION_STEPS: usize = 200;
+/// Alternation steps before the Gauss–Newton refinement (enough to enter its basin).
+const ALTERNATION_STEPS: usize = 20;
 
 /// Poses the closed-form alternation runs on at most (an evenly spread subset of larger sets).
 const REGISTRATION_POSES: usize = 2000;
@@ -157,6 +158,57 @@ impl Problem {
     }
 }
 
+impl Problem {
+    /// Gauss–Newton on the measurement frame `x` and the flange points `s` together, from the
+    /// alternation's estimate (which converges linearly, slowly where the geometry is off): the
+    /// residual `x·F_i·s_k − m`, with `x ← exp(δ)·x` and `s_k ← s_k + d_k`. At most 30 steps;
+    /// stops when a step moves nothing by more than 1e-9 mm.
+    fn refine(&self, mut x: Pose, mut s: Vec<Vector3<f64>>) -> (Pose, Vec<Vector3<f64>>) {
+        let n = 6 + 3 * self.classes;
+        for _ in 0..30 {
+            let mut h = DMatrix::<f64>::zeros(n, n);
+            let mut g = DVector::<f64>::zeros(n);
+            let rx = x.rotation.to_rotation_matrix().into_inner();
+            for (i, k, m) in &self.points {
+                let f = &self.flange[*i];
+                let p = x
+                    .transform_point(&Point3::from(f.transform_point(&Point3::from(s[*k])).coords))
+                    .coords;
+                let r = p - m;
+                // Columns: δv (identity), δω (−[p]×), d_k (R_x·R_f).
+                let mut j = nalgebra::SMatrix::<f64, 3, 9>::zeros();
+                j.fixed_view_mut::<3, 3>(0, 0).fill_with_identity();
+                j.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-crate::se3::skew(&p)));
+                j.fixed_view_mut::<3, 3>(0, 6)
+                    .copy_from(&(rx * f.rotation.to_rotation_matrix().into_inner()));
+                let jtj = j.transpose() * j;
+                let jtr = j.transpose() * r;
+                let idx = |c: usize| if c < 6 { c } else { 6 + 3 * k + (c - 6) };
+                for a in 0..9 {
+                    g[idx(a)] += jtr[a];
+                    for b in 0..9 {
+                        h[(idx(a), idx(b))] += jtj[(a, b)];
+                    }
+                }
+            }
+            let Some(step) = h.cholesky().map(|c| -c.solve(&g)) else { break };
+            if !step.iter().all(|v| v.is_finite()) {
+                break;
+            }
+            let dx = crate::se3::Twist::from_iterator(step.rows(0, 6).iter().copied());
+            x = crate::se3::exp(&dx) * x;
+            for (k, sk) in s.iter_mut().enumerate() {
+                *sk += Vector3::new(step[6 + 3 * k], step[7 + 3 * k], step[8 + 3 * k]);
+            }
+            let moved = crate::se3::lin(&dx).norm() + 1e3 * crate::se3::ang(&dx).norm() + step.rows(6, n - 6).amax();
+            if moved < 1e-9 {
+                break;
+            }
+        }
+        (x, s)
+    }
+}
+
 /// The tool frame `Y` of the flange points `s` (the classes of `obs`'s kind).
 fn tool_frame(obs: &Observation, classes: &[Vector3<f64>], s: &[Vector3<f64>]) -> Pose {
     let nominal = class_points(obs, classes, &Pose::identity());
@@ -222,28 +274,10 @@ pub fn register<M: Mechanism + Clone + 'static>(model: &M, data: &[Measurement],
     results.sort_by(|a, b| a.2.total_cmp(&b.2));
     let other_start_rms_mm = results.last().map_or(f64::NAN, |r| r.2);
     let (x, s, _) = results.swap_remove(0);
+    let (x, s) = problem.refine(x, s);
     let y = tool_frame(&data[0].obs, &classes, &s);
 
-    // Gauss–Newton on the frame parameters only, from the closed-form frames.
-    let framed = Framed::new(model.clone(), x, y);
-    let free: Vec<usize> = (0..FRAME_PARAMS).collect();
-    let opts = Options {
-        noise: Noise::default(),
-        free: Some(free),
-        max_iterations: 50,
-        ..Options::default()
-    };
-    let sample: Vec<Measurement>;
-    let fit_data = if stride > 1 {
-        sample = data.iter().step_by(stride).cloned().collect();
-        &sample
-    } else {
-        data
-    };
-    let (measurement, tool) = match identify(&framed, fit_data, &opts) {
-        Ok(r) => (r.model.measurement, r.model.tool),
-        Err(_) => (framed.measurement, framed.tool),
-    };
+    let (measurement, tool) = (x, y);
     let refined = Framed::new(model.clone(), measurement, tool);
     let mut sum = 0.0;
     let mut n = 0usize;
