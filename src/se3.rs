@@ -146,8 +146,24 @@ pub fn log(t: &Pose) -> Twist {
 }
 
 /// Exponential of a joint motion `exp(hat(s)·q)`.
+///
+/// For the unit twists of joints (a revolute joint: `|ω| = 1`; a prismatic one: `ω = 0`) in closed
+/// form from the rotation alone, `p = (I − R)·(ω × v) + ω·(ω·v)·q` (Murray, Li & Sastry, eq. 2.36),
+/// with one `sin_cos`; any other twist through [`exp`].
 pub fn exp_joint(s: &Twist, q: f64) -> Pose {
-    exp(&(s * q))
+    let (v, w) = (lin(s), ang(s));
+    let n2 = w.norm_squared();
+    if n2 == 0.0 {
+        return Isometry3::from_parts(Translation3::from(v * q), UnitQuaternion::identity());
+    }
+    if (n2 - 1.0).abs() > 1e-12 {
+        return exp(&(s * q));
+    }
+    let (sn, cs) = (0.5 * q).sin_cos();
+    let r = UnitQuaternion::new_unchecked(Quaternion::new(cs, sn * w.x, sn * w.y, sn * w.z));
+    let c = w.cross(&v);
+    let p = c - r * c + w * (w.dot(&v) * q);
+    Isometry3::from_parts(Translation3::from(p), r)
 }
 
 /// The adjoint matrix `Ad_T = [[R, p̂R], [0, R]]` in (v, ω) order.
@@ -214,7 +230,15 @@ pub fn rotation_matrix(t: &Pose) -> Matrix3<f64> {
     t.rotation.to_rotation_matrix().into_inner()
 }
 
-/// A pose from a rotation matrix (projected onto SO(3) if not exactly orthonormal) and a position.
+/// [`pose_from_matrix`] for a matrix known to be a rotation to round-off (one built from angles):
+/// no iterative projection onto the rotations, only the quaternion of the matrix.
+pub fn pose_from_rotation(r: &Matrix3<f64>, p: &Vector3<f64>) -> Pose {
+    let rot = nalgebra::Rotation3::from_matrix_unchecked(*r);
+    Isometry3::from_parts(Translation3::from(*p), UnitQuaternion::from_rotation_matrix(&rot))
+}
+
+/// The pose with rotation matrix `r` (projected onto the nearest rotation, so a matrix read from
+/// a file or estimated from data may be slightly off) and translation `p`.
 pub fn pose_from_matrix(r: &Matrix3<f64>, p: &Vector3<f64>) -> Pose {
     let rot = nalgebra::Rotation3::from_matrix(r);
     Isometry3::from_parts(Translation3::from(*p), UnitQuaternion::from_rotation_matrix(&rot))
@@ -256,6 +280,25 @@ pub fn rpy(q: &UnitQuaternion<f64>) -> [f64; 3] {
 mod tests {
     use super::*;
     use approx::assert_relative_eq;
+
+    #[test]
+    fn joint_exponential_in_closed_form_is_the_exponential() {
+        let axis = Vector3::new(0.3, -0.5, 0.8).normalize();
+        let point = Vector3::new(120.0, -40.0, 75.0);
+        let revolute = twist(&(-axis.cross(&point)), &axis);
+        let screw = twist(&(-axis.cross(&point) + axis * 2.5), &axis);
+        let prismatic = twist(&axis, &Vector3::zeros());
+        for s in [revolute, screw, prismatic] {
+            for q in [0.0, 1e-9, 0.3, -2.0, 3.1, 7.5, -40.0] {
+                let (a, b) = (exp_joint(&s, q), exp(&(s * q)));
+                assert!(
+                    (a.translation.vector - b.translation.vector).norm() < 1e-11 * (1.0 + q.abs() * 200.0),
+                    "{q}"
+                );
+                assert!(a.rotation.angle_to(&b.rotation) < 1e-13, "{q}");
+            }
+        }
+    }
 
     #[test]
     fn euler_xyz_rebuilds_the_rotation() {

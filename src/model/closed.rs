@@ -165,7 +165,7 @@ pub use crate::se3::euler_xyz;
 pub fn pose_of(x: &[f64; 6]) -> Pose {
     let r = v3::rot_xyz(x[3], x[4], x[5]);
     let m = Matrix3::new(r[0][0], r[0][1], r[0][2], r[1][0], r[1][1], r[1][2], r[2][0], r[2][1], r[2][2]);
-    se3::pose_from_matrix(&m, &Vector3::new(x[0], x[1], x[2]))
+    se3::pose_from_rotation(&m, &Vector3::new(x[0], x[1], x[2]))
 }
 
 /// Platform coordinates `X` of a pose.
@@ -415,7 +415,7 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
     pub fn tool_pose_of(&self, x: &[f64; 6]) -> Pose {
         let (p, r) = tool_pose_generic(x, &self.tool, &self.base);
         let m = Matrix3::new(r[0][0], r[0][1], r[0][2], r[1][0], r[1][1], r[1][2], r[2][0], r[2][1], r[2][2]);
-        se3::pose_from_matrix(&m, &Vector3::new(p[0], p[1], p[2]))
+        se3::pose_from_rotation(&m, &Vector3::new(p[0], p[1], p[2]))
     }
 
     /// Platform coordinates of a tool pose (inverse of [`Self::tool_pose_of`]).
