@@ -220,9 +220,22 @@ pub(crate) fn residual_jacobian_at<M: Mechanism + ?Sized>(
     i: usize,
     m: &Measurement,
 ) -> Result<(crate::se3::Pose, DMatrix<f64>), CalibError> {
-    let (pose, jac) = model
-        .forward_with_jacobian(&m.q)
-        .map_err(|source| CalibError::Kinematics { pose: i, source })?;
+    residual_jacobian_near(model, i, m, None)
+}
+
+/// [`residual_jacobian_at`] with the forward kinematics started from `near` (the pose at the
+/// measurement's inputs, when known: [`Mechanism::forward_with_jacobian_near`]).
+pub(crate) fn residual_jacobian_near<M: Mechanism + ?Sized>(
+    model: &M,
+    i: usize,
+    m: &Measurement,
+    near: Option<&crate::se3::Pose>,
+) -> Result<(crate::se3::Pose, DMatrix<f64>), CalibError> {
+    let (pose, jac) = match near {
+        Some(p) => model.forward_with_jacobian_near(&m.q, p),
+        None => model.forward_with_jacobian(&m.q),
+    }
+    .map_err(|source| CalibError::Kinematics { pose: i, source })?;
     if jac.iter().any(|v| !v.is_finite()) {
         let source = KinError::NonFinite("the identification Jacobian (check the model's geometry for extreme values)".into());
         return Err(CalibError::Kinematics { pose: i, source });

@@ -39,6 +39,9 @@ pub(crate) struct Evaluated {
     pub cost: f64,
     /// Loss weight per pose (1: full weight).
     pub pose_weights: Vec<f64>,
+    /// The predicted pose of each measurement: where [`factor`]'s forward kinematics starts
+    /// (a closed loop's Newton then only confirms it).
+    pub poses: Vec<crate::se3::Pose>,
 }
 
 /// Weighted residuals of `model` at every measurement, the loss weights and the cost.
@@ -54,12 +57,13 @@ pub(crate) fn evaluate<M: Mechanism + ?Sized>(model: &M, data: &[Measurement], n
                 return Err(CalibError::Kinematics { pose: i, source });
             }
             let w = measure::row_weights(&m.obs, noise);
-            Ok(r.iter().zip(&w).map(|(r, w)| r * w).collect::<Vec<f64>>())
+            Ok((pose, r.iter().zip(&w).map(|(r, w)| r * w).collect::<Vec<f64>>()))
         })
         .collect::<Vec<Result<_, CalibError>>>()
         // The first failing pose in data order, whichever thread failed first.
         .into_iter()
         .collect::<Result<Vec<_>, CalibError>>()?;
+    let (poses, blocks): (Vec<crate::se3::Pose>, Vec<Vec<f64>>) = blocks.into_iter().unzip();
     let rows: usize = blocks.iter().map(Vec::len).sum();
     let mut residual = DVector::zeros(rows);
     let mut offsets = Vec::with_capacity(blocks.len());
@@ -86,6 +90,7 @@ pub(crate) fn evaluate<M: Mechanism + ?Sized>(model: &M, data: &[Measurement], n
         angular_rows,
         cost,
         pose_weights,
+        poses,
     })
 }
 
@@ -186,7 +191,7 @@ pub(crate) fn factor<M: Mechanism + ?Sized>(
     let block = |b: usize, be: usize, top: usize| -> Result<DMatrix<f64>, CalibError> {
         let mut m = DMatrix::zeros(top + row_of(be) - row_of(b), p + 1);
         for (i, d) in data.iter().enumerate().take(be).skip(b) {
-            let (_, a) = super::residual_jacobian_at(model, i, d)?;
+            let (_, a) = super::residual_jacobian_near(model, i, d, ev.poses.get(i))?;
             let w = measure::row_weights(&d.obs, noise);
             let lw = ev.pose_weights[i].sqrt();
             let r0 = top + ev.offsets[i] - ev.offsets[b];

@@ -207,6 +207,25 @@ fn condition(m: &DMatrix<f64>) -> f64 {
     }
 }
 
+/// `Some(condition number)` when that of the square matrix `m` exceeds `limit`, `None` when it does
+/// not. The bound `cond₂ ≤ n·‖m‖₁·‖m⁻¹‖₁` from the inverse settles the common, well-conditioned
+/// case without the SVD (several times dearer for a 6 × 6 matrix, and this runs once per forward
+/// kinematics); near the limit the SVD decides.
+fn ill_conditioned(m: &DMatrix<f64>, limit: f64) -> Option<f64> {
+    if m.iter().any(|v| !v.is_finite()) {
+        return Some(f64::INFINITY);
+    }
+    if let Some(inv) = m.clone().try_inverse() {
+        let norm1 = |a: &DMatrix<f64>| a.column_iter().map(|c| c.iter().map(|v| v.abs()).sum::<f64>()).fold(0.0, f64::max);
+        let bound = m.nrows() as f64 * norm1(m) * norm1(&inv);
+        if bound.is_finite() && bound <= limit {
+            return None;
+        }
+    }
+    let c = condition(m);
+    (c > limit).then_some(c)
+}
+
 impl<C: ConstraintSystem> ClosedLoop<C> {
     /// The mechanism at its nominal geometry, with base and tool frame errors as parameters
     /// (`frame_errors`) or without (frames then fixed: identity base, `tool` offset).
@@ -342,6 +361,12 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
 
     /// Forward kinematics of the platform: Newton on `F(·, q, θ) = 0` from `seed` (default: home).
     pub fn platform_pose(&self, q: &[f64], seed: Option<&[f64; 6]>) -> Result<[f64; 6], KinError> {
+        self.solve_platform(q, seed).map(|(x, _)| x)
+    }
+
+    /// [`ClosedLoop::platform_pose`] and the constraint Jacobian `F_X` at the solution (computed
+    /// for the conditioning check, and reused by the identification Jacobian).
+    fn solve_platform(&self, q: &[f64], seed: Option<&[f64; 6]>) -> Result<([f64; 6], DMatrix<f64>), KinError> {
         check_inputs(q, self.system.input_names().len())?;
         self.check_strokes(q)?;
         let mut x = seed.copied().unwrap_or_else(|| self.system.home());
@@ -400,15 +425,15 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
     /// `x` if the constraint Jacobian `F_X` there is within the solver's condition limit (the
     /// platform is not at a singularity), checked once at the solution rather than at every
     /// Newton iterate.
-    fn well_conditioned(&self, x: [f64; 6], q: &[f64]) -> Result<[f64; 6], KinError> {
-        let cond = condition(&self.jacobian_x_raw(&x, q));
-        if cond > self.solver.max_condition {
+    fn well_conditioned(&self, x: [f64; 6], q: &[f64]) -> Result<([f64; 6], DMatrix<f64>), KinError> {
+        let fx = self.jacobian_x_raw(&x, q);
+        if let Some(cond) = ill_conditioned(&fx, self.solver.max_condition) {
             return Err(KinError::Singular {
                 what: "forward kinematics (constraint Jacobian F_X)".into(),
                 condition: cond,
             });
         }
-        Ok(x)
+        Ok((x, fx))
     }
 
     /// Tool pose of platform coordinates `x` at the current frames.
@@ -552,8 +577,7 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
             });
         }
         // Conditioning checked once, at the solution (a singular pose of the task there).
-        let cond = condition(&self.ik_jacobian(&z, target));
-        if cond > self.solver.max_condition {
+        if let Some(cond) = ill_conditioned(&self.ik_jacobian(&z, target), self.solver.max_condition) {
             return Err(KinError::Singular {
                 what: format!("{} inverse kinematics", self.system.name()),
                 condition: cond,
@@ -590,8 +614,7 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
     /// Platform coordinates and their sensitivity `dX/dθ` (6 × all parameters; zero columns for
     /// the frame parameters) by the implicit function theorem `dX = −F_X⁻¹·F_θ·dθ`.
     pub fn pose_sensitivity(&self, q: &[f64], seed: Option<&[f64; 6]>) -> Result<([f64; 6], DMatrix<f64>), KinError> {
-        let x = self.platform_pose(q, seed)?;
-        let fx = self.jacobian_x_raw(&x, q);
+        let (x, fx) = self.solve_platform(q, seed)?;
         let ft = self.jacobian_theta_raw(&x, q);
         let lu = fx.lu();
         let sol = lu.solve(&(-ft)).ok_or_else(|| KinError::Singular {

@@ -47,6 +47,19 @@ impl<M: Mechanism> Framed<M> {
     pub fn new(inner: M, measurement: Pose, tool: Pose) -> Self {
         Framed { inner, measurement, tool }
     }
+
+    /// The tool pose and identification Jacobian from the inner mechanism's `(M, J_M)`:
+    /// `T = X·M·Y` and `[Ad_X | Ad_T | Ad_X·J_M]`.
+    fn framed_jacobian(&self, (m, jm): (Pose, Matrix6xX<f64>)) -> Result<(Pose, Matrix6xX<f64>), KinError> {
+        let t = self.measurement * m * self.tool;
+        let ad_x = se3::adjoint(&self.measurement);
+        let mut jac = Matrix6xX::zeros(FRAME_PARAMS + jm.ncols());
+        jac.fixed_view_mut::<6, 6>(0, 0).copy_from(&ad_x);
+        jac.fixed_view_mut::<6, 6>(0, 6).copy_from(&se3::adjoint(&t));
+        let inner = se3::mul6(&ad_x, &jm);
+        jac.view_mut((0, FRAME_PARAMS), (6, inner.ncols())).copy_from(&inner);
+        Ok((t, jac))
+    }
 }
 
 impl<M: Mechanism + Clone + 'static> Mechanism for Framed<M> {
@@ -76,15 +89,12 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Framed<M> {
         Ok(self.measurement * self.inner.forward(q)? * self.tool)
     }
     fn forward_with_jacobian(&self, q: &[f64]) -> Result<(Pose, Matrix6xX<f64>), KinError> {
-        let (m, jm) = self.inner.forward_with_jacobian(q)?;
-        let t = self.measurement * m * self.tool;
-        let ad_x = se3::adjoint(&self.measurement);
-        let mut jac = Matrix6xX::zeros(self.n_params());
-        jac.fixed_view_mut::<6, 6>(0, 0).copy_from(&ad_x);
-        jac.fixed_view_mut::<6, 6>(0, 6).copy_from(&se3::adjoint(&t));
-        let inner = se3::mul6(&ad_x, &jm);
-        jac.view_mut((0, FRAME_PARAMS), (6, inner.ncols())).copy_from(&inner);
-        Ok((t, jac))
+        self.framed_jacobian(self.inner.forward_with_jacobian(q)?)
+    }
+    /// The inner mechanism starts from `near` seen in its own frames, `X⁻¹·near·Y⁻¹`.
+    fn forward_with_jacobian_near(&self, q: &[f64], near: &Pose) -> Result<(Pose, Matrix6xX<f64>), KinError> {
+        let inner_near = self.measurement.inverse() * near * self.tool.inverse();
+        self.framed_jacobian(self.inner.forward_with_jacobian_near(q, &inner_near)?)
     }
     fn retract(&mut self, delta: &DVector<f64>) {
         let dx = Twist::from_iterator(delta.rows(0, 6).iter().copied());

@@ -237,3 +237,21 @@ fn model_files_round_trip_and_frames_do_not_change_the_result() {
         assert!(a < 1e-8 && b < 1e-8, "{}: held-out {a:.3e} / moved {b:.3e} mm", k.name);
     }
 }
+
+#[test]
+fn a_known_pose_as_the_start_changes_nothing_framed_or_not() {
+    let x = se3::pose_from_parts(Vector3::new(2500.0, -1800.0, 700.0), Vector3::new(0.4, -1.1, 1.7));
+    let y = se3::pose_from_parts(Vector3::new(10.0, -20.0, 30.0), Vector3::new(0.1, 0.2, -0.3));
+    for k in KINDS {
+        let m = (k.build)();
+        let framed = kinecal::model::framed::Framed::new(m.clone(), x, y);
+        for q in (k.configurations)(&*m, 4, 11) {
+            for model in [&m as &dyn Mechanism, &framed] {
+                let (a, ja) = model.forward_with_jacobian(&q).unwrap();
+                let (b, jb) = model.forward_with_jacobian_near(&q, &model.forward(&q).unwrap()).unwrap();
+                assert!(se3::pose_error(&a, &b).norm() < 1e-9, "{}", k.name);
+                assert!((ja - jb).amax() < 1e-6, "{}", k.name);
+            }
+        }
+    }
+}
