@@ -41,7 +41,7 @@ struct Kind {
     targets: &'static str,
 }
 
-const KINDS: [Kind; 3] = [
+const KINDS: [Kind; 4] = [
     Kind {
         model: "irb120.toml",
         data: "irb120-d.csv",
@@ -60,11 +60,25 @@ const KINDS: [Kind; 3] = [
         validation: "stewart-v.csv",
         targets: "stewart-t.csv",
     },
+    Kind {
+        model: "terms.toml",
+        data: "terms-d.csv",
+        validation: "terms-v.csv",
+        targets: "terms-t.csv",
+    },
 ];
 
 fn setup(bin: &Path, dir: &Path) {
-    for (k, name) in KINDS.iter().zip(["irb120", "pm5", "stewart"]) {
-        run_ok(bin, dir, &["model", "export", name, "--out", k.model]);
+    for (k, name) in KINDS.iter().zip(["irb120", "pm5", "stewart", "irb120"]) {
+        run_ok(bin, dir, &["model", "export", name, "--out", k.model, "--force"]);
+        if k.model == "terms.toml" {
+            // The IRB 120 with joint terms (lost motion, gravity compliance, a harmonic).
+            let text = std::fs::read_to_string(dir.join(k.model)).unwrap().replace(
+                "\n[calibration]",
+                "\n[mechanism.joint_terms]\nbacklash = [\"q1\", \"q2\", \"q3\"]\ngravity = [\"q2\", \"q3\"]\nharmonic = [\"q2\"]\n\n[calibration]",
+            );
+            std::fs::write(dir.join(k.model), text).unwrap();
+        }
         run_ok(
             bin,
             dir,
