@@ -68,6 +68,25 @@ fn rows_2d(a: &PyReadonlyArray2<f64>, cols: usize, what: &str) -> PyResult<Vec<V
     Ok(rows)
 }
 
+/// Input rows of `file`'s model: every input, or (a model with lost motion) the joint values
+/// alone, the approach directions then taken from the row order as for a data file without them.
+fn input_rows(a: &PyReadonlyArray2<f64>, file: &ModelFile, what: &str) -> PyResult<Vec<Vec<f64>>> {
+    let inputs = file.inputs();
+    let measured = inputs.iter().filter(|i| i.approach_of.is_none()).count();
+    if measured == inputs.len() || a.shape()[1] != measured {
+        return rows_2d(a, inputs.len(), what);
+    }
+    let mut rows: Vec<Vec<f64>> = rows_2d(a, measured, what)?
+        .into_iter()
+        .map(|mut r| {
+            r.resize(inputs.len(), 0.0);
+            r
+        })
+        .collect();
+    kinecal::model::kind::approach_from_order(&inputs, &vec![false; inputs.len()], &mut rows);
+    Ok(rows)
+}
+
 fn poses_3d(a: &PyReadonlyArray3<f64>, what: &str) -> PyResult<Vec<Pose>> {
     let shape = a.shape();
     if shape[1] != 4 || shape[2] != 4 {
@@ -173,7 +192,7 @@ impl Model {
 
     /// Forward kinematics: tool poses (n, 4, 4) in mm of inputs `q` (n, inputs) in rad / mm.
     fn forward<'py>(&self, py: Python<'py>, q: PyReadonlyArray2<'py, f64>) -> PyResult<Bound<'py, PyArray3<f64>>> {
-        let rows = rows_2d(&q, self.mech.input_names().len(), "q")?;
+        let rows = input_rows(&q, &self.file, "q")?;
         let poses = rows
             .iter()
             .enumerate()
@@ -248,7 +267,7 @@ impl Data {
         rotations: Option<PyReadonlyArray3<'py, f64>>,
         ids: Option<Vec<i64>>,
     ) -> PyResult<Data> {
-        let qs = rows_2d(&q, model.mech.input_names().len(), "q")?;
+        let qs = input_rows(&q, &model.file, "q")?;
         let ps = rows_2d(&positions, 3, "positions")?;
         if ps.len() != qs.len() {
             return Err(err(format!("positions: {} rows for {} rows of q", ps.len(), qs.len())));
@@ -487,7 +506,7 @@ fn compensate<'py>(
     let poses = poses_3d(&targets, "targets")?;
     let inputs = model.file.inputs();
     let seeds = match &seeds {
-        Some(s) => Some(rows_2d(s, inputs.len(), "seeds")?),
+        Some(s) => Some(input_rows(s, &model.file, "seeds")?),
         None => None,
     };
     let q = kinecal::compensate::compensate(&*model.mech, &inputs, &poses, seeds.as_deref(), &|_| {})

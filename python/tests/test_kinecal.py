@@ -148,3 +148,22 @@ def test_plan_chooses_a_well_conditioned_set():
         kinecal.plan(m, cands, 500)
     with pytest.raises(kinecal.KinecalError, match="criterion"):
         kinecal.plan(m, cands, 10, criterion="o9")
+
+
+def test_joint_terms_model_takes_joint_columns_alone():
+    text = kinecal.Model.load("irb120").to_toml().replace(
+        "\n[calibration]",
+        '\n[mechanism.joint_terms]\nbacklash = ["q2", "q3"]\ngravity = ["q2"]\n\n[calibration]',
+    )
+    m = kinecal.Model.from_toml(text, "terms.toml")
+    assert m.inputs[-2:] == ["dir_q2", "dir_q3"]
+    truth, data = kinecal.simulate(m, 60, seed=4, noise_mm=0.0, noise_deg=0.0)
+    assert data.q.shape[1] == 8
+    # The joint columns alone: the approach directions come from the row order, as the
+    # simulation's (it visits its configurations in order).
+    poses = truth.forward(data.q[:, :6])
+    np.testing.assert_allclose(poses, truth.forward(data.q), atol=1e-12)
+    arrays = kinecal.Data.from_arrays(m, data.q[:, :6], poses[:, :3, 3], poses[:, :3, :3])
+    cal = kinecal.calibrate(m, arrays, noise_mm=0.01, noise_deg=0.001)
+    assert cal.converged
+    np.testing.assert_allclose(cal.model.forward(data.q)[:, :3, 3], poses[:, :3, 3], atol=1e-8)
