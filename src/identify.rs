@@ -231,6 +231,20 @@ pub(crate) fn residual_jacobian_near<M: Mechanism + ?Sized>(
     m: &Measurement,
     near: Option<&crate::se3::Pose>,
 ) -> Result<(crate::se3::Pose, DMatrix<f64>), CalibError> {
+    let (pose, jac) = spatial_jacobian_near(model, i, m, near)?;
+    let a = measure::residual_jacobian(&m.obs, &pose, &jac);
+    Ok((pose, a))
+}
+
+/// The predicted pose and the spatial identification Jacobian of measurement `m`, number `i`,
+/// the forward kinematics started from `near` when given: a kinematic failure or a non-finite
+/// Jacobian is [`CalibError::Kinematics`].
+pub(crate) fn spatial_jacobian_near<M: Mechanism + ?Sized>(
+    model: &M,
+    i: usize,
+    m: &Measurement,
+    near: Option<&crate::se3::Pose>,
+) -> Result<(crate::se3::Pose, nalgebra::Matrix6xX<f64>), CalibError> {
     let (pose, jac) = match near {
         Some(p) => model.forward_with_jacobian_near(&m.q, p),
         None => model.forward_with_jacobian(&m.q),
@@ -240,8 +254,7 @@ pub(crate) fn residual_jacobian_near<M: Mechanism + ?Sized>(
         let source = KinError::NonFinite("the identification Jacobian (check the model's geometry for extreme values)".into());
         return Err(CalibError::Kinematics { pose: i, source });
     }
-    let a = measure::residual_jacobian(&m.obs, &pose, &jac);
-    Ok((pose, a))
+    Ok((pose, jac))
 }
 
 /// Linearise `model` at every measurement (in parallel), weighting rows by `noise`.

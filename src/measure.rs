@@ -105,13 +105,14 @@ pub fn residual_jacobian(obs: &Observation, predicted: &Pose, jac: &Matrix6xX<f6
 
 /// Weights (1/σ) of the residual rows of an observation.
 pub fn row_weights(obs: &Observation, noise: &Noise) -> Vec<f64> {
+    (0..obs.rows()).map(|k| row_weight(obs, k, noise)).collect()
+}
+
+/// The weight of row `k` of `obs`'s residual (see [`row_weights`]), without a vector.
+pub fn row_weight(obs: &Observation, k: usize, noise: &Noise) -> f64 {
     match obs {
-        Observation::Pose(_) => {
-            let (a, b) = (1.0 / noise.position, 1.0 / noise.orientation);
-            vec![a, a, a, b, b, b]
-        }
-        Observation::Position(_) => vec![1.0 / noise.position; 3],
-        Observation::Points(p) => vec![1.0 / noise.position; 3 * p.len()],
+        Observation::Pose(_) if k >= 3 => 1.0 / noise.orientation,
+        _ => 1.0 / noise.position,
     }
 }
 

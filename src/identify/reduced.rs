@@ -15,9 +15,9 @@
 //! (rows), not rows × p.
 use super::{loss_weights, Loss};
 use crate::error::{CalibError, KinError};
-use crate::measure::{self, Measurement, Noise};
+use crate::measure::{self, Measurement, Noise, Observation};
 use crate::model::Mechanism;
-use nalgebra::{DMatrix, DVector};
+use nalgebra::{DMatrix, DVector, Vector3};
 use rayon::prelude::*;
 
 /// Poses folded into the factor at once.
@@ -56,8 +56,11 @@ pub(crate) fn evaluate<M: Mechanism + ?Sized>(model: &M, data: &[Measurement], n
                 let source = KinError::NonFinite("the residual (check the measurement and the model's geometry)".into());
                 return Err(CalibError::Kinematics { pose: i, source });
             }
-            let w = measure::row_weights(&m.obs, noise);
-            Ok((pose, r.iter().zip(&w).map(|(r, w)| r * w).collect::<Vec<f64>>()))
+            let mut r = r;
+            for (k, v) in r.iter_mut().enumerate() {
+                *v *= measure::row_weight(&m.obs, k, noise);
+            }
+            Ok((pose, r))
         })
         .collect::<Vec<Result<_, CalibError>>>()
         // The first failing pose in data order, whichever thread failed first.
@@ -191,16 +194,44 @@ pub(crate) fn factor<M: Mechanism + ?Sized>(
     let block = |b: usize, be: usize, top: usize| -> Result<DMatrix<f64>, CalibError> {
         let mut m = DMatrix::zeros(top + row_of(be) - row_of(b), p + 1);
         for (i, d) in data.iter().enumerate().take(be).skip(b) {
-            let (_, a) = super::residual_jacobian_near(model, i, d, ev.poses.get(i))?;
-            let w = measure::row_weights(&d.obs, noise);
             let lw = ev.pose_weights[i].sqrt();
             let r0 = top + ev.offsets[i] - ev.offsets[b];
-            for (k, wk) in w.iter().enumerate() {
-                let s = wk * lw;
-                for c in 0..p {
-                    m[(r0 + k, c)] = a[(k, c)] * s;
+            match &d.obs {
+                // Pose and position rows straight from the spatial Jacobian: (v − p × ω, ω) per
+                // column, weighted, without an intermediate matrix per pose.
+                Observation::Pose(_) | Observation::Position(_) => {
+                    let (pose, jac) = super::spatial_jacobian_near(model, i, d, ev.poses.get(i))?;
+                    let pt = pose.translation.vector;
+                    let nrows = if matches!(d.obs, Observation::Pose(_)) { 6 } else { 3 };
+                    let (wp, wo) = (lw / noise.position, lw / noise.orientation);
+                    for c in 0..p {
+                        let col = jac.column(c);
+                        let (jl, ja) = (Vector3::new(col[0], col[1], col[2]), Vector3::new(col[3], col[4], col[5]));
+                        let v = jl - pt.cross(&ja);
+                        for k in 0..3 {
+                            m[(r0 + k, c)] = v[k] * wp;
+                        }
+                        if nrows == 6 {
+                            for k in 0..3 {
+                                m[(r0 + 3 + k, c)] = ja[k] * wo;
+                            }
+                        }
+                    }
+                    for k in 0..nrows {
+                        m[(r0 + k, p)] = ev.residual[ev.offsets[i] + k];
+                    }
                 }
-                m[(r0 + k, p)] = ev.residual[ev.offsets[i] + k];
+                Observation::Points(_) => {
+                    let (_, a) = super::residual_jacobian_near(model, i, d, ev.poses.get(i))?;
+                    let w = measure::row_weights(&d.obs, noise);
+                    for (k, wk) in w.iter().enumerate() {
+                        let s = wk * lw;
+                        for c in 0..p {
+                            m[(r0 + k, c)] = a[(k, c)] * s;
+                        }
+                        m[(r0 + k, p)] = ev.residual[ev.offsets[i] + k];
+                    }
+                }
             }
         }
         Ok(m)
