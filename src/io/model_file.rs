@@ -412,7 +412,10 @@ impl ModelFile {
     /// ([`DhError::NearlyParallel`]: the joints are named).
     pub fn to_toml_dh(&self, convention: DhConvention, opts: DhOptions) -> Result<String, DhError> {
         let MechanismSpec::Serial(chain) = &self.mechanism else {
-            return Err(DhError::NotSerial(self.mechanism.kind().to_string()));
+            return Err(DhError::NotSerial(match &self.mechanism {
+                crate::io::model_file::MechanismSpec::SerialTerms(_) => "a serial chain with joint terms (a DH table has no place for them: remove [mechanism.joint_terms] to export the geometry alone; the terms are then lost)".to_string(),
+                m => format!("a {} mechanism", m.kind()),
+            }));
         };
         let table = DhTable::from_chain(chain, convention, opts)?;
         self.render(|out| {

@@ -132,7 +132,7 @@ pub enum UrdfError {
         message: String,
     },
     /// The model is not a serial chain.
-    #[error("a {0} mechanism is not a serial chain: only serial chains are written as URDF")]
+    #[error("{0} cannot be written as URDF: only plain serial chains can")]
     NotSerial(String),
     /// The chain has a joint twist URDF cannot state (an axis not through the joint origin).
     #[error("joint '{0}' has an axis that does not pass through its frame's origin: URDF cannot state it")]
@@ -371,7 +371,10 @@ fn fixed_joint(out: &mut String, name: &str, parent: &str, child: &str, pose: &P
 /// The URDF of a serial model file (nominal or calibrated), see the module docs.
 pub fn export(file: &ModelFile) -> Result<String, UrdfError> {
     let MechanismSpec::Serial(chain) = &file.mechanism else {
-        return Err(UrdfError::NotSerial(file.mechanism.kind().to_string()));
+        return Err(UrdfError::NotSerial(match &file.mechanism {
+                crate::io::model_file::MechanismSpec::SerialTerms(_) => "a serial chain with joint terms (URDF has no place for them: remove [mechanism.joint_terms] to export the geometry alone; the terms are then lost)".to_string(),
+                m => format!("a {} mechanism", m.kind()),
+            }));
     };
     let mut out = String::new();
     let _ = writeln!(out, "<?xml version=\"1.0\"?>");

@@ -106,7 +106,7 @@ pub enum DhError {
     #[error("joint '{0}' is a screw joint (its twist has both a rotation and a translation): DH has no such joint")]
     Screw(String),
     /// The model is not a serial chain.
-    #[error("a {0} mechanism is not a serial chain: only serial chains have a DH table")]
+    #[error("{0} cannot be written as a DH table: only plain serial chains can")]
     NotSerial(String),
     /// The file text could not be written.
     #[error("{0}")]
