@@ -80,5 +80,14 @@ fn main() {
         r.iterations.len(),
         r.sigma0
     );
+    for (k, it) in r.iterations.iter().enumerate() {
+        println!(
+            "  iteration {}: cost {:.6e}, step {:.3e}, damping {:.1e}",
+            k + 1,
+            it.cost,
+            it.step,
+            it.damping
+        );
+    }
     println!("peak RSS {:.1} MB", peak_rss_mb());
 }

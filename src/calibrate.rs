@@ -7,7 +7,7 @@
 mod variants;
 
 use crate::error::CalibError;
-use crate::identify::{identify, Identification, Loss, Method, Options};
+use crate::identify::{identify, Agreement, Identification, Loss, Method, Options};
 use crate::io::data_file::DataSet;
 use crate::io::model_file::{select_params, ModelFile};
 use crate::io::IoError;
@@ -59,6 +59,10 @@ pub const BLUNDER_WEIGHT: f64 = 0.5;
 
 /// Rounds of setting blunders aside and fitting again.
 const MAX_REJECTION_ROUNDS: usize = 5;
+
+/// A start agrees with the first fit once its predictions come this close, as a fraction of
+/// the stated position noise (see [`crate::identify::Options::agree_with`]).
+pub const START_AGREEMENT: f64 = 0.01;
 
 /// Poses the other starts run on at most (an evenly spread subset of larger sets).
 pub const START_POSES: usize = 20_000;
@@ -258,12 +262,30 @@ pub fn calibrate(
     let stride = kept.len().div_ceil(START_POSES).max(1);
     let subset: Vec<Measurement> = kept.iter().step_by(stride).map(|&i| measurements[i].clone()).collect();
     let mut others = Vec::new();
+    // A start whose predictions come within a hundredth of the noise of the first fit's has
+    // entered its basin: it agrees, and is not iterated to the end.
+    let agree_opts = Options {
+        agree_with: (opts.starts > 1)
+            .then(|| -> Option<Agreement> {
+                let positions = subset
+                    .iter()
+                    .map(|m| identification.model.forward(&m.q).ok().map(|t| t.translation.vector))
+                    .collect::<Option<Vec<_>>>()?;
+                Some(Agreement {
+                    positions,
+                    tolerance_mm: START_AGREEMENT * opts.noise.position,
+                    identifiability: (stride == 1).then(|| identification.identifiability.clone()),
+                })
+            })
+            .flatten(),
+        ..id_opts.clone()
+    };
     for k in 1..opts.starts.max(1) as usize {
         let pert = perturbation(&*start, &free, &model.tolerances, opts.seed.wrapping_add(k as u64));
         let mut perturbed = start.box_clone();
         perturbed.retract(&pert);
         // A start that fails outright (a pose out of reach) is a start that did not agree.
-        let outcome = identify(&perturbed, &subset, &id_opts).ok().map(|r| {
+        let outcome = identify(&perturbed, &subset, &agree_opts).ok().map(|r| {
             let delta = pert + &r.delta;
             Identification { delta, ..r }
         });

@@ -74,6 +74,23 @@ pub struct Options {
     pub rank_tolerance: f64,
     /// Loss on each pose's residual: least squares, or Huber against gross blunders.
     pub loss: Loss,
+    /// Stop as soon as the fit's predictions come this close to another solution's (Gauss–Newton
+    /// only): a start that enters the basin of a known minimum will end there, so it is not
+    /// iterated to the end (what [`crate::calibrate`]'s extra starts test). Counted as converged.
+    pub agree_with: Option<Agreement>,
+}
+
+/// Predictions of a known solution, for [`Options::agree_with`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Agreement {
+    /// The tool position the known solution predicts at each measurement (mm, measurement frame).
+    pub positions: Vec<nalgebra::Vector3<f64>>,
+    /// Largest distance (mm) at which the fit agrees.
+    pub tolerance_mm: f64,
+    /// The known solution's identifiability analysis on the same poses and free parameters,
+    /// reused for the rank and the redundant parameters (the start skips its own orthogonal
+    /// factor; the rank is structural, the same at both geometries).
+    pub identifiability: Option<Identifiability>,
 }
 
 /// The loss applied to each pose's weighted residual.
@@ -154,6 +171,7 @@ impl Default for Options {
             step_tolerance: 1e-12,
             rank_tolerance: identifiability::DEFAULT_RANK_TOLERANCE,
             loss: Loss::Squares,
+            agree_with: None,
         }
     }
 }
@@ -434,7 +452,10 @@ fn gauss_newton<M: Mechanism + Clone>(
     // spread subset of ANALYSIS_POSES poses when there are more); then the normal equations,
     // whose eigenvalues on the identifiable directions are far above round-off.
     let stride = data.len().div_ceil(ANALYSIS_POSES).max(1);
-    let (ident, mut system) = if stride == 1 {
+    let known = opts.agree_with.as_ref().and_then(|a| a.identifiability.clone());
+    let (ident, mut system) = if let Some(ident) = known {
+        (ident, reduced::factor(&model, data, &noise, &ev, Form::Gram)?)
+    } else if stride == 1 {
         let system = reduced::factor(&model, data, &noise, &ev, Form::Triangular)?;
         let System::Triangular { r, .. } = &system else {
             unreachable!("a triangular factor was asked for")
@@ -458,6 +479,7 @@ fn gauss_newton<M: Mechanism + Clone>(
     let mut damping = 0.0;
     let mut growth = 2.0;
     let mut stalls = 0;
+    let mut previous_pred = None;
     for _ in 0..opts.max_iterations {
         if opts.reweight {
             noise = reestimate_noise(&ev.residual, &ev.angular_rows, &noise, dof_ratio);
@@ -509,6 +531,23 @@ fn gauss_newton<M: Mechanism + Clone>(
         // (Nielsen's rule): kept where the linear model predicts poorly, so that a weakly
         // determined, curved direction does not make full steps fail again and again.
         let predicted_reduction = system.predicted_reduction(&step);
+        // Converged: a step below the tolerance, or a negligible step that did not lower the
+        // cost (trying it again would change nothing), came second in a row, or is a thousand
+        // times shorter than the one before (the iteration contracts so fast that what is left,
+        // about the next step, is far below round-off of the parameters).
+        let accepted_now = trial_ev.is_some() && trial_cost <= cost;
+        let contracting = previous_pred.is_some_and(|p: f64| pred <= 1e-3 * p);
+        let agrees = accepted_now
+            && opts.agree_with.as_ref().is_some_and(|a| {
+                let poses = &trial_ev.as_ref().expect("an accepted step was evaluated").poses;
+                a.positions.len() == poses.len()
+                    && poses
+                        .iter()
+                        .zip(&a.positions)
+                        .all(|(t, p)| (t.translation.vector - p).norm() <= a.tolerance_mm)
+            });
+        let ends = agrees || tiny || (negligible && (stalls >= 1 || !accepted_now || contracting));
+        previous_pred = Some(pred);
         if let Some(accepted) = trial_ev.filter(|_| trial_cost <= cost) {
             let rho = if predicted_reduction > 0.0 {
                 (cost - trial_cost) / predicted_reduction
@@ -517,7 +556,11 @@ fn gauss_newton<M: Mechanism + Clone>(
             };
             model = trial;
             ev = accepted;
-            system = reduced::factor(&model, data, &noise, &ev, Form::Gram)?;
+            // A fit that ends with this step keeps the Jacobian it moved along for the
+            // covariance (it differs from the new one by the step, at round-off).
+            if !ends {
+                system = reduced::factor(&model, data, &noise, &ev, Form::Gram)?;
+            }
             delta_total += step;
             damping *= (1.0f64 / 3.0).max(1.0 - (2.0 * rho - 1.0).powi(3));
             if damping < 1e-9 {
@@ -528,12 +571,12 @@ fn gauss_newton<M: Mechanism + Clone>(
             damping = if damping == 0.0 { 1e-3 } else { damping * growth };
             growth *= 2.0;
         }
-        if tiny || negligible {
+        if ends {
+            converged = true;
+            break;
+        }
+        if negligible {
             stalls += 1;
-            if tiny || stalls >= 2 {
-                converged = true;
-                break;
-            }
         } else {
             stalls = 0;
         }

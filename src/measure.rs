@@ -149,7 +149,8 @@ pub fn frame_from_reflectors(m1: &Vector3<f64>, m2: &Vector3<f64>, m3: &Vector3<
     let rz = rx.cross(&ry0).try_normalize(1e-9)?;
     let ry = rz.cross(&rx);
     let r = Matrix3::from_columns(&[rx, ry, rz]);
-    Some(se3::pose_from_matrix(&r, &origin))
+    // Orthonormal by construction: no projection onto the rotations needed.
+    Some(se3::pose_from_rotation(&r, &origin))
 }
 
 /// The reflector centres in the reflector frame of [`frame_from_reflectors`], averaged over

@@ -204,3 +204,47 @@ fn reduced_gauss_newton_is_the_full_problem() {
         );
     }
 }
+
+#[test]
+fn a_start_that_reaches_a_known_solution_stops_there_and_one_that_does_not_runs_on() {
+    use kinecal::identify::Agreement;
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let nominal = random_serial_chain(&mut rng, 6, 0);
+    let delta = simulate::random_errors(&nominal, &mut rng, 1.0, 0.01, None);
+    let truth = simulate::perturbed(&nominal, &delta);
+    let q: Vec<Vec<f64>> = (0..60).map(|_| random_joint_values(&nominal, &mut rng, 2.5, 200.0)).collect();
+    let noise = Noise {
+        position: 0.01,
+        orientation: 1e-4,
+    };
+    let data = simulate::measure(&truth, &q, ObservationKind::Pose, Some(&noise), &mut rng).unwrap();
+    let opts = Options { noise, ..Options::default() };
+    let full = identify(&nominal, &data, &opts).unwrap();
+    assert!(full.converged);
+    let known: Vec<_> = data.iter().map(|m| full.model.forward(&m.q).unwrap().translation.vector).collect();
+    let agree = |positions: Vec<nalgebra::Vector3<f64>>| Options {
+        agree_with: Some(Agreement {
+            positions,
+            tolerance_mm: 1e-3,
+            identifiability: Some(full.identifiability.clone()),
+        }),
+        ..opts.clone()
+    };
+    // Agreeing with the fit's own minimum: fewer iterations, within the tolerance of it.
+    let early = identify(&nominal, &data, &agree(known.clone())).unwrap();
+    assert!(early.converged);
+    assert!(early.iterations.len() < full.iterations.len(), "{} vs {}", early.iterations.len(), full.iterations.len());
+    let worst = data
+        .iter()
+        .zip(&known)
+        .map(|(m, p)| (early.model.forward(&m.q).unwrap().translation.vector - p).norm())
+        .fold(0.0, f64::max);
+    assert!(worst <= 1e-3, "{worst}");
+    assert_eq!(early.identifiability.rank, full.identifiability.rank);
+    // Predictions no fit reaches (1 mm off everywhere): the fit runs to its own end, the same.
+    let far: Vec<_> = known.iter().map(|p| p + nalgebra::Vector3::new(1.0, 0.0, 0.0)).collect();
+    let own = identify(&nominal, &data, &agree(far)).unwrap();
+    assert!(own.converged);
+    assert_eq!(own.iterations.len(), full.iterations.len());
+    assert!((own.sigma0 - full.sigma0).abs() < 1e-9 * full.sigma0);
+}
