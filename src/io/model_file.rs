@@ -87,6 +87,7 @@
 //! Add a variant to [`MechanismSpec`], a `Raw…` struct with `#[serde(deny_unknown_fields)]` and a
 //! `kind` field, an arm in `load_str`'s dispatch, and the arms of the `MechanismSpec` methods.
 //! Nothing else (data files, CLI, report) depends on the kind.
+mod limbs;
 mod parallel;
 mod parse;
 mod write;
@@ -428,7 +429,7 @@ impl ModelFile {
     fn render(&self, write_mechanism: impl FnOnce(&mut String) -> Result<(), String>) -> Result<String, String> {
         let mut out = String::new();
         match self.mechanism {
-            MechanismSpec::Serial(_) | MechanismSpec::SerialTerms(_) => {
+            MechanismSpec::Serial(_) | MechanismSpec::SerialTerms(_) | MechanismSpec::Limbs(_) => {
                 out.push_str("# kinecal model file. Poses: position + rpy = [roll, pitch, yaw] with R = Rz(yaw)·Ry(pitch)·Rx(roll)\n");
                 out.push_str("# (or rotvec = axis·angle instead of rpy).\n");
             }
@@ -533,6 +534,12 @@ impl ModelFile {
                 let raw: RawFile<parallel::RawStewart> = toml::from_str(text).map_err(|e| ctx.toml_error(&e))?;
                 let units = ctx.units(&raw.units)?;
                 let mech = ctx.stewart(&raw.mechanism, &units)?;
+                ctx.finish(raw, units, mech)?
+            }
+            "limbs" => {
+                let raw: RawFile<limbs::RawLimbs> = toml::from_str(text).map_err(|e| ctx.toml_error(&e))?;
+                let units = ctx.units(&raw.units)?;
+                let mech = ctx.limbs(&raw.name, &raw.mechanism, &units)?;
                 ctx.finish(raw, units, mech)?
             }
             other => {
@@ -655,32 +662,6 @@ struct Ctx<'a> {
     path: &'a Path,
     text: &'a str,
 }
-
-/// Fixed lengths of the numeric arrays of model files, by key: serde reads the first `n` values
-/// of a longer TOML array and drops the rest, so a typo such as `c = [0, 100, 0, 5]` would pass
-/// silently without this check.
-const ARRAY_LENGTHS: [(&str, usize); 20] = [
-    ("gravity_direction", 3),
-    ("position", 3),
-    ("rpy", 3),
-    ("rotvec", 3),
-    ("axis", 3),
-    ("b", 3),
-    ("c", 3),
-    ("base", 3),
-    ("platform", 3),
-    ("euler_xyz", 3),
-    ("alpha", 2),
-    ("beta", 2),
-    ("gamma", 2),
-    ("limits", 2),
-    ("stroke", 2),
-    ("sub_stroke", 2),
-    ("x", 2),
-    ("y", 2),
-    ("z", 2),
-    ("sub_loop", 4),
-];
 
 #[cfg(test)]
 mod tests {

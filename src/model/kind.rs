@@ -4,6 +4,7 @@
 use crate::model::chain::{JointKind, SerialChain};
 use crate::model::closed::{ClosedLoop, ConstraintSystem};
 use crate::model::joint_terms::WithJointTerms;
+use crate::model::limbs::LimbMechanism;
 use crate::model::presets::pm5::Pm5;
 use crate::model::presets::stewart::Stewart;
 use crate::model::Mechanism;
@@ -37,10 +38,13 @@ pub enum MechanismSpec {
     Pm5(ClosedLoop<Pm5>),
     /// `kind = "stewart"`: a 6-UPS Stewart platform (42 parameters).
     Stewart(ClosedLoop<Stewart>),
+    /// `kind = "limbs"`: any parallel (or hybrid) mechanism written as its limbs, each a chain of
+    /// joints ([`LimbMechanism`]).
+    Limbs(LimbMechanism),
 }
 
 /// The mechanism kinds a model file can hold, as written in `[mechanism] kind`.
-pub const KINDS: [&str; 3] = ["serial", "pm5", "stewart"];
+pub const KINDS: [&str; 4] = ["serial", "pm5", "stewart", "limbs"];
 
 fn closed_loop_inputs<C: ConstraintSystem>(m: &ClosedLoop<C>) -> Vec<InputSpec> {
     let s = m.system();
@@ -101,6 +105,7 @@ impl MechanismSpec {
             MechanismSpec::Serial(_) | MechanismSpec::SerialTerms(_) => "serial",
             MechanismSpec::Pm5(_) => "pm5",
             MechanismSpec::Stewart(_) => "stewart",
+            MechanismSpec::Limbs(_) => "limbs",
         }
     }
 
@@ -111,6 +116,7 @@ impl MechanismSpec {
             MechanismSpec::SerialTerms(m) => Box::new(m.clone()),
             MechanismSpec::Pm5(m) => Box::new(m.clone()),
             MechanismSpec::Stewart(m) => Box::new(m.clone()),
+            MechanismSpec::Limbs(m) => Box::new(m.clone()),
         }
     }
 
@@ -132,6 +138,23 @@ impl MechanismSpec {
             }
             MechanismSpec::Pm5(m) => closed_loop_inputs(m),
             MechanismSpec::Stewart(m) => closed_loop_inputs(m),
+            MechanismSpec::Limbs(m) => m
+                .input_joints()
+                .iter()
+                .map(|&(i, j)| {
+                    let joint = &m.limbs()[i].chain.joints()[j];
+                    InputSpec {
+                        name: joint.name.clone(),
+                        unit: if joint.kind == JointKind::Revolute {
+                            Unit::Angle
+                        } else {
+                            Unit::Length
+                        },
+                        limits: joint.limits,
+                        approach_of: None,
+                    }
+                })
+                .collect(),
         }
     }
 
@@ -153,6 +176,8 @@ impl MechanismSpec {
             MechanismSpec::Stewart(m) if model.name() == m.name() => m.with_geometry(&values).map(MechanismSpec::Stewart),
             MechanismSpec::Pm5(_) => Err(not("a pm5 machine")),
             MechanismSpec::Stewart(_) => Err(not("a Stewart platform")),
+            MechanismSpec::Limbs(m) if model.name() == m.name() => m.with_geometry(&values).map(MechanismSpec::Limbs),
+            MechanismSpec::Limbs(_) => Err(not("a limbs mechanism")),
         }
     }
 }

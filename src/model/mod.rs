@@ -25,6 +25,7 @@ pub mod framed;
 pub mod irb120;
 pub mod joint_terms;
 pub mod kind;
+pub mod limbs;
 pub mod presets;
 
 /// Which part of the tool pose the actuators command.
@@ -35,6 +36,9 @@ pub enum Task {
     /// Tool position and tool z-axis direction (5 DOF): rotation about the tool axis is a
     /// parasitic motion the mechanism cannot command (e.g. the 5-DOF PUU-2PR(RPRR)S machine).
     PositionAndAxis,
+    /// Tool position only (3 DOF): the orientation follows from the constraints (e.g. a delta
+    /// robot, whose platform only translates).
+    Position,
 }
 
 impl Task {
@@ -43,6 +47,7 @@ impl Task {
         match self {
             Task::Full => 6,
             Task::PositionAndAxis => 5,
+            Task::Position => 3,
         }
     }
 }

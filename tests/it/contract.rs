@@ -79,7 +79,23 @@ fn terms_configurations(m: &dyn Mechanism, n: usize, seed: u64) -> Vec<Vec<f64>>
     file_configurations(irb120_with_terms)(m, n, seed)
 }
 
+/// A machine that is only a model file (`examples/models/`), no preset behind it.
+fn example_file(name: &str) -> ModelFile {
+    let text = match name {
+        "hexapod-6rus" => include_str!("../../examples/models/hexapod-6rus.toml"),
+        "linear-delta" => include_str!("../../examples/models/linear-delta.toml"),
+        other => panic!("no example model '{other}'"),
+    };
+    ModelFile::load_str(std::path::Path::new(name), text).unwrap()
+}
+
 const KINDS: &[Kind] = &[
+    Kind {
+        name: "6-RUS hexapod (limbs file)",
+        build: || example_file("hexapod-6rus").build(),
+        file: Some(|| example_file("hexapod-6rus")),
+        configurations: sampled,
+    },
     Kind {
         name: "irb120 with joint terms",
         build: || irb120_with_terms().build(),

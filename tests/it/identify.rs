@@ -218,7 +218,10 @@ fn a_start_that_reaches_a_known_solution_stops_there_and_one_that_does_not_runs_
         orientation: 1e-4,
     };
     let data = simulate::measure(&truth, &q, ObservationKind::Pose, Some(&noise), &mut rng).unwrap();
-    let opts = Options { noise, ..Options::default() };
+    let opts = Options {
+        noise,
+        ..Options::default()
+    };
     let full = identify(&nominal, &data, &opts).unwrap();
     assert!(full.converged);
     let known: Vec<_> = data.iter().map(|m| full.model.forward(&m.q).unwrap().translation.vector).collect();
@@ -233,7 +236,12 @@ fn a_start_that_reaches_a_known_solution_stops_there_and_one_that_does_not_runs_
     // Agreeing with the fit's own minimum: fewer iterations, within the tolerance of it.
     let early = identify(&nominal, &data, &agree(known.clone())).unwrap();
     assert!(early.converged);
-    assert!(early.iterations.len() < full.iterations.len(), "{} vs {}", early.iterations.len(), full.iterations.len());
+    assert!(
+        early.iterations.len() < full.iterations.len(),
+        "{} vs {}",
+        early.iterations.len(),
+        full.iterations.len()
+    );
     let worst = data
         .iter()
         .zip(&known)

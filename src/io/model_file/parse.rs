@@ -2,6 +2,37 @@
 //! poses, joints, DH tables).
 use super::*;
 
+/// Fixed lengths of the numeric arrays of model files, by key: serde reads the first `n` values
+/// of a longer TOML array and drops the rest, so a typo such as `c = [0, 100, 0, 5]` would pass
+/// silently without this check.
+const ARRAY_LENGTHS: [(&str, usize); 25] = [
+    ("gravity_direction", 3),
+    ("position", 3),
+    ("rpy", 3),
+    ("rotvec", 3),
+    ("axis", 3),
+    ("b", 3),
+    ("c", 3),
+    ("base", 3),
+    ("platform", 3),
+    ("euler_xyz", 3),
+    ("alpha", 2),
+    ("beta", 2),
+    ("gamma", 2),
+    ("limits", 2),
+    ("stroke", 2),
+    ("sub_stroke", 2),
+    ("x", 2),
+    ("y", 2),
+    ("z", 2),
+    ("sub_loop", 4),
+    ("platform_point", 3),
+    ("position_min", 3),
+    ("position_max", 3),
+    ("rpy_min", 3),
+    ("rpy_max", 3),
+];
+
 impl Ctx<'_> {
     /// Every array under a key of [`ARRAY_LENGTHS`] has exactly that many values.
     pub(super) fn check_array_lengths(&self) -> Result<(), IoError> {

@@ -43,6 +43,7 @@ pub(super) fn write_mechanism(spec: &MechanismSpec, units: &Units, out: &mut Str
         }
         MechanismSpec::Pm5(m) => parallel::write_pm5(m, units, out),
         MechanismSpec::Stewart(m) => parallel::write_stewart(m, units, out),
+        MechanismSpec::Limbs(m) => limbs::write_limbs(m, units, out)?,
     }
     Ok(())
 }

@@ -1,0 +1,412 @@
+//! Model-file kind `limbs`: a parallel (or hybrid) mechanism written as its limbs
+//! ([`crate::model::limbs::LimbMechanism`]).
+//!
+//! ```toml
+//! [mechanism]
+//! kind = "limbs"
+//! task = "pose"            # what the inputs command: "pose", "position" or "position-and-axis"
+//!
+//! [mechanism.home]         # the platform frame at home, in the base frame
+//! position = [0.0, 0.0, 220.0]
+//! rpy = [0.0, 0.0, 0.0]
+//!
+//! [mechanism.workspace]    # where simulate and plan draw platform poses (optional)
+//! position_min = [-40.0, -40.0, 190.0]
+//! position_max = [40.0, 40.0, 250.0]
+//! rpy_min = [-8.0, -8.0, -8.0]   # offsets from the home orientation (default 0)
+//! rpy_max = [8.0, 8.0, 8.0]
+//!
+//! [[mechanism.limbs]]
+//! name = "leg1"
+//! end = "point"            # "point": a spherical joint on the platform; "frame": the limb's end is the platform frame
+//! platform_point = [...]   # point ends: the joint centre in the platform frame (default: where the limb ends at home)
+//! [mechanism.limbs.end_placement]   # the limb's end in its last joint frame (a point end: the
+//! position = [...]                  # sphere centre, default its origin; a frame end: default the
+//!                                   # platform frame as it stands at home)
+//!
+//! [[mechanism.limbs.joints]]   # as in a serial chain, plus role and home
+//! name = "m1"
+//! type = "revolute"        # or "prismatic"; a universal joint is two revolute joints, a spherical joint three
+//! role = "actuated"        # "actuated", "sensed" (a passive joint with a sensor: a data column) or "passive"
+//! axis = [0.0, 1.0, 0.0]
+//! position = [...]         # the joint frame in the previous one (the first: in the base frame)
+//! rpy = [...]
+//! limits = [-60.0, 60.0]
+//! home = 0.0               # the joint value at home (chooses the assembly mode; default 0)
+//! ```
+//!
+//! Inputs (data columns) are the actuated joints in limb order, then the sensed ones.
+use super::{fmt3, num, quote, write_pose, Ctx, IoError, MechanismSpec, Units};
+use crate::model::chain::{ChainJoint, JointKind, SerialChain};
+use crate::model::limbs::{GroupKind, JointGroup, JointRole, Limb, LimbEnd, LimbMechanism, PoseBox};
+use crate::model::{Mechanism as _, Task};
+use crate::se3::Pose;
+use nalgebra::Vector3;
+use serde::Deserialize;
+use std::fmt::Write as _;
+use toml::Spanned;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawLimbs {
+    #[allow(dead_code)]
+    kind: String,
+    task: Option<Spanned<String>>,
+    home: Option<Spanned<RawPlacement>>,
+    workspace: Option<Spanned<RawBox>>,
+    limbs: Option<Vec<Spanned<RawLimb>>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPlacement {
+    position: Option<[f64; 3]>,
+    rpy: Option<[f64; 3]>,
+    rotvec: Option<[f64; 3]>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawBox {
+    position_min: [f64; 3],
+    position_max: [f64; 3],
+    rpy_min: Option<[f64; 3]>,
+    rpy_max: Option<[f64; 3]>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawLimb {
+    name: String,
+    end: Spanned<String>,
+    platform_point: Option<[f64; 3]>,
+    end_placement: Option<Spanned<RawPlacement>>,
+    joints: Option<Vec<Spanned<RawLimbJoint>>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawLimbJoint {
+    name: String,
+    #[serde(rename = "type")]
+    kind: Spanned<String>,
+    role: Spanned<String>,
+    axis: Option<[f64; 3]>,
+    axes: Option<Vec<[f64; 3]>>,
+    limits: Option<[f64; 2]>,
+    position: Option<[f64; 3]>,
+    rpy: Option<[f64; 3]>,
+    rotvec: Option<[f64; 3]>,
+    home: Option<HomeValue>,
+}
+
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum HomeValue {
+    One(f64),
+    Many(Vec<f64>),
+}
+
+fn task_of(s: &str) -> Option<Task> {
+    match s {
+        "pose" => Some(Task::Full),
+        "position" => Some(Task::Position),
+        "position-and-axis" => Some(Task::PositionAndAxis),
+        _ => None,
+    }
+}
+
+fn task_name(t: Task) -> &'static str {
+    match t {
+        Task::Full => "pose",
+        Task::Position => "position",
+        Task::PositionAndAxis => "position-and-axis",
+    }
+}
+
+impl Ctx<'_> {
+    /// `kind = "limbs"`.
+    pub(super) fn limbs(&self, name: &str, raw: &RawLimbs, units: &Units) -> Result<MechanismSpec, IoError> {
+        let whole = || IoError::Invalid {
+            path: self.path.to_path_buf(),
+            message: "mechanism: a limbs mechanism needs [[mechanism.limbs]] tables, each with [[mechanism.limbs.joints]]".into(),
+        };
+        let task = match &raw.task {
+            None => Task::Full,
+            Some(t) => task_of(t.get_ref()).ok_or_else(|| {
+                self.at(
+                    &t.span(),
+                    format!(
+                        "mechanism.task: unknown task '{}' (use \"pose\", \"position\" or \"position-and-axis\")",
+                        t.get_ref()
+                    ),
+                )
+            })?,
+        };
+        let home = match &raw.home {
+            Some(h) => {
+                let r = h.get_ref();
+                self.pose(&h.span(), "mechanism.home", r.position, r.rpy, r.rotvec, units)?
+            }
+            None => Pose::identity(),
+        };
+        let workspace = match &raw.workspace {
+            None => None,
+            Some(w) => {
+                let r = w.get_ref();
+                let (l, a) = (units.length.to_mm(), units.angle.to_rad());
+                let all = r
+                    .position_min
+                    .iter()
+                    .chain(&r.position_max)
+                    .chain(r.rpy_min.iter().flatten())
+                    .chain(r.rpy_max.iter().flatten());
+                let rmin = r.rpy_min.unwrap_or([0.0; 3]);
+                let rmax = r.rpy_max.unwrap_or([0.0; 3]);
+                if all.clone().any(|v| !v.is_finite()) || (0..3).any(|k| r.position_min[k] > r.position_max[k] || rmin[k] > rmax[k]) {
+                    return Err(self.at(&w.span(), "mechanism.workspace: need finite bounds with min ≤ max".into()));
+                }
+                Some(PoseBox {
+                    position_min: Vector3::from(r.position_min) * l,
+                    position_max: Vector3::from(r.position_max) * l,
+                    rpy_min: rmin.map(|v| v * a),
+                    rpy_max: rmax.map(|v| v * a),
+                })
+            }
+        };
+        let raw_limbs = raw.limbs.as_deref().filter(|l| !l.is_empty()).ok_or_else(whole)?;
+        let mut limbs = Vec::new();
+        for (i, sl) in raw_limbs.iter().enumerate() {
+            limbs.push(self.limb(i, sl, &home, units)?);
+        }
+        LimbMechanism::new(name, limbs, task, home, workspace)
+            .map(MechanismSpec::Limbs)
+            .map_err(|message| IoError::Invalid {
+                path: self.path.to_path_buf(),
+                message: format!("mechanism: {message}"),
+            })
+    }
+
+    fn limb(&self, i: usize, sl: &Spanned<RawLimb>, home: &Pose, units: &Units) -> Result<Limb, IoError> {
+        let rl = sl.get_ref();
+        let what = format!("mechanism.limbs[{i}] ('{}')", rl.name);
+        if rl.name.is_empty() || rl.name.contains(['.', ' ']) {
+            return Err(self.at(
+                &sl.span(),
+                format!("{what}: a limb needs a name without dots or spaces (it prefixes parameter names)"),
+            ));
+        }
+        let raw_joints = rl.joints.as_deref().filter(|j| !j.is_empty()).ok_or_else(|| {
+            self.at(
+                &sl.span(),
+                format!("{what}: a limb needs at least one joint ([[mechanism.limbs.joints]] after its [[mechanism.limbs]])"),
+            )
+        })?;
+        let (mut joints, mut initial, mut roles, mut homes, mut groups) = (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        let mut names = std::collections::HashSet::new();
+        for (j, sj) in raw_joints.iter().enumerate() {
+            let span = sj.span();
+            let rj = sj.get_ref();
+            let jw = format!("{what}.joints[{j}] ('{}')", rj.name);
+            if rj.name.is_empty() || !names.insert(rj.name.clone()) {
+                return Err(self.at(&span, format!("{jw}: joint names must be non-empty and unique")));
+            }
+            let (group, count, default_axes): (GroupKind, usize, &[[f64; 3]]) = match rj.kind.get_ref().as_str() {
+                "revolute" => (GroupKind::Revolute, 1, &[]),
+                "prismatic" => (GroupKind::Prismatic, 1, &[]),
+                "universal" => (GroupKind::Universal, 2, &[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]),
+                "spherical" => (GroupKind::Spherical, 3, &[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]),
+                other => {
+                    return Err(self.at(
+                        &rj.kind.span(),
+                        format!(
+                            "{jw}.type: unknown joint type '{other}' (use \"revolute\", \"prismatic\", \"universal\" or \"spherical\")"
+                        ),
+                    ))
+                }
+            };
+            let axes: Vec<[f64; 3]> = match (count, &rj.axis, &rj.axes) {
+                (1, Some(a), None) => vec![*a],
+                (1, _, _) => return Err(self.at(&span, format!("{jw}: a {} joint needs 'axis' (and no 'axes')", rj.kind.get_ref()))),
+                (_, None, None) => default_axes.to_vec(),
+                (n, None, Some(v)) if v.len() == n => v.clone(),
+                (n, _, _) => {
+                    return Err(self.at(
+                        &span,
+                        format!(
+                            "{jw}: a {} joint takes 'axes' with {n} axes (default: the local x, y{} axes), not 'axis'",
+                            rj.kind.get_ref(),
+                            if n == 3 { ", z" } else { "" }
+                        ),
+                    ))
+                }
+            };
+            let kind = if group == GroupKind::Prismatic {
+                JointKind::Prismatic
+            } else {
+                JointKind::Revolute
+            };
+            let f = match kind {
+                JointKind::Revolute => units.angle.to_rad(),
+                JointKind::Prismatic => units.length.to_mm(),
+            };
+            let home: Vec<f64> = match &rj.home {
+                None => vec![0.0; count],
+                Some(HomeValue::One(v)) if count == 1 => vec![*v],
+                Some(HomeValue::Many(v)) if v.len() == count => v.clone(),
+                Some(_) => return Err(self.at(&span, format!("{jw}.home: give {count} value(s), one per axis"))),
+            };
+            if home.iter().any(|v| !v.is_finite()) {
+                return Err(self.at(&span, format!("{jw}.home: must be finite")));
+            }
+            let role = match rj.role.get_ref().as_str() {
+                "actuated" => JointRole::Actuated,
+                "sensed" => JointRole::Sensed,
+                "passive" => JointRole::Passive,
+                other => {
+                    return Err(self.at(
+                        &rj.role.span(),
+                        format!("{jw}.role: unknown role '{other}' (use \"actuated\", \"sensed\" or \"passive\")"),
+                    ))
+                }
+            };
+            let limits = self.limits(&span, &jw, rj.limits, kind, units)?;
+            let placement = self.pose(&span, &jw, rj.position, rj.rpy, rj.rotvec, units)?;
+            for (k, axis) in axes.iter().enumerate() {
+                let axis = Vector3::from(*axis);
+                if !axis.iter().all(|v| v.is_finite()) || axis.norm() < 1e-9 {
+                    return Err(self.at(&span, format!("{jw}: every axis must be a finite non-zero vector")));
+                }
+                let name = if count == 1 {
+                    rj.name.clone()
+                } else {
+                    format!("{}_{}", rj.name, k + 1)
+                };
+                let mut joint = match kind {
+                    JointKind::Revolute => ChainJoint::revolute(name, axis),
+                    JointKind::Prismatic => ChainJoint::prismatic(name, axis),
+                };
+                joint.limits = limits;
+                joints.push(joint);
+                initial.push(if k == 0 { placement } else { Pose::identity() });
+                roles.push(role);
+                homes.push(home[k] * f);
+            }
+            groups.push(JointGroup {
+                name: rj.name.clone(),
+                kind: group,
+                count,
+            });
+        }
+        let end_placement = match &rl.end_placement {
+            Some(e) => {
+                let r = e.get_ref();
+                Some(self.pose(&e.span(), &format!("{what}.end_placement"), r.position, r.rpy, r.rotvec, units)?)
+            }
+            None => None,
+        };
+        let (end, derive) = match rl.end.get_ref().as_str() {
+            "frame" => {
+                if rl.platform_point.is_some() {
+                    return Err(self.at(&sl.span(), format!("{what}.platform_point: only for end = \"point\"")));
+                }
+                (LimbEnd::Frame, end_placement.is_none())
+            }
+            "point" => match rl.platform_point {
+                Some(p) if p.iter().all(|v| v.is_finite()) => (LimbEnd::Point(Vector3::from(p) * units.length.to_mm()), false),
+                Some(_) => return Err(self.at(&sl.span(), format!("{what}.platform_point: must be finite"))),
+                None => (LimbEnd::Point(Vector3::zeros()), true),
+            },
+            other => {
+                return Err(self.at(
+                    &rl.end.span(),
+                    format!("{what}.end: unknown end '{other}' (use \"point\" for a spherical joint on the platform or \"frame\")"),
+                ))
+            }
+        };
+        let chain = SerialChain::new(rl.name.clone(), joints, initial, end_placement.unwrap_or_else(Pose::identity));
+        let mut limb = Limb {
+            name: rl.name.clone(),
+            chain,
+            roles,
+            end,
+            home: homes,
+            groups,
+        };
+        if derive {
+            limb.attach_at(home).map_err(|e| self.at(&sl.span(), format!("{what}: {e}")))?;
+        }
+        Ok(limb)
+    }
+}
+
+/// The `[mechanism]` part of a `limbs` model file (every value explicit: reads back exactly).
+pub(super) fn write_limbs(m: &LimbMechanism, units: &Units, out: &mut String) -> Result<(), String> {
+    let (l, a) = (units.length.to_mm(), units.angle.to_rad());
+    out.push_str("[mechanism]\nkind = \"limbs\"\n");
+    out.push_str("# A parallel mechanism from its limbs (docs/parallel-machines.md): each limb a chain of joints from\n");
+    out.push_str("# the base; end = \"point\" (a spherical joint at platform_point, platform frame) or \"frame\".\n");
+    let _ = writeln!(out, "task = {}", quote(task_name(m.task())));
+    out.push_str("\n[mechanism.home]\n");
+    write_pose(m.home(), units, out);
+    if let Some(w) = m.workspace() {
+        out.push_str("\n[mechanism.workspace]\n");
+        let p = |v: &Vector3<f64>| fmt3([v.x / l, v.y / l, v.z / l]);
+        let r = |v: &[f64; 3]| fmt3([v[0] / a, v[1] / a, v[2] / a]);
+        let _ = writeln!(out, "position_min = {}\nposition_max = {}", p(&w.position_min), p(&w.position_max));
+        let _ = writeln!(out, "rpy_min = {}\nrpy_max = {}", r(&w.rpy_min), r(&w.rpy_max));
+    }
+    for limb in m.limbs() {
+        let _ = writeln!(out, "\n[[mechanism.limbs]]\nname = {}", quote(&limb.name));
+        match &limb.end {
+            LimbEnd::Frame => out.push_str("end = \"frame\"\n"),
+            LimbEnd::Point(p) => {
+                let _ = writeln!(out, "end = \"point\"\nplatform_point = {}", fmt3([p.x / l, p.y / l, p.z / l]));
+            }
+        }
+        out.push_str("\n[mechanism.limbs.end_placement]\n");
+        write_pose(limb.chain.tool(), units, out);
+        let mut j = 0;
+        for g in &limb.groups {
+            let joint = &limb.chain.joints()[j];
+            let axis_of = |jt: &ChainJoint| {
+                let t = jt.twist;
+                match jt.kind {
+                    JointKind::Revolute => [t[3], t[4], t[5]],
+                    JointKind::Prismatic => [t[0], t[1], t[2]],
+                }
+            };
+            let f = if joint.kind == JointKind::Revolute { a } else { l };
+            let role = match limb.roles[j] {
+                JointRole::Actuated => "actuated",
+                JointRole::Sensed => "sensed",
+                JointRole::Passive => "passive",
+            };
+            let kind = match g.kind {
+                GroupKind::Revolute => "revolute",
+                GroupKind::Prismatic => "prismatic",
+                GroupKind::Universal => "universal",
+                GroupKind::Spherical => "spherical",
+            };
+            let _ = write!(
+                out,
+                "\n[[mechanism.limbs.joints]]\nname = {}\ntype = \"{kind}\"\nrole = \"{role}\"\n",
+                quote(&g.name)
+            );
+            let members = &limb.chain.joints()[j..j + g.count];
+            if g.count == 1 {
+                let _ = writeln!(out, "axis = {}\nhome = {}", fmt3(axis_of(joint)), num(limb.home[j] / f));
+            } else {
+                let axes: Vec<String> = members.iter().map(|m| fmt3(axis_of(m))).collect();
+                let homes: Vec<String> = (j..j + g.count).map(|k| num(limb.home[k] / f)).collect();
+                let _ = writeln!(out, "axes = [{}]\nhome = [{}]", axes.join(", "), homes.join(", "));
+            }
+            if let Some((lo, hi)) = joint.limits {
+                let _ = writeln!(out, "limits = [{}, {}]", num(lo / f), num(hi / f));
+            }
+            write_pose(&limb.chain.initial_poses()[j], units, out);
+            j += g.count;
+        }
+    }
+    Ok(())
+}

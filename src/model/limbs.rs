@@ -1,0 +1,511 @@
+//! Parallel mechanisms from their limbs: a base, a moving platform and limbs that are serial
+//! chains of joints in local-POE form ([`SerialChain`]), each joint actuated, passive with a
+//! sensor, or passive. Nothing is derived by hand: the closure equations, forward and inverse
+//! kinematics and the identification Jacobian all follow from the limb chains.
+//!
+//! # Closure
+//! Limb `i` reaches `E_i(q_i)` (its chain's end: the dyads' product, closed by the chain's last
+//! placement). It closes on the platform frame `X` in one of two ways ([`LimbEnd`]):
+//!
+//! * **frame** — the end is the platform frame: `E_i = X`, six equations
+//!   `r_i = log(E_i·X⁻¹) = 0`;
+//! * **point** — a spherical joint: the end's origin is the platform point `a_i` (platform
+//!   frame), three equations `r_i = p(E_i) − X·a_i = 0`.
+//!
+//! The unknowns of forward kinematics are the platform pose (a spatial twist `ζ`, `X ← exp(ζ)·X`)
+//! and the values of the passive joints; the inputs are the actuated and sensed joint values. With
+//! `F_z` the derivative of the stacked residual with respect to the unknowns (spatial joint
+//! Jacobians of the chains, `−I` or `−[I | −[X·a]×]` for the platform), Gauss–Newton solves
+//! `F_z·dz = −r` (least squares when the sensed joints make the system overdetermined, as in the
+//! 3T1R paper). A mechanism whose `F_z` has a null space at home has uncommanded freedoms: an
+//! error naming the mobility.
+//!
+//! # Identification Jacobian
+//! The error parameters are each limb chain's dyad errors (eq. (33) of the 3T1R paper, six per
+//! dyad, named `<limb>.<dyad>.<vx…wz>`) and, for a point end, the platform point (`<limb>.a.x…z`,
+//! mm). By the implicit-function theorem, `dz = −F_z⁺·F_θ·dθ`; the first six rows of `dz` are the
+//! platform's spatial twist, i.e. the spatial identification Jacobian of [`Mechanism`].
+//!
+//! # Inverse kinematics
+//! The same equations plus the task equations ([`Task`]: the commanded part of the platform pose)
+//! in the platform pose and every joint value, solved by Gauss–Newton along a straight path from
+//! the home configuration to the target (continuation: the assembly mode of home is kept).
+use super::chain::{JointKind, SerialChain};
+use super::{check_inputs, Mechanism, Task};
+use crate::error::KinError;
+use crate::params::{Param, Unit};
+use crate::se3::{self, Pose, Twist};
+use nalgebra::{DMatrix, DVector, Matrix3, Matrix6xX, Vector3};
+use serde::{Deserialize, Serialize};
+
+mod kinematics;
+
+/// What a joint's value is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum JointRole {
+    /// Driven: an input.
+    Actuated,
+    /// Passive with a sensor: its reading is an input (a data column), as in the 3T1R paper.
+    Sensed,
+    /// Passive, not measured: solved from the closure.
+    Passive,
+}
+
+/// How a limb closes on the platform.
+#[derive(Debug, Clone, PartialEq)]
+pub enum LimbEnd {
+    /// The limb's end frame is the platform frame (six equations).
+    Frame,
+    /// A spherical joint: the limb end's origin is this point of the platform frame (mm; three
+    /// equations).
+    Point(Vector3<f64>),
+}
+
+/// One limb: a serial chain from the base to its end, each joint's role, and its closure.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Limb {
+    /// Name (a parameter prefix).
+    pub name: String,
+    /// The chain, base frame to end (its last placement reaches the end).
+    pub chain: SerialChain,
+    /// Role of each joint of the chain.
+    pub roles: Vec<JointRole>,
+    /// Closure.
+    pub end: LimbEnd,
+    /// Joint values at home (the assembly branch: continuation starts here).
+    pub home: Vec<f64>,
+    /// How the chain's joints group into the joints of the drawing, in order (their counts add
+    /// up to the chain's joints).
+    pub groups: Vec<JointGroup>,
+}
+
+/// A joint of the drawing: one revolute or prismatic joint of the chain, or a universal (two)
+/// or spherical (three revolute joints) whose axes meet at one point at right angles by
+/// construction: the placements between them are exact and carry no error parameters (their
+/// errors would be identifiable only at second order — a universal joint whose axes miss each
+/// other by 0.2 mm changes the reachable points by micrometres).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct JointGroup {
+    /// Name of the joint (its chain joints are `<name>_1`, `<name>_2`, … when there are several).
+    pub name: String,
+    /// What it is.
+    pub kind: GroupKind,
+    /// Number of chain joints (1, 2 or 3).
+    pub count: usize,
+}
+
+/// Kind of a [`JointGroup`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum GroupKind {
+    /// One revolute joint.
+    Revolute,
+    /// One prismatic joint.
+    Prismatic,
+    /// Two revolute joints with intersecting axes.
+    Universal,
+    /// Three revolute joints with intersecting axes.
+    Spherical,
+}
+
+impl JointGroup {
+    /// One single joint per chain joint (a chain without universal or spherical joints).
+    pub fn singles(chain: &SerialChain) -> Vec<JointGroup> {
+        chain
+            .joints()
+            .iter()
+            .map(|j| JointGroup {
+                name: j.name.clone(),
+                kind: if j.kind == JointKind::Revolute {
+                    GroupKind::Revolute
+                } else {
+                    GroupKind::Prismatic
+                },
+                count: 1,
+            })
+            .collect()
+    }
+}
+
+impl Limb {
+    /// Attach the limb's end to the platform as it stands at its `home` joint values with the
+    /// platform at `home`: a frame end gets its last placement (the chain's end then *is* the
+    /// platform frame at home), a point end its platform point (the end's origin in the platform
+    /// frame). What a model file that gives neither means.
+    pub fn attach_at(&mut self, home: &Pose) -> Result<(), KinError> {
+        let e = self.chain.forward(&self.home)?;
+        match &mut self.end {
+            LimbEnd::Frame => {
+                let last = self.chain.initial_poses().len() - 1;
+                let tool = *self.chain.tool() * e.inverse() * home;
+                self.chain.set_initial_pose(last, tool);
+            }
+            LimbEnd::Point(a) => *a = home.inverse_transform_point(&nalgebra::Point3::from(e.translation.vector)).coords,
+        }
+        Ok(())
+    }
+
+    /// Per dyad of the chain (the placement before each joint, then the end placement): whether
+    /// it carries error parameters (the placements inside a universal or spherical joint do not).
+    pub fn dyad_has_errors(&self) -> Vec<bool> {
+        let mut out = Vec::with_capacity(self.chain.n_joints() + 1);
+        for g in &self.groups {
+            out.push(true);
+            out.extend(std::iter::repeat_n(false, g.count.saturating_sub(1)));
+        }
+        out.push(true);
+        out
+    }
+
+    fn chain_params(&self) -> usize {
+        6 * self.dyad_has_errors().iter().filter(|b| **b).count()
+    }
+
+    fn rows(&self) -> usize {
+        match self.end {
+            LimbEnd::Frame => 6,
+            LimbEnd::Point(_) => 3,
+        }
+    }
+    fn n_params(&self) -> usize {
+        self.chain_params() + if matches!(self.end, LimbEnd::Point(_)) { 3 } else { 0 }
+    }
+}
+
+/// A box of platform poses around home: position (mm) and roll-pitch-yaw (rad) offsets,
+/// `R = R_home·Rz(yaw)·Ry(pitch)·Rx(roll)`, where configurations are drawn.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PoseBox {
+    /// Lower position bounds (mm, base frame).
+    pub position_min: Vector3<f64>,
+    /// Upper position bounds.
+    pub position_max: Vector3<f64>,
+    /// Lower roll, pitch, yaw offsets (rad).
+    pub rpy_min: [f64; 3],
+    /// Upper offsets.
+    pub rpy_max: [f64; 3],
+}
+
+/// A parallel (or hybrid) mechanism described by its limbs (see the [module docs](self)).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LimbMechanism {
+    name: String,
+    limbs: Vec<Limb>,
+    task: Task,
+    home: Pose,
+    workspace: Option<PoseBox>,
+    /// Per input: (limb, joint).
+    inputs: Vec<(usize, usize)>,
+    /// Per passive unknown: (limb, joint).
+    passive: Vec<(usize, usize)>,
+}
+
+/// Newton iterations of one solve.
+const MAX_ITERATIONS: usize = 60;
+/// Convergence: max-norm of the closure residual (mm and rad).
+const TOLERANCE: f64 = 1e-11;
+/// Largest input change (rad) of one forward-kinematics continuation stage.
+pub const FK_STAGE_RAD: f64 = 0.25;
+/// Largest input change (mm) of one forward-kinematics continuation stage.
+pub const FK_STAGE_MM: f64 = 25.0;
+/// Largest gap (mm / rad) a limb may leave at the home pose before the whole mechanism is solved
+/// there: geometric errors leave a lower-mobility machine's limbs a little off a pose they are
+/// not free to reach; a limb further off is described wrongly.
+const HOME_GAP: f64 = 1.0;
+/// Condition number of `F_z` beyond which a configuration is singular.
+const MAX_CONDITION: f64 = 1e10;
+
+/// The values of every joint of every limb.
+type Joints = Vec<Vec<f64>>;
+
+impl LimbMechanism {
+    /// A mechanism from its limbs; `home` is the platform pose where the limbs' `home` joint values
+    /// (the assembly branch) hold. The home configuration is solved once (from those values) and
+    /// its mobility checked: errors name the limb that cannot close, or the freedoms that no
+    /// input commands.
+    pub fn new(name: impl Into<String>, limbs: Vec<Limb>, task: Task, home: Pose, workspace: Option<PoseBox>) -> Result<Self, String> {
+        let mut inputs = Vec::new();
+        let mut sensed = Vec::new();
+        let mut passive = Vec::new();
+        let mut names = std::collections::HashSet::new();
+        if limbs.is_empty() {
+            return Err("a parallel mechanism needs at least one limb".into());
+        }
+        for (i, l) in limbs.iter().enumerate() {
+            if l.roles.len() != l.chain.n_joints() || l.home.len() != l.chain.n_joints() {
+                return Err(format!("limb '{}': one role and one home value per joint", l.name));
+            }
+            if l.groups.iter().map(|g| g.count).sum::<usize>() != l.chain.n_joints() || l.groups.iter().any(|g| g.count == 0) {
+                return Err(format!("limb '{}': its joint groups do not cover its chain's joints", l.name));
+            }
+            if !names.insert(l.name.clone()) {
+                return Err(format!("limb '{}': limb names must be unique", l.name));
+            }
+            for (j, r) in l.roles.iter().enumerate() {
+                match r {
+                    JointRole::Actuated => inputs.push((i, j)),
+                    JointRole::Sensed => sensed.push((i, j)),
+                    JointRole::Passive => passive.push((i, j)),
+                }
+            }
+        }
+        inputs.extend(sensed);
+        let mut joint_names = std::collections::HashSet::new();
+        for (i, l) in limbs.iter().enumerate() {
+            for jt in l.chain.joints() {
+                if !joint_names.insert(jt.name.clone()) {
+                    return Err(format!(
+                        "limb '{}': joint name '{}' is used twice (joint names are input names: unique over the mechanism)",
+                        limbs[i].name, jt.name
+                    ));
+                }
+            }
+        }
+        if inputs.is_empty() {
+            return Err("no joint is actuated or sensed: the mechanism has no inputs".into());
+        }
+        let mut m = LimbMechanism {
+            name: name.into(),
+            limbs,
+            task,
+            home,
+            workspace,
+            inputs,
+            passive,
+        };
+        // Each limb as close to the home pose as it gets from its home values (least squares, per
+        // limb, to name the one that cannot close) ...
+        let mut gaps = Vec::with_capacity(m.limbs.len());
+        for i in 0..m.limbs.len() {
+            let (solved, gap) = m.solve_limb_at(i, &m.home);
+            gaps.push(gap);
+            if gap.is_nan() || gap >= HOME_GAP {
+                return Err(format!(
+                    "limb '{}' cannot close at the home pose: its end stays {gap:.3} (mm / rad) from the platform; check its joint placements, the platform point and the home pose",
+                    m.limbs[i].name
+                ));
+            }
+            m.limbs[i].home = solved;
+        }
+        // ... then the whole mechanism at the commanded part of the home pose (a machine with
+        // fewer than six freedoms and geometric errors has its own orientation there).
+        let (x, q, passive) = m
+            .solve_inverse(&m.home.clone(), (m.home, m.home_inputs(), m.home_passive()))
+            .map_err(|e| {
+                let worst = (0..gaps.len()).max_by(|a, b| gaps[*a].total_cmp(&gaps[*b])).unwrap_or(0);
+                format!(
+                    "the limbs do not close together at the home pose ({e}); limb '{}' is furthest off ({:.3e} mm / rad alone): check its geometry and the home pose",
+                    m.limbs[worst].name, gaps[worst]
+                )
+            })?;
+        let joints = m.joints_of(&q, &passive);
+        for (l, j) in m.limbs.iter_mut().zip(joints) {
+            l.home = j;
+        }
+        m.home = x;
+        let rows: usize = m.limbs.iter().map(Limb::rows).sum();
+        let unknowns = 6 + m.passive.len();
+        if rows < unknowns {
+            return Err(format!(
+                "wrong mobility: {rows} closure equations for {unknowns} unknowns (the platform's 6 and {} passive joints): with the inputs fixed the platform could still move; actuate or sense more joints, or close limbs with a full frame",
+                m.passive.len()
+            ));
+        }
+        let joints: Joints = m.limbs.iter().map(|l| l.home.clone()).collect();
+        let (_, fz) = m.closure(&m.home, &joints, true);
+        let sv = fz.singular_values();
+        let (hi, lo) = (sv.max(), sv.min());
+        if lo.is_nan() || lo <= hi / MAX_CONDITION {
+            let free = sv.iter().filter(|s| **s <= hi / MAX_CONDITION).count();
+            return Err(format!(
+                "wrong mobility: with the inputs fixed at home the platform and passive joints keep {free} freedom(s) (the closure equations do not determine them); actuate or sense more joints, or check the limb geometry (a limb at a singularity at home)"
+            ));
+        }
+        Ok(m)
+    }
+
+    /// The limbs.
+    pub fn limbs(&self) -> &[Limb] {
+        &self.limbs
+    }
+    /// The home platform pose.
+    pub fn home(&self) -> &Pose {
+        &self.home
+    }
+    /// The workspace box, if given.
+    pub fn workspace(&self) -> Option<&PoseBox> {
+        self.workspace.as_ref()
+    }
+    /// Per input: (limb, joint) it drives or reads.
+    pub fn input_joints(&self) -> &[(usize, usize)] {
+        &self.inputs
+    }
+    /// The inputs at home.
+    pub fn home_inputs(&self) -> Vec<f64> {
+        self.inputs.iter().map(|&(i, j)| self.limbs[i].home[j]).collect()
+    }
+
+    /// This mechanism with the geometry `values` of [`Mechanism::geometry`].
+    pub fn with_geometry(&self, values: &[f64]) -> Result<LimbMechanism, String> {
+        let mut out = self.clone();
+        let mut k = 0;
+        for l in &mut out.limbs {
+            let n = 12 * l.chain.initial_poses().len();
+            let v = values.get(k..k + n).ok_or("geometry: too few values for this mechanism")?;
+            l.chain = l.chain.with_geometry(v)?;
+            k += n;
+            if let LimbEnd::Point(a) = &mut l.end {
+                let v = values.get(k..k + 3).ok_or("geometry: too few values for this mechanism")?;
+                *a = Vector3::new(v[0], v[1], v[2]);
+                k += 3;
+            }
+        }
+        if k != values.len() {
+            return Err(format!("geometry: {} values for a mechanism of {k}", values.len()));
+        }
+        Ok(out)
+    }
+}
+
+impl Mechanism for LimbMechanism {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn input_names(&self) -> Vec<String> {
+        self.inputs
+            .iter()
+            .map(|&(i, j)| self.limbs[i].chain.joints()[j].name.clone())
+            .collect()
+    }
+
+    fn params(&self) -> Vec<Param> {
+        let mut out = Vec::new();
+        for l in &self.limbs {
+            let keep = l.dyad_has_errors();
+            for (k, p) in l.chain.params().into_iter().enumerate() {
+                if keep[k / 6] {
+                    out.push(Param::new(format!("{}.{}", l.name, p.name), p.unit, format!("limb {}", l.name)));
+                }
+            }
+            if matches!(l.end, LimbEnd::Point(_)) {
+                for c in ["x", "y", "z"] {
+                    out.push(Param::new(format!("{}.a.{c}", l.name), Unit::Length, format!("limb {}", l.name)));
+                }
+            }
+        }
+        out
+    }
+
+    fn n_params(&self) -> usize {
+        self.limbs.iter().map(Limb::n_params).sum()
+    }
+
+    fn forward(&self, q: &[f64]) -> Result<Pose, KinError> {
+        self.forward_full(q).map(|(x, _)| x)
+    }
+
+    fn forward_with_jacobian(&self, q: &[f64]) -> Result<(Pose, Matrix6xX<f64>), KinError> {
+        let (x, passive) = self.forward_full(q)?;
+        let joints = self.joints_of(q, &passive);
+        let (_, fz) = self.closure(&x, &joints, true);
+        let fp = self.closure_params(&x, &joints);
+        let svd = fz.svd(true, true);
+        let dz = svd.solve(&(-fp), 0.0).map_err(|_| KinError::Singular {
+            what: "identification Jacobian of a limb mechanism".into(),
+            condition: f64::INFINITY,
+        })?;
+        let mut j = Matrix6xX::zeros(dz.ncols());
+        j.copy_from(&dz.rows(0, 6));
+        Ok((x, j))
+    }
+
+    fn retract(&mut self, delta: &DVector<f64>) {
+        let mut k = 0;
+        for l in &mut self.limbs {
+            let keep = l.dyad_has_errors();
+            let mut d = DVector::zeros(l.chain.n_params());
+            for (dyad, _) in keep.iter().enumerate().filter(|(_, k)| **k) {
+                d.rows_mut(6 * dyad, 6).copy_from(&delta.rows(k, 6));
+                k += 6;
+            }
+            l.chain.retract(&d);
+            if let LimbEnd::Point(a) = &mut l.end {
+                *a += Vector3::new(delta[k], delta[k + 1], delta[k + 2]);
+                k += 3;
+            }
+        }
+    }
+
+    fn inverse(&self, target: &Pose, _seed: Option<&[f64]>) -> Result<Vec<f64>, KinError> {
+        let (q, _, _) = self.inverse_full(target)?;
+        for (k, &(i, j)) in self.inputs.iter().enumerate() {
+            let joint = &self.limbs[i].chain.joints()[j];
+            if let Some((lo, hi)) = joint.limits {
+                if q[k] < lo - 1e-9 || q[k] > hi + 1e-9 {
+                    let unit = if joint.kind == JointKind::Revolute { "rad" } else { "mm" };
+                    return Err(KinError::OutOfWorkspace(format!(
+                        "{} = {:.4} {unit} outside its limits [{lo:.4}, {hi:.4}]",
+                        joint.name, q[k]
+                    )));
+                }
+            }
+        }
+        Ok(q)
+    }
+
+    fn box_clone(&self) -> Box<dyn Mechanism> {
+        Box::new(self.clone())
+    }
+
+    fn inverse_ignores_seed(&self) -> bool {
+        true
+    }
+
+    fn geometry(&self) -> Option<Vec<f64>> {
+        let mut out = Vec::new();
+        for l in &self.limbs {
+            out.extend(l.chain.geometry()?);
+            if let LimbEnd::Point(a) = &l.end {
+                out.extend(a.iter().copied());
+            }
+        }
+        Some(out)
+    }
+
+    fn task(&self) -> Task {
+        self.task
+    }
+
+    fn sample_configurations(&self, n: usize, seed: u64) -> Option<Result<Vec<Vec<f64>>, KinError>> {
+        use rand::{RngExt, SeedableRng};
+        let ws = self.workspace.as_ref()?;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let mut out = Vec::with_capacity(n);
+        let mut tries = 0;
+        while out.len() < n {
+            tries += 1;
+            if tries > 50 * n.max(1) {
+                return Some(Err(KinError::Unreachable(format!(
+                    "'{}': only {} of {n} configurations drawn in its workspace could be reached (check [mechanism.workspace] against the limbs and joint limits)",
+                    self.name,
+                    out.len()
+                ))));
+            }
+            let mut draw = |lo: f64, hi: f64| if hi > lo { rng.random_range(lo..hi) } else { lo };
+            let p = Vector3::new(
+                draw(ws.position_min.x, ws.position_max.x),
+                draw(ws.position_min.y, ws.position_max.y),
+                draw(ws.position_min.z, ws.position_max.z),
+            );
+            let a: Vec<f64> = (0..3).map(|k| draw(ws.rpy_min[k], ws.rpy_max[k])).collect();
+            let rot = self.home.rotation * nalgebra::UnitQuaternion::from_euler_angles(a[0], a[1], a[2]);
+            let target = Pose::from_parts(nalgebra::Translation3::from(p), rot);
+            if let Ok(q) = self.inverse(&target, None) {
+                out.push(q);
+            }
+        }
+        Some(Ok(out))
+    }
+}

@@ -1,0 +1,371 @@
+//! The kinematics of [`LimbMechanism`]: closure equations and their derivatives, forward and
+//! inverse kinematics by Gauss–Newton with continuation (see the [parent module](super)).
+use super::*;
+
+impl LimbMechanism {
+    /// Joint values of every limb: the inputs placed, passive joints from `passive`.
+    pub(super) fn joints_of(&self, q: &[f64], passive: &[f64]) -> Joints {
+        let mut j: Joints = self.limbs.iter().map(|l| l.home.clone()).collect();
+        for (k, &(i, jj)) in self.inputs.iter().enumerate() {
+            j[i][jj] = q[k];
+        }
+        for (k, &(i, jj)) in self.passive.iter().enumerate() {
+            j[i][jj] = passive[k];
+        }
+        j
+    }
+
+    /// Closure residual and its derivative with respect to `[ζ (6) | passive joints]` (with
+    /// `all_joints`: `[ζ | every joint in input order, then passive order]`).
+    pub(super) fn closure(&self, x: &Pose, joints: &Joints, passive_only: bool) -> (DVector<f64>, DMatrix<f64>) {
+        let rows: usize = self.limbs.iter().map(Limb::rows).sum();
+        let cols = 6 + if passive_only {
+            self.passive.len()
+        } else {
+            self.inputs.len() + self.passive.len()
+        };
+        let mut r = DVector::zeros(rows);
+        let mut f = DMatrix::zeros(rows, cols);
+        let mut col_of = vec![Vec::new(); self.limbs.len()];
+        for (i, l) in self.limbs.iter().enumerate() {
+            col_of[i] = vec![None; l.chain.n_joints()];
+        }
+        if !passive_only {
+            for (k, &(i, j)) in self.inputs.iter().enumerate() {
+                col_of[i][j] = Some(6 + k);
+            }
+        }
+        let off = if passive_only { 6 } else { 6 + self.inputs.len() };
+        for (k, &(i, j)) in self.passive.iter().enumerate() {
+            col_of[i][j] = Some(off + k);
+        }
+        let mut row = 0;
+        for (i, l) in self.limbs.iter().enumerate() {
+            let (e, jq) = l.chain.joint_jacobian(&joints[i]).expect("joint values of the limb's length");
+            match &l.end {
+                LimbEnd::Frame => {
+                    let res = se3::log(&(e * x.inverse()));
+                    r.rows_mut(row, 6).copy_from(&res);
+                    for d in 0..6 {
+                        f[(row + d, d)] = -1.0;
+                    }
+                    for (j, c) in col_of[i].iter().enumerate() {
+                        if let Some(c) = c {
+                            f.view_mut((row, *c), (6, 1)).copy_from(&jq.column(j));
+                        }
+                    }
+                }
+                LimbEnd::Point(a) => {
+                    let xa = x * nalgebra::Point3::from(*a);
+                    let pe = e.translation.vector;
+                    r.rows_mut(row, 3).copy_from(&(pe - xa.coords));
+                    let m_plat = point_map(&xa.coords);
+                    f.view_mut((row, 0), (3, 6)).copy_from(&(-m_plat));
+                    let m_end = point_map(&pe);
+                    for (j, c) in col_of[i].iter().enumerate() {
+                        if let Some(c) = c {
+                            let col = m_end * jq.fixed_view::<6, 1>(0, j);
+                            f.view_mut((row, *c), (3, 1)).copy_from(&col);
+                        }
+                    }
+                }
+            }
+            row += l.rows();
+        }
+        (r, f)
+    }
+
+    /// Gauss–Newton on the closure for the platform pose and passive joints at inputs `q`, from
+    /// `(x, passive)`. Returns the solution or the residual reached.
+    pub(super) fn solve_forward(&self, q: &[f64], mut x: Pose, mut passive: Vec<f64>) -> Result<(Pose, Vec<f64>), KinError> {
+        let mut res = f64::INFINITY;
+        for _ in 0..MAX_ITERATIONS {
+            let joints = self.joints_of(q, &passive);
+            let (r, f) = self.closure(&x, &joints, true);
+            res = r.amax();
+            if !res.is_finite() {
+                break;
+            }
+            if res < TOLERANCE {
+                return Ok((x, passive));
+            }
+            let dz = lstsq(&f, &(-r), "forward kinematics of a limb mechanism")?;
+            x = se3::exp(&Twist::from_iterator(dz.rows(0, 6).iter().copied())) * x;
+            for (p, d) in passive.iter_mut().zip(dz.rows(6, dz.len() - 6).iter()) {
+                *p += d;
+            }
+        }
+        Err(KinError::NoConvergence {
+            what: format!("forward kinematics of '{}' (closure)", self.name),
+            iterations: MAX_ITERATIONS,
+            residual: res,
+        })
+    }
+
+    pub(super) fn home_passive(&self) -> Vec<f64> {
+        self.passive.iter().map(|&(i, j)| self.limbs[i].home[j]).collect()
+    }
+
+    /// Forward kinematics: the platform pose and the passive joint values at inputs `q`, followed
+    /// from the home configuration along a straight path of the inputs (stages of at most
+    /// [`FK_STAGE_RAD`] / [`FK_STAGE_MM`], more where a stage fails): Newton from home alone
+    /// can land in another assembly mode.
+    pub fn forward_full(&self, q: &[f64]) -> Result<(Pose, Vec<f64>), KinError> {
+        check_inputs(q, self.inputs.len())?;
+        let q0 = self.home_inputs();
+        let reach = self
+            .inputs
+            .iter()
+            .enumerate()
+            .map(|(k, &(i, j))| {
+                let stage = match self.limbs[i].chain.joints()[j].kind {
+                    JointKind::Revolute => FK_STAGE_RAD,
+                    JointKind::Prismatic => FK_STAGE_MM,
+                };
+                (q[k] - q0[k]).abs() / stage
+            })
+            .fold(0.0, f64::max);
+        let mut stages = (reach.ceil() as usize).max(1);
+        let mut last = None;
+        while stages <= 64 {
+            let mut state = (self.home, self.home_passive());
+            let mut failed = None;
+            for s in 1..=stages {
+                let t = s as f64 / stages as f64;
+                let qs: Vec<f64> = q0.iter().zip(q).map(|(a, b)| a + (b - a) * t).collect();
+                match self.solve_forward(&qs, state.0, state.1.clone()) {
+                    Ok(st) => state = st,
+                    Err(e) => {
+                        failed = Some(e);
+                        break;
+                    }
+                }
+            }
+            match failed {
+                None => return Ok(state),
+                Some(e) => last = Some(e),
+            }
+            stages *= 4;
+        }
+        Err(last.expect("at least one attempt"))
+    }
+
+    /// The closure's derivative with respect to the error parameters (rows × p) at a solved
+    /// configuration.
+    pub(super) fn closure_params(&self, x: &Pose, joints: &Joints) -> DMatrix<f64> {
+        let rows: usize = self.limbs.iter().map(Limb::rows).sum();
+        let p: usize = self.limbs.iter().map(Limb::n_params).sum();
+        let mut f = DMatrix::zeros(rows, p);
+        let (mut row, mut col) = (0, 0);
+        for (i, l) in self.limbs.iter().enumerate() {
+            let (e, jp_all) = l
+                .chain
+                .forward_with_jacobian(&joints[i])
+                .expect("joint values of the limb's length");
+            let keep = l.dyad_has_errors();
+            let n = l.chain_params();
+            let mut jp = Matrix6xX::zeros(n);
+            let mut c = 0;
+            for (d, k) in keep.iter().enumerate() {
+                if *k {
+                    jp.fixed_view_mut::<6, 6>(0, c).copy_from(&jp_all.fixed_view::<6, 6>(0, 6 * d));
+                    c += 6;
+                }
+            }
+            match &l.end {
+                LimbEnd::Frame => f.view_mut((row, col), (6, n)).copy_from(&jp),
+                LimbEnd::Point(_) => {
+                    let m = point_map(&e.translation.vector);
+                    f.view_mut((row, col), (3, n)).copy_from(&(m * &jp));
+                    let r = se3::rotation_matrix(x);
+                    f.view_mut((row, col + n), (3, 3)).copy_from(&(-r));
+                }
+            }
+            row += l.rows();
+            col += l.n_params();
+        }
+        f
+    }
+
+    /// The inverse kinematics with every joint value of every limb (inputs first, then the
+    /// passive joints) and the platform pose reached.
+    pub fn inverse_full(&self, target: &Pose) -> Result<(Vec<f64>, Vec<f64>, Pose), KinError> {
+        let start = (self.home, self.home_inputs(), self.home_passive());
+        let mut last = Err(KinError::Unreachable("no attempt".into()));
+        for steps in [1usize, 4, 16] {
+            let mut state = start.clone();
+            let mut ok = true;
+            for s in 1..=steps {
+                let t = s as f64 / steps as f64;
+                let goal = interpolate(&self.home, target, t);
+                match self.solve_inverse(&goal, state.clone()) {
+                    Ok(st) => state = st,
+                    Err(e) => {
+                        last = Err(e);
+                        ok = false;
+                        break;
+                    }
+                }
+            }
+            if ok {
+                return Ok((state.1, state.2, state.0));
+            }
+        }
+        last
+    }
+
+    pub(super) fn solve_inverse(
+        &self,
+        target: &Pose,
+        (mut x, mut q, mut passive): (Pose, Vec<f64>, Vec<f64>),
+    ) -> Result<(Pose, Vec<f64>, Vec<f64>), KinError> {
+        let mut res = f64::INFINITY;
+        for _ in 0..MAX_ITERATIONS {
+            let joints = self.joints_of(&q, &passive);
+            let (r, f) = self.closure(&x, &joints, false);
+            let (rt, ft) = task_equations(self.task, &x, target);
+            let n = f.ncols();
+            let mut big = DMatrix::zeros(r.len() + rt.len(), n);
+            big.view_mut((0, 0), f.shape()).copy_from(&f);
+            big.view_mut((r.len(), 0), (rt.len(), 6)).copy_from(&ft);
+            let mut rr = DVector::zeros(r.len() + rt.len());
+            rr.rows_mut(0, r.len()).copy_from(&r);
+            rr.rows_mut(r.len(), rt.len()).copy_from(&rt);
+            res = rr.amax();
+            if !res.is_finite() {
+                break;
+            }
+            if res < TOLERANCE {
+                return Ok((x, q, passive));
+            }
+            let dz = lstsq(&big, &(-rr), "inverse kinematics of a limb mechanism")?;
+            x = se3::exp(&Twist::from_iterator(dz.rows(0, 6).iter().copied())) * x;
+            for (v, d) in q.iter_mut().zip(dz.rows(6, self.inputs.len()).iter()) {
+                *v += d;
+            }
+            for (v, d) in passive.iter_mut().zip(dz.rows(6 + self.inputs.len(), self.passive.len()).iter()) {
+                *v += d;
+            }
+        }
+        Err(KinError::Unreachable(format!(
+            "inverse kinematics of '{}' did not close (residual {res:.3e} mm / rad): the target is outside the workspace or across a singularity",
+            self.name
+        )))
+    }
+
+    /// Limb `i`'s joints that put its end as close as it gets to the platform at `x` (least
+    /// squares from its home values), and the largest remaining residual (mm / rad).
+    pub(super) fn solve_limb_at(&self, i: usize, x: &Pose) -> (Vec<f64>, f64) {
+        let l = &self.limbs[i];
+        let mut q = l.home.clone();
+        let mut res = f64::INFINITY;
+        for _ in 0..MAX_ITERATIONS {
+            let Ok((e, jq)) = l.chain.joint_jacobian(&q) else {
+                return (q, f64::INFINITY);
+            };
+            let (r, f) = match &l.end {
+                LimbEnd::Frame => (DVector::from_column_slice(se3::log(&(e * x.inverse())).as_slice()), jq.clone()),
+                LimbEnd::Point(a) => {
+                    let xa = x * nalgebra::Point3::from(*a);
+                    let pe = e.translation.vector;
+                    let m = point_map(&pe);
+                    let fm = DMatrix::from_fn(3, jq.ncols(), |rr, c| (0..6).map(|k| m[(rr, k)] * jq[(k, c)]).sum());
+                    (DVector::from_column_slice((pe - xa.coords).as_slice()), fm)
+                }
+            };
+            res = r.amax();
+            if !res.is_finite() {
+                return (q, f64::INFINITY);
+            }
+            if res < TOLERANCE {
+                break;
+            }
+            // Minimum-norm steps: a limb with more joints than equations (or at a singularity)
+            // moves as little as it can.
+            let svd = f.svd(true, true);
+            let tol = svd.singular_values.max() * 1e-10;
+            let Ok(d) = svd.solve(&(-r), tol) else { return (q, res) };
+            for (v, dv) in q.iter_mut().zip(d.iter()) {
+                *v += dv;
+            }
+            if d.amax() < 1e-13 {
+                break;
+            }
+        }
+        (q, res)
+    }
+}
+
+/// `[I | −[p]×]`: the velocity of point `p` under a spatial twist `(v, ω)`.
+pub(super) fn point_map(p: &Vector3<f64>) -> nalgebra::Matrix3x6<f64> {
+    let mut m = nalgebra::Matrix3x6::zeros();
+    m.fixed_view_mut::<3, 3>(0, 0).copy_from(&Matrix3::identity());
+    m.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-se3::skew(p)));
+    m
+}
+
+/// The commanded part of `x` against `target` and its derivative with respect to `ζ`.
+pub(super) fn task_equations(task: Task, x: &Pose, target: &Pose) -> (DVector<f64>, DMatrix<f64>) {
+    match task {
+        Task::Full => {
+            let e = se3::log(&(x * target.inverse()));
+            (DVector::from_column_slice(e.as_slice()), DMatrix::identity(6, 6))
+        }
+        Task::Position => {
+            let p = x.translation.vector;
+            let m = point_map(&p);
+            (
+                DVector::from_column_slice((p - target.translation.vector).as_slice()),
+                DMatrix::from_fn(3, 6, |r, c| m[(r, c)]),
+            )
+        }
+        Task::PositionAndAxis => {
+            // Position, and the tool z-axis: its x and y components in the target frame.
+            let p = x.translation.vector;
+            let z = x.rotation * Vector3::z();
+            let rt = target.rotation.to_rotation_matrix().into_inner();
+            let zl = rt.transpose() * z;
+            let mut r = DVector::zeros(5);
+            r.rows_mut(0, 3).copy_from(&(p - target.translation.vector));
+            r[3] = zl.x;
+            r[4] = zl.y;
+            let mut f = DMatrix::zeros(5, 6);
+            let m = point_map(&p);
+            f.view_mut((0, 0), (3, 6)).copy_from(&m);
+            // dz = ω × z: d(zl) = Rtᵀ·(−[z]×)·ω.
+            let dz = rt.transpose() * (-se3::skew(&z));
+            for c in 0..3 {
+                f[(3, 3 + c)] = dz[(0, c)];
+                f[(4, 3 + c)] = dz[(1, c)];
+            }
+            (r, f)
+        }
+    }
+}
+
+/// The pose a fraction `t` of the way from `a` to `b` (geodesic).
+pub(super) fn interpolate(a: &Pose, b: &Pose, t: f64) -> Pose {
+    if t >= 1.0 {
+        return *b;
+    }
+    let p = a.translation.vector + (b.translation.vector - a.translation.vector) * t;
+    let rot = a.rotation.slerp(&b.rotation, t);
+    Pose::from_parts(nalgebra::Translation3::from(p), rot)
+}
+
+/// Minimum-norm least-squares solution of `f·x = b`; singular when `f` loses column rank.
+pub(super) fn lstsq(f: &DMatrix<f64>, b: &DVector<f64>, what: &str) -> Result<DVector<f64>, KinError> {
+    let svd = f.clone().svd(true, true);
+    let hi = svd.singular_values.max();
+    let lo = svd.singular_values.min();
+    if !(hi.is_finite()) || f.ncols() > f.nrows() || lo <= hi / MAX_CONDITION {
+        return Err(KinError::Singular {
+            what: what.into(),
+            condition: if lo > 0.0 { hi / lo } else { f64::INFINITY },
+        });
+    }
+    svd.solve(b, 0.0).map_err(|_| KinError::Singular {
+        what: what.into(),
+        condition: f64::INFINITY,
+    })
+}
