@@ -84,12 +84,19 @@ fn example_file(name: &str) -> ModelFile {
     let text = match name {
         "hexapod-6rus" => include_str!("../../examples/models/hexapod-6rus.toml"),
         "linear-delta" => include_str!("../../examples/models/linear-delta.toml"),
+        "head-3prs" => include_str!("../../examples/models/head-3prs.toml"),
         other => panic!("no example model '{other}'"),
     };
     ModelFile::load_str(std::path::Path::new(name), text).unwrap()
 }
 
 const KINDS: &[Kind] = &[
+    Kind {
+        name: "3-PRS head (limbs file)",
+        build: || example_file("head-3prs").build(),
+        file: Some(|| example_file("head-3prs")),
+        configurations: sampled,
+    },
     Kind {
         name: "6-RUS hexapod (limbs file)",
         build: || example_file("hexapod-6rus").build(),
