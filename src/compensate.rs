@@ -97,7 +97,11 @@ fn solve_one<M: Mechanism + ?Sized>(
         match model.inverse(target, Some(&s)) {
             Ok(mut q) => {
                 wrap_near(inputs, &mut q, seed.map_or(&[][..], |x| x.as_slice()));
-                let reached = model.forward(&q).map(|t| commanded_error(model.task(), target, &t));
+                // Compared in the mechanism's base frame: a commanded height is along its z.
+                let base = model.frames().map_or(Pose::identity(), |(x, _)| x.inverse());
+                let reached = model
+                    .forward(&q)
+                    .map(|t| commanded_error(model.task(), &(base * target), &(base * t)));
                 match reached {
                     Ok((dp, dw)) if dp < 1e-6 && dw < 1e-8 => match check_limits(inputs, &q) {
                         Ok(()) => return Ok(q),

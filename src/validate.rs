@@ -101,15 +101,16 @@ impl std::fmt::Display for ErrorStats {
 /// Position error (mm) and the error of the commanded orientation (rad) of a reached tool pose
 /// against its target: the full rotation angle for [`Task::Full`], the angle between the tool
 /// z-axes for [`Task::PositionAndAxis`] (the rotation about the tool axis is not commanded), 0
-/// for [`Task::Position`] (no orientation is commanded).
+/// for [`Task::Position`] (no orientation is commanded); for [`Task::HeightAndAxis`] the height
+/// error and the axis angle.
 pub fn commanded_error(task: Task, target: &Pose, reached: &Pose) -> (f64, f64) {
     let e = se3::pose_error(target, reached);
-    let angle = match task {
-        Task::Full => se3::ang(&e).norm(),
-        Task::PositionAndAxis => tool_axis_angle(target, reached),
-        Task::Position => 0.0,
-    };
-    (se3::lin(&e).norm(), angle)
+    match task {
+        Task::Full => (se3::lin(&e).norm(), se3::ang(&e).norm()),
+        Task::PositionAndAxis => (se3::lin(&e).norm(), tool_axis_angle(target, reached)),
+        Task::Position => (se3::lin(&e).norm(), 0.0),
+        Task::HeightAndAxis => (se3::lin(&e).z.abs(), tool_axis_angle(target, reached)),
+    }
 }
 
 /// Angle (rad) between the tool z-axes of two poses.

@@ -254,17 +254,27 @@ fn model_candidates(args: &PlanArgs, model: &str) -> anyhow::Result<Planned> {
         return pm5_candidates(args, pm5.clone());
     }
     let inputs = file.inputs();
-    let zeros = vec![0.0; inputs.len()];
-    let home = mech
-        .forward(&zeros)
-        .map_err(|e| anyhow::anyhow!("{}: forward kinematics at zero inputs: {e}", file.name))?;
-    let x = range(&args.x_mm, "x-mm", None)?;
-    let y = range(&args.y_mm, "y-mm", None)?;
-    let z = range(&args.z_mm, "z-mm", None)?;
+    // A limbs mechanism starts at its home inputs and defaults to its own workspace box.
+    let (zeros, own) = match &file.mechanism {
+        kinecal::model::kind::MechanismSpec::Limbs(m) => (m.home_inputs(), m.workspace().cloned()),
+        _ => (vec![0.0; inputs.len()], None),
+    };
+    let home = mech.forward(&zeros).map_err(|e| {
+        anyhow::anyhow!(
+            "{}: forward kinematics at its start inputs (zero, or a limbs mechanism's home): {e}",
+            file.name
+        )
+    })?;
+    let deg = |v: f64| v.to_degrees();
+    let own_range = |k: usize| own.as_ref().map(|w| (w.position_min[k], w.position_max[k]));
+    let own_angle = |k: usize| own.as_ref().map_or((0.0, 0.0), |w| (deg(w.rpy_min[k]), deg(w.rpy_max[k])));
+    let x = range(&args.x_mm, "x-mm", own_range(0))?;
+    let y = range(&args.y_mm, "y-mm", own_range(1))?;
+    let z = range(&args.z_mm, "z-mm", own_range(2))?;
     let rd = |r: (f64, f64)| (r.0.to_radians(), r.1.to_radians());
-    let a = rd(range(&args.alpha_deg, "alpha-deg", Some((0.0, 0.0)))?);
-    let b = rd(range(&args.beta_deg, "beta-deg", Some((0.0, 0.0)))?);
-    let g = rd(range(&args.gamma_deg, "gamma-deg", Some((0.0, 0.0)))?);
+    let a = rd(range(&args.alpha_deg, "alpha-deg", Some(own_angle(0)))?);
+    let b = rd(range(&args.beta_deg, "beta-deg", Some(own_angle(1)))?);
+    let g = rd(range(&args.gamma_deg, "gamma-deg", Some(own_angle(2)))?);
     let ws = design::Workspace {
         position_min: nalgebra::Vector3::new(x.0, y.0, z.0),
         position_max: nalgebra::Vector3::new(x.1, y.1, z.1),

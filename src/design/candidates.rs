@@ -274,14 +274,17 @@ pub fn input_condition<M: Mechanism + ?Sized>(mech: &M, q: &[f64], step: f64, le
     Some(if lo > 0.0 { hi / lo } else { f64::INFINITY })
 }
 
-fn classify<M: Mechanism + ?Sized>(mech: &M, q: Vec<f64>, target: Pose, check_fk: bool, filter: &CandidateFilter) -> Outcome {
+fn classify<M: Mechanism + ?Sized>(mech: &M, q: Vec<f64>, mut target: Pose, check_fk: bool, filter: &CandidateFilter) -> Outcome {
     if check_fk {
         match mech.forward(&q) {
             Ok(t) => {
-                let e = se3::pose_error(&t, &target);
-                if se3::lin(&e).norm() > filter.fk_tolerance.0 || se3::ang(&e).norm() > filter.fk_tolerance.1 {
+                // Only what the inputs command must match (a 3- or 5-DOF machine's orientation
+                // follows from its constraints); the target is then the pose actually reached.
+                let (dp, dw) = crate::validate::commanded_error(mech.task(), &target, &t);
+                if dp > filter.fk_tolerance.0 || dw > filter.fk_tolerance.1 {
                     return Outcome::Unreachable;
                 }
+                target = t;
             }
             Err(_) => return Outcome::Unreachable,
         }

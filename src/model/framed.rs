@@ -42,6 +42,9 @@ pub struct Framed<M> {
     pub tool: Pose,
 }
 
+/// Fixed-point iterations of [`Framed`]'s inverse kinematics for a position-only task.
+const MAX_TOOL_POINT_ITERATIONS: usize = 30;
+
 impl<M: Mechanism> Framed<M> {
     /// `inner` seen through the frames `measurement` (`X`) and `tool` (`Y`).
     pub fn new(inner: M, measurement: Pose, tool: Pose) -> Self {
@@ -106,7 +109,47 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Framed<M> {
     }
     fn inverse(&self, target: &Pose, seed: Option<&[f64]>) -> Result<Vec<f64>, KinError> {
         let inner_target = self.measurement.inverse() * target * self.tool.inverse();
-        self.inner.inverse(&inner_target, seed)
+        let task = self.inner.task();
+        if !matches!(task, Task::Position | Task::HeightAndAxis) {
+            return self.inner.inverse(&inner_target, seed);
+        }
+        // A machine that commands the tool point's position (or height) but not its whole
+        // orientation: the tool point, offset from the platform, moves with the orientation the
+        // constraints give. Fixed point on that orientation.
+        let goal = self.measurement.inverse_transform_point(&target.translation.vector.into());
+        let y = nalgebra::Point3::from(self.tool.translation.vector);
+        // The tool axis in the platform frame, and where it must point (base frame).
+        let a = self.tool.rotation * nalgebra::Vector3::z();
+        let b = self.measurement.rotation.inverse() * (target.rotation * nalgebra::Vector3::z());
+        let mut rot = inner_target.rotation;
+        // The commanded platform axis, moved by the tool axis' miss each round.
+        let mut axis = inner_target.rotation * nalgebra::Vector3::z();
+        let mut miss = f64::INFINITY;
+        for _ in 0..MAX_TOOL_POINT_ITERATIONS {
+            let want = match task {
+                Task::HeightAndAxis => nalgebra::UnitQuaternion::rotation_between(&nalgebra::Vector3::z(), &axis).unwrap_or(rot),
+                _ => inner_target.rotation,
+            };
+            let platform = Pose::from_parts((goal.coords - rot * y.coords).into(), want);
+            let q = self.inner.inverse(&platform, seed)?;
+            let reached = self.inner.forward(&q)?;
+            let d = reached * y - goal;
+            let axis_miss = b - reached.rotation * a;
+            miss = match task {
+                Task::Position => d.norm(),
+                _ => d.z.abs() + axis_miss.norm() * 1e3,
+            };
+            if miss < 1e-10 {
+                return Ok(q);
+            }
+            rot = reached.rotation;
+            axis = (axis + axis_miss).normalize();
+        }
+        Err(KinError::NoConvergence {
+            what: "inverse kinematics of the tool point".into(),
+            iterations: MAX_TOOL_POINT_ITERATIONS,
+            residual: miss,
+        })
     }
     fn box_clone(&self) -> Box<dyn Mechanism> {
         Box::new(self.clone())

@@ -173,8 +173,9 @@ impl Limb {
     }
 }
 
-/// A box of platform poses around home: position (mm) and roll-pitch-yaw (rad) offsets,
-/// `R = R_home·Rz(yaw)·Ry(pitch)·Rx(roll)`, where configurations are drawn.
+/// A box of platform poses: position (mm, base frame) and roll-pitch-yaw (rad) offsets from the
+/// home orientation, `R = Rz(yaw)·Ry(pitch)·Rx(roll)·R_home` (as `kinecal plan`'s box), where
+/// configurations are drawn.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PoseBox {
     /// Lower position bounds (mm, base frame).
@@ -212,7 +213,7 @@ pub const FK_STAGE_MM: f64 = 25.0;
 /// Largest gap (mm / rad) a limb may leave at the home pose before the whole mechanism is solved
 /// there: geometric errors leave a lower-mobility machine's limbs a little off a pose they are
 /// not free to reach; a limb further off is described wrongly.
-const HOME_GAP: f64 = 1.0;
+const HOME_GAP: f64 = 10.0;
 /// Condition number of `F_z` beyond which a configuration is singular.
 const MAX_CONDITION: f64 = 1e10;
 
@@ -364,6 +365,17 @@ impl LimbMechanism {
         if k != values.len() {
             return Err(format!("geometry: {} values for a mechanism of {k}", values.len()));
         }
+        // The home configuration is where the home inputs put the new geometry (a calibrated
+        // model is written with a home it closes at).
+        let q0 = out.home_inputs();
+        let (x, passive) = out
+            .solve_forward(&q0, out.home, out.home_passive())
+            .map_err(|e| format!("geometry: the mechanism does not assemble at its home inputs ({e})"))?;
+        let joints = out.joints_of(&q0, &passive);
+        for (l, j) in out.limbs.iter_mut().zip(joints) {
+            l.home = j;
+        }
+        out.home = x;
         Ok(out)
     }
 }
@@ -500,7 +512,7 @@ impl Mechanism for LimbMechanism {
                 draw(ws.position_min.z, ws.position_max.z),
             );
             let a: Vec<f64> = (0..3).map(|k| draw(ws.rpy_min[k], ws.rpy_max[k])).collect();
-            let rot = self.home.rotation * nalgebra::UnitQuaternion::from_euler_angles(a[0], a[1], a[2]);
+            let rot = nalgebra::UnitQuaternion::from_euler_angles(a[0], a[1], a[2]) * self.home.rotation;
             let target = Pose::from_parts(nalgebra::Translation3::from(p), rot);
             if let Ok(q) = self.inverse(&target, None) {
                 out.push(q);

@@ -39,6 +39,10 @@ pub enum Task {
     /// Tool position only (3 DOF): the orientation follows from the constraints (e.g. a delta
     /// robot, whose platform only translates).
     Position,
+    /// Tool height (z) and tool z-axis direction (3 DOF): a tilting head such as a 3-PRS, whose
+    /// x, y and rotation about the axis are parasitic motions its constraints decide (commanding
+    /// x and y instead would be ill-posed: they change only at second order in the tilts).
+    HeightAndAxis,
 }
 
 impl Task {
@@ -48,6 +52,7 @@ impl Task {
             Task::Full => 6,
             Task::PositionAndAxis => 5,
             Task::Position => 3,
+            Task::HeightAndAxis => 3,
         }
     }
 }

@@ -4,7 +4,7 @@
 //! ```toml
 //! [mechanism]
 //! kind = "limbs"
-//! task = "pose"            # what the inputs command: "pose", "position" or "position-and-axis"
+//! task = "pose"            # what the inputs command: "pose", "position", "position-and-axis" or "height-and-axis"
 //!
 //! [mechanism.home]         # the platform frame at home, in the base frame
 //! position = [0.0, 0.0, 220.0]
@@ -112,6 +112,7 @@ fn task_of(s: &str) -> Option<Task> {
         "pose" => Some(Task::Full),
         "position" => Some(Task::Position),
         "position-and-axis" => Some(Task::PositionAndAxis),
+        "height-and-axis" => Some(Task::HeightAndAxis),
         _ => None,
     }
 }
@@ -121,6 +122,7 @@ fn task_name(t: Task) -> &'static str {
         Task::Full => "pose",
         Task::Position => "position",
         Task::PositionAndAxis => "position-and-axis",
+        Task::HeightAndAxis => "height-and-axis",
     }
 }
 
@@ -137,7 +139,7 @@ impl Ctx<'_> {
                 self.at(
                     &t.span(),
                     format!(
-                        "mechanism.task: unknown task '{}' (use \"pose\", \"position\" or \"position-and-axis\")",
+                        "mechanism.task: unknown task '{}' (use \"pose\", \"position\", \"position-and-axis\" or \"height-and-axis\")",
                         t.get_ref()
                     ),
                 )

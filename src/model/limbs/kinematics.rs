@@ -319,6 +319,14 @@ pub(super) fn task_equations(task: Task, x: &Pose, target: &Pose) -> (DVector<f6
                 DMatrix::from_fn(3, 6, |r, c| m[(r, c)]),
             )
         }
+        Task::HeightAndAxis => {
+            let (r, f) = task_equations(Task::PositionAndAxis, x, target);
+            let keep = [2usize, 3, 4];
+            (
+                DVector::from_fn(3, |i, _| r[keep[i]]),
+                DMatrix::from_fn(3, 6, |i, c| f[(keep[i], c)]),
+            )
+        }
         Task::PositionAndAxis => {
             // Position, and the tool z-axis: its x and y components in the target frame.
             let p = x.translation.vector;
