@@ -11,6 +11,7 @@ mod fuzz;
 mod identify;
 mod irb120;
 mod joint_terms;
+mod limbs;
 mod model_file;
 mod parallel_workflow;
 mod plan_pm5;
