@@ -93,6 +93,10 @@ pub struct JointGroup {
     pub kind: GroupKind,
     /// Number of chain joints (1, 2 or 3).
     pub count: usize,
+    /// Its placement is exact by construction (no error parameters): e.g. the actuator of a
+    /// UPS leg, whose axis runs through the universal joint's centre; an offset there would act
+    /// only at second order.
+    pub exact: bool,
 }
 
 /// Kind of a [`JointGroup`].
@@ -123,6 +127,7 @@ impl JointGroup {
                     GroupKind::Prismatic
                 },
                 count: 1,
+                exact: false,
             })
             .collect()
     }
@@ -151,7 +156,7 @@ impl Limb {
     pub fn dyad_has_errors(&self) -> Vec<bool> {
         let mut out = Vec::with_capacity(self.chain.n_joints() + 1);
         for g in &self.groups {
-            out.push(true);
+            out.push(!g.exact);
             out.extend(std::iter::repeat_n(false, g.count.saturating_sub(1)));
         }
         out.push(true);
@@ -206,6 +211,8 @@ pub struct LimbMechanism {
 const MAX_ITERATIONS: usize = 60;
 /// Convergence: max-norm of the closure residual (mm and rad).
 const TOLERANCE: f64 = 1e-11;
+/// Closure residual (mm / rad) an intermediate continuation stage is solved to.
+const STAGE_TOLERANCE: f64 = 1e-6;
 /// Largest input change (rad) of one forward-kinematics continuation stage.
 pub const FK_STAGE_RAD: f64 = 0.25;
 /// Largest input change (mm) of one forward-kinematics continuation stage.
@@ -369,7 +376,7 @@ impl LimbMechanism {
         // model is written with a home it closes at).
         let q0 = out.home_inputs();
         let (x, passive) = out
-            .solve_forward(&q0, out.home, out.home_passive())
+            .solve_forward(&q0, out.home, out.home_passive(), TOLERANCE)
             .map_err(|e| format!("geometry: the mechanism does not assemble at its home inputs ({e})"))?;
         let joints = out.joints_of(&q0, &passive);
         for (l, j) in out.limbs.iter_mut().zip(joints) {
@@ -423,13 +430,27 @@ impl Mechanism for LimbMechanism {
         let joints = self.joints_of(q, &passive);
         let (_, fz) = self.closure(&x, &joints, true);
         let fp = self.closure_params(&x, &joints);
-        let svd = fz.svd(true, true);
-        let dz = svd.solve(&(-fp), 0.0).map_err(|_| KinError::Singular {
+        // Only the platform's six rows of dz = −F_z⁺·F_θ are needed: with F_z square, the six
+        // rows of F_z⁻¹ from F_zᵀ·Y = [I₆; 0] (six solves instead of one per parameter).
+        let singular = || KinError::Singular {
             what: "identification Jacobian of a limb mechanism".into(),
             condition: f64::INFINITY,
-        })?;
-        let mut j = Matrix6xX::zeros(dz.ncols());
-        j.copy_from(&dz.rows(0, 6));
+        };
+        let top = if fz.is_square() {
+            let e = DMatrix::from_fn(fz.nrows(), 6, |r, c| if r == c { 1.0 } else { 0.0 });
+            let y = fz
+                .transpose()
+                .lu()
+                .solve(&e)
+                .filter(|y| y.iter().all(|v| v.is_finite()))
+                .ok_or_else(singular)?;
+            -(y.transpose() * fp)
+        } else {
+            let dz = fz.svd(true, true).solve(&(-fp), 0.0).map_err(|_| singular())?;
+            dz.rows(0, 6).into_owned()
+        };
+        let mut j = Matrix6xX::zeros(top.ncols());
+        j.copy_from(&top);
         Ok((x, j))
     }
 

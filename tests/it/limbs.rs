@@ -185,3 +185,121 @@ fn mistakes_in_a_limbs_file_are_one_line_errors_naming_the_limb() {
     let msg = fails(tmp.path(), &["identifiability", "bad.toml"]);
     assert!(msg.contains("wrong mobility") && msg.trim().lines().count() == 1, "{msg}");
 }
+
+const STEWART: &str = include_str!("../../examples/models/stewart-limbs.toml");
+
+#[test]
+fn the_stewart_platform_written_as_limbs_is_the_preset() {
+    use kinecal::identify::{identify, Options};
+    use kinecal::measure::Noise;
+    use nalgebra::DMatrix;
+    let preset = kinecal::io::builtin::model_file("stewart").unwrap().build();
+    let limbs = load(STEWART).unwrap().build();
+    assert_eq!(preset.input_names(), limbs.input_names());
+    // Forward kinematics at 1000 configurations of the preset's workspace.
+    let qs = preset.sample_configurations(1000, 1).unwrap().unwrap();
+    let mut worst = (0.0f64, 0.0f64);
+    for q in &qs {
+        let e = kinecal::se3::pose_error(&preset.forward(q).unwrap(), &limbs.forward(q).unwrap());
+        worst = (worst.0.max(kinecal::se3::lin(&e).norm()), worst.1.max(kinecal::se3::ang(&e).norm()));
+    }
+    eprintln!(
+        "stewart preset vs limbs, 1000 configurations: FK differs by {:.2e} mm / {:.2e} rad",
+        worst.0, worst.1
+    );
+    assert!(worst.0 < 1e-9 && worst.1 < 1e-12, "FK differs by {worst:?} mm / rad");
+    // The identification Jacobians span the same space of prediction changes (rank 42 each and
+    // together), stacked over 20 configurations.
+    let stack = |m: &dyn Mechanism| {
+        let p = m.n_params();
+        let mut j = DMatrix::zeros(6 * 20, p);
+        for (k, q) in qs.iter().take(20).enumerate() {
+            let (_, jk) = m.forward_with_jacobian(q).unwrap();
+            for c in 0..p {
+                let n = jk.column(c);
+                for r in 0..6 {
+                    j[(6 * k + r, c)] = n[r];
+                }
+            }
+        }
+        // Unit columns (lengths and angles mixed): rank decisions on the directions only;
+        // columns of no effect (round-off) are dropped.
+        let biggest = j.column_iter().map(|c| c.norm()).fold(0.0, f64::max);
+        let kept: Vec<_> = j
+            .column_iter()
+            .filter(|c| c.norm() > 1e-9 * biggest)
+            .map(|c| c / c.norm())
+            .collect();
+        DMatrix::from_columns(&kept)
+    };
+    let rank = |m: &DMatrix<f64>| {
+        let sv = m.clone().singular_values();
+        sv.iter().filter(|s| **s > sv.max() * 1e-9).count()
+    };
+    let (jp, jl) = (stack(&*preset), stack(&*limbs));
+    let both = DMatrix::from_fn(jp.nrows(), jp.ncols() + jl.ncols(), |r, c| {
+        if c < jp.ncols() {
+            jp[(r, c)]
+        } else {
+            jl[(r, c - jp.ncols())]
+        }
+    });
+    assert_eq!((rank(&jp), rank(&jl), rank(&both)), (42, 42, 42));
+    // The same noisy data identified with either model: the same predictions on held-out poses.
+    let truth = kinecal::simulate::perturbed(
+        &preset,
+        &kinecal::simulate::random_errors(
+            &*preset,
+            &mut <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(2),
+            0.3,
+            0.001,
+            None,
+        ),
+    );
+    let noise = Noise {
+        position: 0.01,
+        orientation: 1e-4,
+    };
+    let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(3);
+    let data = kinecal::simulate::measure(&truth, &qs[..60], kinecal::simulate::ObservationKind::Pose, Some(&noise), &mut rng).unwrap();
+    let opts = Options {
+        noise,
+        ..Options::default()
+    };
+    let (a, b) = (identify(&preset, &data, &opts).unwrap(), identify(&limbs, &data, &opts).unwrap());
+    assert!(a.converged && b.converged);
+    let diff = qs[100..200]
+        .iter()
+        .map(|q| (a.model.forward(q).unwrap().translation.vector - b.model.forward(q).unwrap().translation.vector).norm())
+        .fold(0.0, f64::max);
+    eprintln!(
+        "identified from the same 60 noisy poses: held-out predictions differ by {diff:.2e} mm, σ̂₀ {:.6} / {:.6}",
+        a.sigma0, b.sigma0
+    );
+    assert!(diff < 1e-6, "held-out predictions differ by {diff} mm");
+    assert!((a.sigma0 - b.sigma0).abs() < 1e-6 * a.sigma0, "σ̂₀ {} vs {}", a.sigma0, b.sigma0);
+    // Noise-free data of the perturbed preset: the limbs model recovers it to round-off.
+    let exact = kinecal::simulate::measure(&truth, &qs[..60], kinecal::simulate::ObservationKind::Pose, None, &mut rng).unwrap();
+    let fit = identify(&limbs, &exact, &Options::default()).unwrap();
+    let worst = qs[100..200]
+        .iter()
+        .map(|q| (fit.model.forward(q).unwrap().translation.vector - truth.forward(q).unwrap().translation.vector).norm())
+        .fold(0.0, f64::max);
+    eprintln!("noise-free: held-out {worst:.2e} mm from the truth");
+    assert!(worst < 1e-9, "{worst}");
+}
+
+#[test]
+fn inverse_kinematics_returns_the_inputs_of_the_same_assembly_mode() {
+    let delta = include_str!("../../examples/models/linear-delta.toml");
+    for (name, text) in [("head", HEAD), ("hexapod", HEXAPOD), ("stewart", STEWART), ("delta", delta)] {
+        let m = load(text).unwrap().build();
+        let qs = m.sample_configurations(300, 9).unwrap().unwrap();
+        let mut worst = 0.0f64;
+        for q in &qs {
+            let back = m.inverse(&m.forward(q).unwrap(), None).unwrap();
+            worst = q.iter().zip(&back).map(|(a, b)| (a - b).abs()).fold(worst, f64::max);
+        }
+        assert!(worst < 1e-7, "{name}: IK(FK(q)) differs from q by {worst:.3e}");
+    }
+}

@@ -33,6 +33,8 @@
 //! rpy = [...]
 //! limits = [-60.0, 60.0]
 //! home = 0.0               # the joint value at home (chooses the assembly mode; default 0)
+//! exact_placement = true   # optional: the placement is exact by construction (no error parameters),
+//!                          #   e.g. a UPS leg's actuator, whose axis runs through the universal joint
 //! ```
 //!
 //! Inputs (data columns) are the actuated joints in limb order, then the sensed ones.
@@ -98,6 +100,7 @@ struct RawLimbJoint {
     rpy: Option<[f64; 3]>,
     rotvec: Option<[f64; 3]>,
     home: Option<HomeValue>,
+    exact_placement: Option<bool>,
 }
 
 #[derive(Deserialize)]
@@ -298,6 +301,7 @@ impl Ctx<'_> {
                 name: rj.name.clone(),
                 kind: group,
                 count,
+                exact: rj.exact_placement.unwrap_or(false),
             });
         }
         let end_placement = match &rl.end_placement {
@@ -405,6 +409,9 @@ pub(super) fn write_limbs(m: &LimbMechanism, units: &Units, out: &mut String) ->
             }
             if let Some((lo, hi)) = joint.limits {
                 let _ = writeln!(out, "limits = [{}, {}]", num(lo / f), num(hi / f));
+            }
+            if g.exact {
+                out.push_str("exact_placement = true\n");
             }
             write_pose(&limb.chain.initial_poses()[j], units, out);
             j += g.count;

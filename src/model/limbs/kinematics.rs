@@ -77,7 +77,13 @@ impl LimbMechanism {
 
     /// Gauss–Newton on the closure for the platform pose and passive joints at inputs `q`, from
     /// `(x, passive)`. Returns the solution or the residual reached.
-    pub(super) fn solve_forward(&self, q: &[f64], mut x: Pose, mut passive: Vec<f64>) -> Result<(Pose, Vec<f64>), KinError> {
+    pub(super) fn solve_forward(
+        &self,
+        q: &[f64],
+        mut x: Pose,
+        mut passive: Vec<f64>,
+        tolerance: f64,
+    ) -> Result<(Pose, Vec<f64>), KinError> {
         let mut res = f64::INFINITY;
         for _ in 0..MAX_ITERATIONS {
             let joints = self.joints_of(q, &passive);
@@ -86,7 +92,7 @@ impl LimbMechanism {
             if !res.is_finite() {
                 break;
             }
-            if res < TOLERANCE {
+            if res < tolerance {
                 return Ok((x, passive));
             }
             let dz = lstsq(&f, &(-r), "forward kinematics of a limb mechanism")?;
@@ -129,12 +135,26 @@ impl LimbMechanism {
         let mut last = None;
         while stages <= 64 {
             let mut state = (self.home, self.home_passive());
+            let mut before: Option<(Pose, Vec<f64>)> = None;
             let mut failed = None;
             for s in 1..=stages {
                 let t = s as f64 / stages as f64;
                 let qs: Vec<f64> = q0.iter().zip(q).map(|(a, b)| a + (b - a) * t).collect();
-                match self.solve_forward(&qs, state.0, state.1.clone()) {
-                    Ok(st) => state = st,
+                // Seeded by linear extrapolation of the last two stages; intermediate stages
+                // only need to stay on the branch, the last one is solved to round-off.
+                let seed = match &before {
+                    Some((x1, p1)) => {
+                        let step = se3::log(&(state.0 * x1.inverse()));
+                        let p: Vec<f64> = state.1.iter().zip(p1).map(|(a, b)| 2.0 * a - b).collect();
+                        (se3::exp(&step) * state.0, p)
+                    }
+                    None => state.clone(),
+                };
+                let tol = if s == stages { TOLERANCE } else { STAGE_TOLERANCE };
+                match self.solve_forward(&qs, seed.0, seed.1, tol) {
+                    Ok(st) => {
+                        before = Some(std::mem::replace(&mut state, st));
+                    }
                     Err(e) => {
                         failed = Some(e);
                         break;
@@ -190,6 +210,14 @@ impl LimbMechanism {
     /// The inverse kinematics with every joint value of every limb (inputs first, then the
     /// passive joints) and the platform pose reached.
     pub fn inverse_full(&self, target: &Pose) -> Result<(Vec<f64>, Vec<f64>, Pose), KinError> {
+        // A commanded pose fixes the platform: each limb alone (small systems), from its home.
+        if self.task == Task::Full {
+            let solved: Vec<(Vec<f64>, f64)> = (0..self.limbs.len()).map(|i| self.solve_limb_at(i, target)).collect();
+            if solved.iter().all(|(_, res)| *res < TOLERANCE) {
+                let pick = |list: &[(usize, usize)]| list.iter().map(|&(i, j)| solved[i].0[j]).collect::<Vec<f64>>();
+                return Ok((pick(&self.inputs), pick(&self.passive), *target));
+            }
+        }
         let start = (self.home, self.home_inputs(), self.home_passive());
         let mut last = Err(KinError::Unreachable("no attempt".into()));
         for steps in [1usize, 4, 16] {
@@ -280,11 +308,19 @@ impl LimbMechanism {
             if res < TOLERANCE {
                 break;
             }
-            // Minimum-norm steps: a limb with more joints than equations (or at a singularity)
-            // moves as little as it can.
-            let svd = f.svd(true, true);
-            let tol = svd.singular_values.max() * 1e-10;
-            let Ok(d) = svd.solve(&(-r), tol) else { return (q, res) };
+            // Square: LU; else minimum-norm steps (a limb with more joints than equations, or at a
+            // singularity, moves as little as it can).
+            let r = -r;
+            let square = if f.is_square() { lstsq(&f, &r, "limb").ok() } else { None };
+            let d = match square {
+                Some(d) => d,
+                None => {
+                    let svd = f.svd(true, true);
+                    let tol = svd.singular_values.max() * 1e-10;
+                    let Ok(d) = svd.solve(&r, tol) else { return (q, res) };
+                    d
+                }
+            };
             for (v, dv) in q.iter_mut().zip(d.iter()) {
                 *v += dv;
             }
@@ -363,6 +399,18 @@ pub(super) fn interpolate(a: &Pose, b: &Pose, t: f64) -> Pose {
 
 /// Minimum-norm least-squares solution of `f·x = b`; singular when `f` loses column rank.
 pub(super) fn lstsq(f: &DMatrix<f64>, b: &DVector<f64>, what: &str) -> Result<DVector<f64>, KinError> {
+    // A square system (the usual case): LU, unless its pivots say it is nearly singular; then
+    // the SVD decides and gives the condition number.
+    if f.is_square() {
+        let lu = f.clone().lu();
+        let u = lu.u();
+        let d = u.diagonal().map(f64::abs);
+        if d.min() > d.max() * 1e-9 && d.max().is_finite() {
+            if let Some(x) = lu.solve(b) {
+                return Ok(x);
+            }
+        }
+    }
     let svd = f.clone().svd(true, true);
     let hi = svd.singular_values.max();
     let lo = svd.singular_values.min();
