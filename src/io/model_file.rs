@@ -67,6 +67,10 @@
 //!   `kinecal model export pm5`. Their parameter names are the presets' (the paper's `dg1, dc1x, …,
 //!   dφ1, …, dγ0` for pm5; `S1x … U1x … L01` for stewart); in `free`/`fixed` the Greek letters may
 //!   be spelt `phi`, `alpha`, `beta`, `gamma` ([`param_match`]).
+//! * `kind = "limbs"`: any parallel machine as a base, a platform and limbs of joints (revolute,
+//!   prismatic, universal, spherical; actuated, sensed or passive) closing on the platform with a
+//!   frame or a spherical joint; poses as in the serial kind. The format is in `limbs.rs` of this
+//!   module and docs/parallel-machines.md; examples in `examples/models/`.
 //!
 //! # Closed-loop kinds
 //! Poses are `position` + `euler_xyz = [α, β, γ]`, `R = Rot(x,α)·Rot(y,β)·Rot(z,γ)` (the

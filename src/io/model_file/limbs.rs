@@ -186,9 +186,16 @@ impl Ctx<'_> {
         }
         LimbMechanism::new(name, limbs, task, home, workspace)
             .map(MechanismSpec::Limbs)
-            .map_err(|message| IoError::Invalid {
-                path: self.path.to_path_buf(),
-                message: format!("mechanism: {message}"),
+            .map_err(|message| {
+                // An error about one limb points at that limb's table.
+                let named = raw_limbs.iter().find(|l| message.contains(&format!("limb '{}'", l.get_ref().name)));
+                match named {
+                    Some(l) => self.at(&l.span(), format!("mechanism: {message}")),
+                    None => IoError::Invalid {
+                        path: self.path.to_path_buf(),
+                        message: format!("mechanism: {message}"),
+                    },
+                }
             })
     }
 
