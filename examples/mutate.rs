@@ -41,7 +41,7 @@ struct Kind {
     targets: &'static str,
 }
 
-const KINDS: [Kind; 4] = [
+const KINDS: [Kind; 5] = [
     Kind {
         model: "irb120.toml",
         data: "irb120-d.csv",
@@ -66,11 +66,22 @@ const KINDS: [Kind; 4] = [
         validation: "terms-v.csv",
         targets: "terms-t.csv",
     },
+    Kind {
+        model: "head.toml",
+        data: "head-d.csv",
+        validation: "head-v.csv",
+        targets: "head-t.csv",
+    },
 ];
 
 fn setup(bin: &Path, dir: &Path) {
-    for (k, name) in KINDS.iter().zip(["irb120", "pm5", "stewart", "irb120"]) {
-        run_ok(bin, dir, &["model", "export", name, "--out", k.model, "--force"]);
+    for (k, name) in KINDS.iter().zip(["irb120", "pm5", "stewart", "irb120", "head"]) {
+        if name == "head" {
+            // A parallel machine that is only a model file (kind = "limbs").
+            std::fs::write(dir.join(k.model), include_str!("models/head-3prs.toml")).unwrap();
+        } else {
+            run_ok(bin, dir, &["model", "export", name, "--out", k.model, "--force"]);
+        }
         if k.model == "terms.toml" {
             // The IRB 120 with joint terms (lost motion, gravity compliance, a harmonic).
             let text = std::fs::read_to_string(dir.join(k.model)).unwrap().replace(

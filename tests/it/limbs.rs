@@ -303,3 +303,25 @@ fn inverse_kinematics_returns_the_inputs_of_the_same_assembly_mode() {
         assert!(worst < 1e-7, "{name}: IK(FK(q)) differs from q by {worst:.3e}");
     }
 }
+
+#[test]
+fn the_limbs_machines_are_listed_and_exported_like_the_presets() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let list = ok(d, &["model", "list"]);
+    for name in ["hexapod-6rus", "head-3prs", "linear-delta", "stewart-limbs"] {
+        assert!(list.contains(name), "{list}");
+        let file = kinecal::io::builtin::model_file(name).unwrap();
+        assert_eq!(file.mechanism.kind(), "limbs");
+        ok(d, &["model", "export", name, "--out", &format!("{name}.toml")]);
+        let back = ModelFile::load(&d.join(format!("{name}.toml"))).unwrap();
+        let (a, b) = (file.build(), back.build());
+        for q in a.sample_configurations(5, 1).unwrap().unwrap() {
+            let e = kinecal::se3::pose_error(&a.forward(&q).unwrap(), &b.forward(&q).unwrap());
+            assert!(e.norm() < 1e-9, "{name}: {e}");
+        }
+    }
+    // A built-in name works wherever a model file does.
+    let id = json(d, &["identifiability", "head-3prs", "--poses", "40"]);
+    assert_eq!(id["rank"], 33, "{id}");
+}

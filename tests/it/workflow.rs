@@ -394,5 +394,8 @@ fn model_file_typo_names_file_line_and_key() {
     );
     // An unknown built-in name or missing file.
     let e = fails(&d, &["validate", "nosuch", "ident.csv"]);
-    assert_eq!(e, "nosuch: no such file, and not a built-in model (built-in: irb120, pm5, stewart)");
+    assert_eq!(
+        e,
+        "nosuch: no such file, and not a built-in model (built-in: irb120, pm5, stewart, hexapod-6rus, head-3prs, linear-delta, stewart-limbs)"
+    );
 }

@@ -2,6 +2,9 @@
 //! inverse kinematics by Gauss–Newton with continuation (see the [parent module](super)).
 use super::*;
 
+/// Most stages of a forward-kinematics continuation.
+const MAX_STAGES: usize = 64;
+
 impl LimbMechanism {
     /// Joint values of every limb: the inputs placed, passive joints from `passive`.
     pub(super) fn joints_of(&self, q: &[f64], passive: &[f64]) -> Joints {
@@ -41,7 +44,12 @@ impl LimbMechanism {
         }
         let mut row = 0;
         for (i, l) in self.limbs.iter().enumerate() {
-            let (e, jq) = l.chain.joint_jacobian(&joints[i]).expect("joint values of the limb's length");
+            // Non-finite joint values (a diverging solve): a non-finite residual, which every
+            // solver takes as failure.
+            let Ok((e, jq)) = l.chain.joint_jacobian(&joints[i]) else {
+                r.fill(f64::NAN);
+                return (r, f);
+            };
             match &l.end {
                 LimbEnd::Frame => {
                     let res = se3::log(&(e * x.inverse()));
@@ -131,9 +139,8 @@ impl LimbMechanism {
                 (q[k] - q0[k]).abs() / stage
             })
             .fold(0.0, f64::max);
-        let mut stages = (reach.ceil() as usize).max(1);
-        let mut last = None;
-        while stages <= 64 {
+        let mut stages = (reach.ceil().min(MAX_STAGES as f64) as usize).max(1);
+        loop {
             let mut state = (self.home, self.home_passive());
             let mut before: Option<(Pose, Vec<f64>)> = None;
             let mut failed = None;
@@ -163,11 +170,10 @@ impl LimbMechanism {
             }
             match failed {
                 None => return Ok(state),
-                Some(e) => last = Some(e),
+                Some(e) if stages >= MAX_STAGES => return Err(e),
+                Some(_) => stages = (stages * 4).min(MAX_STAGES),
             }
-            stages *= 4;
         }
-        Err(last.expect("at least one attempt"))
     }
 
     /// The closure's derivative with respect to the error parameters (rows × p) at a solved
@@ -178,10 +184,10 @@ impl LimbMechanism {
         let mut f = DMatrix::zeros(rows, p);
         let (mut row, mut col) = (0, 0);
         for (i, l) in self.limbs.iter().enumerate() {
-            let (e, jp_all) = l
-                .chain
-                .forward_with_jacobian(&joints[i])
-                .expect("joint values of the limb's length");
+            let Ok((e, jp_all)) = l.chain.forward_with_jacobian(&joints[i]) else {
+                f.fill(f64::NAN);
+                return f;
+            };
             let keep = l.dyad_has_errors();
             let n = l.chain_params();
             let mut jp = Matrix6xX::zeros(n);
