@@ -381,6 +381,9 @@ pub struct PairIdentification {
     pub converged: bool,
 }
 
+/// Shortest fraction of a recursive least-squares step [`identify_pair`] tries.
+const MIN_STEP_FRACTION: f64 = 1.0 / 1024.0;
+
 /// Identify a pair from `data`: identifiable subset, RLS per linearisation, `T(0) ← T(0)·exp(δt)`,
 /// iterated until `‖X‖ < x_tolerance` (or, at round-off level, neither the cost nor `‖X‖`
 /// decreases twice in a row). With noise the iteration converges linearly (the residual is not
@@ -408,12 +411,28 @@ pub fn identify_pair(initial: &ChainPair, data: &[PairMeasurement], opts: &PairO
     let mut stalls = 0;
     for _ in 0..opts.max_iterations.max(1) {
         let cost0 = 0.5 * lin.residual.norm_squared();
-        let step = rls_sqrt(&lin, &cols)?;
+        let full = rls_sqrt(&lin, &cols)?;
+        // The recursive least-squares step, halved while it raises the cost or leaves a pose
+        // where the lower closure no longer assembles (few poses: weakly determined directions
+        // overshoot); the full step whenever it helps, as in the paper.
+        let mut alpha = 1.0;
+        let (step, trial, trial_lin) = loop {
+            let step = &full * alpha;
+            let mut trial = pair.clone();
+            trial.retract(&step);
+            match linearize_pair(&trial, data, &opts.noise, opts.lower) {
+                Ok(l) if 0.5 * l.residual.norm_squared() <= cost0 * (1.0 + 1e-9) || alpha < MIN_STEP_FRACTION => break (step, trial, l),
+                Ok(_) | Err(CalibError::Kinematics { .. }) if alpha >= MIN_STEP_FRACTION => alpha *= 0.5,
+                Ok(l) => break (step, trial, l),
+                Err(e) => return Err(e),
+            }
+        };
         let x_norm = step.norm();
-        let mut trial = pair.clone();
-        trial.retract(&step);
-        let trial_lin = linearize_pair(&trial, data, &opts.noise, opts.lower)?;
         let cost = 0.5 * trial_lin.residual.norm_squared();
+        if cost > cost0 * (1.0 + 1e-9) {
+            // Not even a short step lowers the cost: stop, not converged.
+            break;
+        }
         history.push(PairIteration { x_norm, cost });
         pair = trial;
         lin = trial_lin;
