@@ -14,6 +14,18 @@ pub struct StudyT3r1Args {
     /// Validation poses.
     #[arg(long, default_value_t = 20)]
     pub validation_poses: usize,
+    /// Pose position noise of the noisy run, per axis (mm); also its weight.
+    #[arg(long, default_value_t = 0.02)]
+    pub noise_mm: f64,
+    /// Pose orientation noise of the noisy run, per axis (degrees).
+    #[arg(long, default_value_t = 0.02)]
+    pub noise_deg: f64,
+    /// Encoder noise of the noisy run on the upper and platform angles (degrees).
+    #[arg(long, default_value_t = 0.01)]
+    pub encoder_noise_deg: f64,
+    /// Workspace half widths x,y,z (mm) and yaw (degrees) around its centre, e.g. 80,200,80,15.
+    #[arg(long, value_delimiter = ',', default_values_t = [80.0, 200.0, 80.0, 15.0])]
+    pub workspace_half: Vec<f64>,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
@@ -94,12 +106,27 @@ fn print_case(name: &str, c: &StudyCase) {
 
 /// Run the command.
 pub fn run(args: StudyT3r1Args) -> anyhow::Result<()> {
-    let config = StudyConfig {
+    let mut config = StudyConfig {
         seed: args.seed,
         identification_poses: args.identification_poses,
         validation_poses: args.validation_poses,
+        noise: kinecal::t3r1::StudyNoise {
+            position: args.noise_mm,
+            orientation: args.noise_deg.to_radians(),
+            encoder: args.encoder_noise_deg.to_radians(),
+        },
         ..Default::default()
     };
+    let h = &args.workspace_half;
+    anyhow::ensure!(
+        h.len() == 4,
+        "--workspace-half: expected four values x,y,z (mm),yaw (degrees), got {}",
+        h.len()
+    );
+    config.workspace.half.x = h[0];
+    config.workspace.half.y = h[1];
+    config.workspace.half.z = h[2];
+    config.workspace.half.yaw = h[3].to_radians();
     let report = run_study(&config)?;
     let failures: Vec<String> = [("noise-free", &report.noise_free), ("noisy", &report.noisy)]
         .iter()

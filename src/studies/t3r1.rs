@@ -685,6 +685,8 @@ pub struct StudyConfig {
     pub errors: crate::studies::t3r1_machine::PresetErrors,
     /// Workspace the poses are drawn from.
     pub workspace: crate::studies::t3r1_machine::Workspace,
+    /// Noise of the noisy run (the weights of its identification are the same values).
+    pub noise: StudyNoise,
 }
 
 impl Default for StudyConfig {
@@ -695,6 +697,7 @@ impl Default for StudyConfig {
             validation_poses: 20,
             errors: Default::default(),
             workspace: Default::default(),
+            noise: StudyNoise::default(),
         }
     }
 }
@@ -1043,6 +1046,16 @@ fn run_case(
 pub fn run_study(config: &StudyConfig) -> Result<StudyReport, CalibError> {
     use crate::studies::t3r1_machine::ActualMachine;
     use rand::SeedableRng;
+    let n = &config.noise;
+    if [n.position, n.orientation, n.encoder].iter().any(|v| !(v.is_finite() && *v > 0.0)) {
+        return Err(CalibError::InvalidOption(
+            "the noisy run's noise (pose position, pose orientation, encoders) must be finite and > 0".into(),
+        ));
+    }
+    let h = &config.workspace.half;
+    if [h.x, h.y, h.z, h.yaw].iter().any(|v| !(v.is_finite() && *v >= 0.0)) {
+        return Err(CalibError::InvalidOption("the workspace half widths must be finite and ≥ 0".into()));
+    }
     if config.identification_poses < 4 || config.validation_poses == 0 {
         return Err(CalibError::InvalidOption(format!(
             "the study needs at least 4 identification poses (12 rows each for up to 40 coordinates) and 1 validation pose, got {} and {}",
@@ -1106,7 +1119,7 @@ pub fn run_study(config: &StudyConfig) -> Result<StudyReport, CalibError> {
         check.eq25_distance_residual_mm = check.eq25_distance_residual_mm.max(((a2 - a1).norm() - nominal.geometry.a).abs());
     }
     let noise_free = run_case(&nominal, &actual, &ident, &valid, None, config.seed + 1)?;
-    let noisy = run_case(&nominal, &actual, &ident, &valid, Some(StudyNoise::default()), config.seed + 2)?;
+    let noisy = run_case(&nominal, &actual, &ident, &valid, Some(config.noise), config.seed + 2)?;
     Ok(StudyReport {
         config: config.clone(),
         ranks,

@@ -415,7 +415,11 @@ fn study_with_too_few_poses_fails_its_checks() {
             .args(["study", "t3r1", "--identification-poses", n])
             .output()
             .unwrap();
-        (out.status.code(), String::from_utf8(out.stdout).unwrap(), String::from_utf8(out.stderr).unwrap())
+        (
+            out.status.code(),
+            String::from_utf8(out.stdout).unwrap(),
+            String::from_utf8(out.stderr).unwrap(),
+        )
     };
     let (code, stdout, stderr) = run("8");
     assert_eq!(code, Some(2));
@@ -424,7 +428,10 @@ fn study_with_too_few_poses_fails_its_checks() {
     assert!(noisy.contains("FAILED") && !noisy.contains("after convergence"), "{noisy}");
     let (code, _, stderr) = run("4");
     assert_eq!(code, Some(2), "{stderr}");
-    assert!(stderr.contains("not converged") && !stderr.contains("closure did not converge"), "{stderr}");
+    assert!(
+        stderr.contains("not converged") && !stderr.contains("closure did not converge"),
+        "{stderr}"
+    );
     let (_, stdout, stderr) = run("5");
     assert!(!stderr.contains("did not converge after"), "{stderr}");
     assert!(stdout.contains("idle-pair cross-validation"), "{stdout}");
@@ -491,4 +498,46 @@ fn one_chain_with_measured_lower_angle_calibrates_with_the_core_identify() {
         );
         assert!(e.norm() < 1e-8, "{e}");
     }
+}
+
+/// The noisy run's noise and the workspace are options (so the study can be set up like another
+/// implementation's); the noise is echoed, bad values are one-line errors.
+#[test]
+fn study_noise_and_workspace_are_options() {
+    let run = |args: &[&str]| {
+        let out = assert_cmd::Command::cargo_bin("kinecal")
+            .unwrap()
+            .args(["study", "t3r1", "--validation-poses", "5"])
+            .args(args)
+            .output()
+            .unwrap();
+        (
+            out.status.code(),
+            String::from_utf8(out.stdout).unwrap(),
+            String::from_utf8(out.stderr).unwrap(),
+        )
+    };
+    let (_, stdout, _) = run(&[
+        "--noise-mm",
+        "0.01",
+        "--noise-deg",
+        "0.005",
+        "--encoder-noise-deg",
+        "0.004",
+        "--workspace-half",
+        "50,100,50,10",
+    ]);
+    assert!(
+        stdout.contains("noise: pose 0.010 mm / 0.005 deg per axis, encoders 0.004 deg"),
+        "{stdout}"
+    );
+    let (code, _, stderr) = run(&["--noise-mm", "0"]);
+    assert_eq!(code, Some(1));
+    assert!(
+        stderr.contains("must be finite and > 0") && stderr.trim().lines().count() == 1,
+        "{stderr}"
+    );
+    let (code, _, stderr) = run(&["--workspace-half", "1,2"]);
+    assert_eq!(code, Some(1));
+    assert!(stderr.contains("expected four values"), "{stderr}");
 }
