@@ -3,33 +3,16 @@
 //! compensate on the virtual prototype), and the one-line errors of a limb that cannot close, a
 //! machine with the wrong mobility and other mistakes, each naming the limb and the line.
 use crate::cli::{fails, json, ok};
-use kinecal::io::data_file::{read_data, write_data, InputColumns};
+use crate::support::nominal_targets;
+use kinecal::io::data_file::{read_data, InputColumns};
 use kinecal::io::model_file::ModelFile;
 use kinecal::io::table::read_table;
-use kinecal::measure::{Measurement, Observation};
 use kinecal::validate::commanded_error;
 use kinecal::Mechanism;
 use std::path::Path;
 
 const HEAD: &str = include_str!("../../examples/models/head-3prs.toml");
 const HEXAPOD: &str = include_str!("../../examples/models/hexapod-6rus.toml");
-
-/// Targets where the nominal model puts the validation commands; the commands as read.
-fn nominal_targets(d: &Path, model: &ModelFile) -> Vec<kinecal::se3::Pose> {
-    let inputs = model.inputs();
-    let nominal = model.build();
-    let val = read_data(&d.join("valid.csv"), &inputs, InputColumns::Required).unwrap();
-    let targets: Vec<_> = val.measurements.iter().map(|m| nominal.forward(&m.q).unwrap()).collect();
-    let rows: Vec<Measurement> = targets
-        .iter()
-        .map(|t| Measurement {
-            q: vec![],
-            obs: Observation::Pose(*t),
-        })
-        .collect();
-    write_data(&d.join("targets.csv"), &inputs, &val.ids, &rows, None).unwrap();
-    targets
-}
 
 fn commands(path: &Path, angle_inputs: &[bool]) -> Vec<Vec<f64>> {
     read_table(path)

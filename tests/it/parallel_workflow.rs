@@ -2,11 +2,10 @@
 //! load round trips (nominal and calibrated geometry, any units), the whole workflow through the
 //! binary with the numbers checked, and the one-line errors of bad inputs.
 use crate::cli::{fails, json, ok};
+use crate::support::nominal_targets;
 use kinecal::io::builtin;
-use kinecal::io::data_file::{read_data, write_data, InputColumns};
 use kinecal::io::model_file::{MechanismSpec, ModelFile};
 use kinecal::io::table::read_table;
-use kinecal::measure::{Measurement, Observation};
 use kinecal::model::presets::pm5::{Parasitic, Pm5};
 use kinecal::se3;
 use kinecal::simulate::{perturbed, random_errors};
@@ -122,23 +121,6 @@ fn simulate(d: &Path, model: &str, poses: &str, validation: &str) {
             "valid.csv",
         ],
     );
-}
-
-/// Targets where the nominal model puts the validation commands (no input columns).
-fn nominal_targets(d: &Path, model: &ModelFile) -> Vec<se3::Pose> {
-    let inputs = model.inputs();
-    let nominal = model.build();
-    let val = read_data(&d.join("valid.csv"), &inputs, InputColumns::Required).unwrap();
-    let targets: Vec<se3::Pose> = val.measurements.iter().map(|m| nominal.forward(&m.q).unwrap()).collect();
-    let rows: Vec<Measurement> = targets
-        .iter()
-        .map(|t| Measurement {
-            q: vec![],
-            obs: Observation::Pose(*t),
-        })
-        .collect();
-    write_data(&d.join("targets.csv"), &inputs, &val.ids, &rows, None).unwrap();
-    targets
 }
 
 /// Commands (mm) of a commands file.

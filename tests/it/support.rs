@@ -1,7 +1,12 @@
-//! Helpers shared by the test modules: finite-difference Jacobians and their step sizes.
+//! Helpers shared by the test modules: finite-difference Jacobians and their step sizes; the
+//! targets file of a workflow test.
+use kinecal::io::data_file::{read_data, write_data, InputColumns};
+use kinecal::io::model_file::ModelFile;
+use kinecal::measure::{Measurement, Observation};
 use kinecal::model::Mechanism;
 use kinecal::se3;
 use nalgebra::{DMatrix, DVector};
+use std::path::Path;
 
 /// Central finite differences of the spatial identification Jacobian: retract by ±h along each
 /// coordinate and take log(T(+h)·T(−h)⁻¹)/(2h).
@@ -27,4 +32,21 @@ pub fn steps<M: Mechanism + ?Sized>(m: &M) -> Vec<f64> {
         .iter()
         .map(|p| if p.unit == kinecal::params::Unit::Angle { 1e-6 } else { 1e-4 })
         .collect()
+}
+
+/// Targets where the nominal model puts the validation commands (no input columns).
+pub fn nominal_targets(d: &Path, model: &ModelFile) -> Vec<se3::Pose> {
+    let inputs = model.inputs();
+    let nominal = model.build();
+    let val = read_data(&d.join("valid.csv"), &inputs, InputColumns::Required).unwrap();
+    let targets: Vec<se3::Pose> = val.measurements.iter().map(|m| nominal.forward(&m.q).unwrap()).collect();
+    let rows: Vec<Measurement> = targets
+        .iter()
+        .map(|t| Measurement {
+            q: vec![],
+            obs: Observation::Pose(*t),
+        })
+        .collect();
+    write_data(&d.join("targets.csv"), &inputs, &val.ids, &rows, None).unwrap();
+    targets
 }

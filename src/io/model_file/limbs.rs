@@ -38,7 +38,7 @@
 //! ```
 //!
 //! Inputs (data columns) are the actuated joints in limb order, then the sensed ones.
-use super::{fmt3, num, quote, write_pose, Ctx, IoError, MechanismSpec, Units};
+use super::{fmt3, num, quote, write_pose, Ctx, IoError, MechanismSpec, RawPose, Units};
 use crate::model::chain::{ChainJoint, JointKind, SerialChain};
 use crate::model::limbs::{GroupKind, JointGroup, JointRole, Limb, LimbEnd, LimbMechanism, PoseBox};
 use crate::model::{Mechanism as _, Task};
@@ -54,17 +54,9 @@ pub(super) struct RawLimbs {
     #[allow(dead_code)]
     kind: String,
     task: Option<Spanned<String>>,
-    home: Option<Spanned<RawPlacement>>,
+    home: Option<Spanned<RawPose>>,
     workspace: Option<Spanned<RawBox>>,
     limbs: Option<Vec<Spanned<RawLimb>>>,
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawPlacement {
-    position: Option<[f64; 3]>,
-    rpy: Option<[f64; 3]>,
-    rotvec: Option<[f64; 3]>,
 }
 
 #[derive(Deserialize)]
@@ -82,7 +74,7 @@ struct RawLimb {
     name: String,
     end: Spanned<String>,
     platform_point: Option<[f64; 3]>,
-    end_placement: Option<Spanned<RawPlacement>>,
+    end_placement: Option<Spanned<RawPose>>,
     joints: Option<Vec<Spanned<RawLimbJoint>>>,
 }
 
