@@ -31,8 +31,10 @@ use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use serde::Serialize;
 
+mod recursive;
 mod reduced;
 mod solve;
+pub use recursive::rls_solve;
 use reduced::{Form, System};
 use solve::{covariance, solve_subset};
 
@@ -216,6 +218,10 @@ pub struct Identification<M> {
     /// Weight of each pose under the loss (1: full weight; below 1: a pose the robust loss
     /// treated as a blunder).
     pub pose_weights: Vec<f64>,
+    /// The information matrix `AᵀA` (p × p) of the noise- and loss-weighted Jacobian the
+    /// covariance was taken from (the last linearisation): what the report's analysis of
+    /// absorbed parameters needs, without a new pass over the poses.
+    pub information: DMatrix<f64>,
 }
 
 /// Weighted residual vector and weighted Jacobian of a data set at a model.
@@ -419,6 +425,7 @@ fn one_step<M: Mechanism + Clone>(
     let sigma0 = (lin.residual.norm_squared() / (rows - cols.len()) as f64).sqrt();
     let covariance = covariance(&lin.jacobian, &cols, None) * (sigma0 * sigma0);
     let std_dev = DVector::from_iterator(p, (0..p).map(|i| covariance[(i, i)].max(0.0).sqrt()));
+    let information = lin.jacobian.tr_mul(&lin.jacobian);
     Ok(Identification {
         model,
         identifiability: ident,
@@ -430,6 +437,7 @@ fn one_step<M: Mechanism + Clone>(
         sigma0,
         noise,
         pose_weights,
+        information,
     })
 }
 
@@ -593,6 +601,10 @@ fn gauss_newton<M: Mechanism + Clone>(
     // The covariance of the minimum-norm solution over the parameters with an effect.
     let covariance = system.covariance(&effective, Some(ident.rank)) * (sigma0 * sigma0);
     let std_dev = DVector::from_iterator(p, (0..p).map(|i| covariance[(i, i)].max(0.0).sqrt()));
+    let information = match &system {
+        System::Gram { n, .. } => n.clone(),
+        System::Triangular { r, .. } => r.tr_mul(r),
+    };
     Ok(Identification {
         model,
         identifiability: ident,
@@ -604,6 +616,7 @@ fn gauss_newton<M: Mechanism + Clone>(
         sigma0,
         noise,
         pose_weights: ev.pose_weights,
+        information,
     })
 }
 
@@ -616,51 +629,6 @@ pub fn information<M: Mechanism + ?Sized>(model: &M, data: &[Measurement], noise
         System::Gram { n, .. } => Ok(n),
         System::Triangular { r, .. } => Ok(r.transpose() * r),
     }
-}
-
-/// Recursive least squares in square-root information form, pose block after pose block, on the
-/// columns `cols` (scaled to unit norm): `[R d; A_i b_i] = Q·[R' d'; 0 e]`, then `R·x = d`.
-///
-/// Equal to batch least squares to round-off: each pose only updates the triangular factor of
-/// the information matrix by orthogonal transformations, never inverts it. (A covariance-form
-/// recursion `P ← P − K·A·P` started from an ill-conditioned first block of poses keeps its error
-/// through every update; the 3T1R machine showed 1e-4 relative.)
-pub fn rls_solve(lin: &Linearization, cols: &[usize]) -> Result<DVector<f64>, CalibError> {
-    let (scaled, norms) = identifiability::scale_columns(&lin.jacobian, cols);
-    let k = cols.len();
-    let rows = scaled.nrows();
-    let mut ends: Vec<usize> = lin.offsets.iter().skip(1).copied().collect();
-    ends.push(rows);
-    let mut r = DMatrix::<f64>::zeros(k, k + 1);
-    let mut start = 0;
-    for &e in &ends {
-        let m = e - start;
-        let mut stack = DMatrix::zeros(k + m, k + 1);
-        stack.view_mut((0, 0), (k, k + 1)).copy_from(&r);
-        stack.view_mut((k, 0), (m, k)).copy_from(&scaled.rows(start, m));
-        stack.view_mut((k, k), (m, 1)).copy_from(&lin.residual.rows(start, m));
-        let f = stack.qr().r();
-        r.fill(0.0);
-        let n = f.nrows().min(k);
-        r.view_mut((0, 0), (n, k + 1)).copy_from(&f.view((0, 0), (n, k + 1)));
-        start = e;
-    }
-    let tri = r.view((0, 0), (k, k)).into_owned();
-    let d = r.column(k).into_owned();
-    let dmax = (0..k).map(|i| tri[(i, i)].abs()).fold(0.0, f64::max);
-    if (0..k).any(|i| tri[(i, i)].abs() <= 1e-13 * dmax) {
-        return Err(CalibError::Numerical(
-            "recursive least squares: the data never reach full rank".into(),
-        ));
-    }
-    let x = tri
-        .solve_upper_triangular(&d)
-        .ok_or_else(|| CalibError::Numerical("recursive least squares: singular information matrix".into()))?;
-    let mut delta = DVector::zeros(lin.jacobian.ncols());
-    for (i, &c) in cols.iter().enumerate() {
-        delta[c] = x[i] / norms[i];
-    }
-    Ok(delta)
 }
 
 /// Identifiability of a mechanism's parameters from full-pose measurements at `inputs`: the

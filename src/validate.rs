@@ -6,6 +6,7 @@ use crate::measure::{self, Measurement, Observation};
 use crate::model::{Mechanism, Task};
 use crate::se3::{self, Pose};
 use nalgebra::Vector3;
+use rayon::prelude::*;
 use serde::Serialize;
 
 /// Per-pose errors of a model against measurements: position error norm (mm) and rotation error
@@ -21,20 +22,34 @@ pub struct PoseErrors {
     pub tool_axis: Vec<Option<f64>>,
 }
 
+/// The forward kinematics of `model` at every measurement's inputs, in parallel; the first pose
+/// (in data order) whose kinematics fail is the error.
+fn forward_all<M: Mechanism + ?Sized>(model: &M, data: &[Measurement]) -> Result<Vec<Pose>, CalibError> {
+    data.par_iter()
+        .with_min_len(64)
+        .enumerate()
+        .map(|(i, m)| model.forward(&m.q).map_err(|source| CalibError::Kinematics { pose: i, source }))
+        .collect::<Vec<_>>()
+        .into_iter()
+        .collect()
+}
+
 /// Errors of `model` at every measurement.
 pub fn pose_errors<M: Mechanism + ?Sized>(model: &M, data: &[Measurement]) -> Result<PoseErrors, CalibError> {
     let mut position = Vec::with_capacity(data.len());
     let mut orientation = Vec::with_capacity(data.len());
     let mut tool_axis = Vec::with_capacity(data.len());
-    for (i, m) in data.iter().enumerate() {
-        let t = model.forward(&m.q).map_err(|source| CalibError::Kinematics { pose: i, source })?;
+    for (p, o, a) in forward_all(model, data)?.into_iter().zip(data).map(|(t, m)| {
         let (p, o) = measure::errors(&m.obs, &t);
-        position.push(p);
-        orientation.push(o);
-        tool_axis.push(match &m.obs {
+        let axis = match &m.obs {
             Observation::Pose(meas) => Some(tool_axis_angle(meas, &t)),
             _ => None,
-        });
+        };
+        (p, o, axis)
+    }) {
+        position.push(p);
+        orientation.push(o);
+        tool_axis.push(a);
     }
     Ok(PoseErrors {
         position,
@@ -138,11 +153,11 @@ pub struct Outlier {
 /// e.g. `threshold = 3` flags residuals beyond 3σ. Components below 1e-6 mm / 1e-8 rad are never
 /// flagged (noise-free data would otherwise flag round-off).
 pub fn outliers<M: Mechanism + ?Sized>(model: &M, data: &[Measurement], threshold: f64) -> Result<Vec<Outlier>, CalibError> {
-    let mut res = Vec::with_capacity(data.len());
-    for (i, m) in data.iter().enumerate() {
-        let t = model.forward(&m.q).map_err(|source| CalibError::Kinematics { pose: i, source })?;
-        res.push((measure::residual(&m.obs, &t), measure::errors(&m.obs, &t)));
-    }
+    let res: Vec<_> = forward_all(model, data)?
+        .iter()
+        .zip(data)
+        .map(|(t, m)| (measure::residual(&m.obs, t), measure::errors(&m.obs, t)))
+        .collect();
     let (mut sp, mut np, mut so, mut no) = (0.0, 0usize, 0.0, 0usize);
     for (r, _) in &res {
         for (k, v) in r.iter().enumerate() {

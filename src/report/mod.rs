@@ -333,7 +333,7 @@ impl CalibrationReport {
             variants: Vec::new(),
         };
         report.correlations(result, &params);
-        report.absorbed = absorbed(result, &params, data);
+        report.absorbed = absorbed(result, &params);
         report.assess(&result.noise, &Tolerances::default());
         Ok(report)
     }
@@ -541,16 +541,18 @@ impl CalibrationReport {
 /// For each redundant parameter, the identified parameters whose combination has the same effect
 /// on the measurements: least squares of its (column-scaled) Jacobian column on the identified
 /// columns at the solution, the largest three terms in model units.
-fn absorbed<M: Mechanism>(result: &Identification<M>, params: &[crate::params::Param], data: &[Measurement]) -> Vec<(String, String)> {
+fn absorbed<M: Mechanism>(result: &Identification<M>, params: &[crate::params::Param]) -> Vec<(String, String)> {
     let id = &result.identifiability;
     if id.redundant.is_empty() || id.identifiable.is_empty() {
         return Vec::new();
     }
     // Least squares of each redundant column on the identified ones, from the information matrix
-    // AᵀA (the normal equations of that fit, in column-scaled form): no rows × p Jacobian.
-    let Ok(gram) = crate::identify::information(&result.model, data, &result.noise) else {
+    // AᵀA of the fit (the normal equations of that fit, in column-scaled form): no pass over the
+    // poses.
+    let gram = &result.information;
+    if gram.nrows() != params.len() || gram.ncols() != params.len() {
         return Vec::new();
-    };
+    }
     let ident = &id.identifiable;
     let norms: Vec<f64> = ident.iter().map(|&c| gram[(c, c)].max(0.0).sqrt()).collect();
     if gram.iter().any(|v| !v.is_finite()) || norms.contains(&0.0) {
