@@ -212,9 +212,11 @@ fn pm5_candidates(args: &PlanArgs, mech: kinecal::model::closed::ClosedLoop<kine
         max: [x.1, y.1, z.1, a.1, b.1, g.1],
     };
     let sampling = sampling(args, Some(&kinecal::model::presets::pm5::CANDIDATE_GRID))?;
+    // FK∘IK is checked on the chosen configurations (design::plan), not on every sample.
     let filter = CandidateFilter {
         input_limits: Some(mech.system().strokes()),
         max_condition: Some(args.max_condition.unwrap_or(100.0)),
+        check_forward: false,
         ..Default::default()
     };
     let n = sampling.len(6)?;
@@ -389,6 +391,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
             shortlist: args.shortlist,
             ..Default::default()
         },
+        ..Default::default()
     };
     let pb = bar(cands.len() as u64, "jacobians");
     let inc = |k: u64| pb.inc(k);
@@ -420,6 +423,12 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         mech.n_params(),
         planned.jacobian_seconds
     );
+    if !planned.set_aside.is_empty() {
+        say!(
+            "{} chosen candidates set aside and replaced: the forward kinematics from the home pose reaches another assembly mode there",
+            planned.set_aside.len()
+        );
+    }
     let selection_seconds = planned.selection_seconds;
     let ix = &sel.indices;
     say!(

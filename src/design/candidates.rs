@@ -188,6 +188,12 @@ pub struct CandidateFilter {
     pub input_limits: Option<Vec<(f64, f64)>>,
     /// FK∘IK agreement required of a workspace sample: position (mm) and rotation (rad).
     pub fk_tolerance: (f64, f64),
+    /// Check FK∘IK on every sample of a closed-loop platform box
+    /// ([`super::candidates_in_platform_box`]). Off, the check moves to the chosen set:
+    /// [`super::plan`] runs the forward kinematics identification uses on each chosen candidate
+    /// and replaces any that reach another assembly mode (the same plan at a fraction of the
+    /// cost: one forward solve per chosen candidate instead of one per sample).
+    pub check_forward: bool,
     /// Largest accepted condition number `σ_max/σ_min` of the input Jacobian `∂(tool pose)/∂q`
     /// (central differences of [`Mechanism::forward`], orientation rows multiplied by
     /// `length_scale`); `None`: no singularity filter. Near a singularity this number grows
@@ -206,6 +212,7 @@ impl Default for CandidateFilter {
         CandidateFilter {
             input_limits: None,
             fk_tolerance: (1e-6, 1e-8),
+            check_forward: true,
             max_condition: None,
             length_scale: 100.0,
             step: 1e-6,
@@ -219,6 +226,7 @@ impl std::fmt::Debug for CandidateFilter {
         f.debug_struct("CandidateFilter")
             .field("input_limits", &self.input_limits)
             .field("fk_tolerance", &self.fk_tolerance)
+            .field("check_forward", &self.check_forward)
             .field("max_condition", &self.max_condition)
             .field("length_scale", &self.length_scale)
             .field("step", &self.step)

@@ -14,7 +14,8 @@
 //!    [`CandidateFilter::input_limits`] if given) — else *out of limits*;
 //! 4. **FK∘IK**: the forward kinematics from the home pose (what identification uses) must
 //!    return the same tool pose, within [`CandidateFilter::fk_tolerance`] — else *unreachable*
-//!    (another assembly mode);
+//!    (another assembly mode). With [`CandidateFilter::check_forward`] off this check is left to
+//!    [`super::plan`], which makes it on the chosen candidates only;
 //! 5. **distance from singularity**: [`actuator_condition`] at most
 //!    [`CandidateFilter::max_condition`] — else *near singular*;
 //! 6. the custom predicate, if any.
@@ -24,8 +25,6 @@
 use super::candidates::{Candidate, CandidateFilter, GenerationReport, ProgressFn, Sampling};
 use crate::error::{CalibError, KinError};
 use crate::model::closed::{ClosedLoop, ConstraintSystem, Task, Workspace as PlatformBox};
-use crate::model::Mechanism;
-use crate::se3;
 use nalgebra::DMatrix;
 use rayon::prelude::*;
 
@@ -75,14 +74,8 @@ fn classify<C: ConstraintSystem>(mech: &ClosedLoop<C>, x: &[f64; 6], filter: &Ca
         }
     }
     let reached = mech.tool_pose_of(&xs);
-    match mech.forward(&q) {
-        Ok(t) => {
-            let e = se3::pose_error(&t, &reached);
-            if se3::lin(&e).norm() > filter.fk_tolerance.0 || se3::ang(&e).norm() > filter.fk_tolerance.1 {
-                return Outcome::Unreachable;
-            }
-        }
-        Err(_) => return Outcome::Unreachable,
+    if filter.check_forward && !super::plan::forward_agrees(mech, &q, &reached, filter.fk_tolerance) {
+        return Outcome::Unreachable;
     }
     let cond = match actuator_condition(mech, &xs, &q, filter.length_scale) {
         Some(c) => c,

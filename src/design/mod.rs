@@ -33,7 +33,7 @@ pub use closed::{actuator_condition, candidates_in_platform_box, PlatformGenerat
 pub use indices::{Criterion, ObservabilityIndices};
 pub use information::InformationState;
 pub use jacobians::{identifiable_columns, CandidateJacobians};
-pub use plan::{plan, Plan, PlanOptions};
+pub use plan::{forward_agrees, plan, Plan, PlanOptions};
 pub use select::{candidate_pool, exchange, greedy, select, sffs, ExchangeStart, SelectOptions, Selection, SelectionMethod, Step};
 
 use std::io::Write;

@@ -9,6 +9,7 @@ use crate::error::CalibError;
 use crate::identifiability::DEFAULT_RANK_TOLERANCE;
 use crate::measure::Noise;
 use crate::model::Mechanism;
+use crate::se3::{self, Pose};
 use crate::simulate::ObservationKind;
 use std::time::Instant;
 
@@ -26,6 +27,11 @@ pub struct PlanOptions {
     pub method: SelectionMethod,
     /// Size, criterion and tuning of the selection.
     pub select: SelectOptions,
+    /// Every chosen candidate's inputs must give back its target pose through the forward
+    /// kinematics identification uses (from the home pose), within this position (mm) and
+    /// rotation (rad); a chosen candidate that reaches another assembly mode is set aside and the
+    /// selection repeated without it. `None`: no check.
+    pub forward_tolerance: Option<(f64, f64)>,
 }
 
 impl Default for PlanOptions {
@@ -35,6 +41,7 @@ impl Default for PlanOptions {
             noise: Noise::default(),
             method: SelectionMethod::Sffs,
             select: SelectOptions::default(),
+            forward_tolerance: Some((1e-6, 1e-8)),
         }
     }
 }
@@ -52,6 +59,35 @@ pub struct Plan {
     pub jacobian_seconds: f64,
     /// Seconds spent selecting.
     pub selection_seconds: f64,
+    /// Candidates chosen at first but set aside because the forward kinematics from the home
+    /// pose does not reach their target ([`PlanOptions::forward_tolerance`]).
+    pub set_aside: Vec<usize>,
+}
+
+/// Rounds of [`plan`]'s forward check (each sets aside the chosen candidates that fail it).
+const MAX_FORWARD_ROUNDS: usize = 8;
+
+/// Whether the forward kinematics of `mech` at `q` (from its home pose, as identification runs
+/// it) reaches `target` within `tolerance` (position mm, rotation rad).
+pub fn forward_agrees<M: Mechanism + ?Sized>(mech: &M, q: &[f64], target: &Pose, tolerance: (f64, f64)) -> bool {
+    match mech.forward(q) {
+        Ok(t) => {
+            let e = se3::pose_error(&t, target);
+            se3::lin(&e).norm() <= tolerance.0 && se3::ang(&e).norm() <= tolerance.1
+        }
+        Err(_) => false,
+    }
+}
+
+/// `sel`, made on the subset `keep` of the candidates, in the indices of the whole set.
+fn remap(mut sel: Selection, keep: &[usize]) -> Selection {
+    for i in &mut sel.selected {
+        *i = keep[*i];
+    }
+    for s in &mut sel.history {
+        s.candidate = keep[s.candidate];
+    }
+    sel
 }
 
 /// Choose `opts.select.n` of `candidates` for `mech`: the identifiable columns (on up to
@@ -85,12 +121,48 @@ pub fn plan<M: Mechanism + ?Sized>(
     let blocks = CandidateJacobians::build(mech, candidates, opts.observe, &opts.noise, &columns, jacobians)?;
     let jacobian_seconds = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let selection = select(&blocks, opts.method, &opts.select, step)?;
+    let mut selection = select(&blocks, opts.method, &opts.select, step)?;
+    let mut set_aside: Vec<usize> = Vec::new();
+    if let Some(tol) = opts.forward_tolerance {
+        let mut excluded = vec![false; candidates.len()];
+        for round in 0.. {
+            let bad: Vec<usize> = selection
+                .selected
+                .iter()
+                .copied()
+                .filter(|&i| !forward_agrees(mech, &candidates[i].q, &candidates[i].target, tol))
+                .collect();
+            if bad.is_empty() {
+                break;
+            }
+            if round == MAX_FORWARD_ROUNDS {
+                return Err(CalibError::Numerical(format!(
+                    "the forward kinematics from the home pose does not reach the targets of {} chosen candidates after {round} reselections (another assembly mode): sample a workspace closer to the home pose",
+                    bad.len()
+                )));
+            }
+            for &i in &bad {
+                excluded[i] = true;
+            }
+            set_aside.extend(bad);
+            let keep: Vec<usize> = (0..candidates.len()).filter(|&i| !excluded[i]).collect();
+            if keep.len() < opts.select.n {
+                return Err(CalibError::InvalidOption(format!(
+                    "only {} candidates remain once {} that the forward kinematics from the home pose does not reach are set aside, fewer than the {} configurations asked for",
+                    keep.len(),
+                    set_aside.len(),
+                    opts.select.n
+                )));
+            }
+            selection = remap(select(&blocks.subset(&keep), opts.method, &opts.select, step)?, &keep);
+        }
+    }
     Ok(Plan {
         columns,
         rows_per_candidate: blocks.rows_per_candidate(),
         selection,
         jacobian_seconds,
         selection_seconds: t.elapsed().as_secs_f64(),
+        set_aside,
     })
 }

@@ -539,3 +539,39 @@ fn synthesized_measurements_are_the_prototype_plus_the_stated_noise() {
     .unwrap();
     assert_eq!(again.reflectors, noisy.reflectors, "same seed, same data");
 }
+
+#[test]
+fn plan_replaces_a_chosen_candidate_the_forward_kinematics_does_not_reach() {
+    let (chain, mut cands, _) = chain_setup(400, 11);
+    let select = SelectOptions {
+        n: 12,
+        ..Default::default()
+    };
+    let unchecked = design::PlanOptions {
+        select: select.clone(),
+        forward_tolerance: None,
+        ..Default::default()
+    };
+    let first = design::plan(&chain, &cands, &unchecked, None, &mut |_| {}).unwrap();
+    assert!(first.set_aside.is_empty());
+    // The candidate chosen first gets a target 1 mm away from where its inputs take the tool
+    // (as a candidate of another assembly mode would): the checked plan replaces it.
+    let bad = first.selection.selected[0];
+    assert!(design::forward_agrees(&chain, &cands[bad].q, &cands[bad].target, (1e-6, 1e-8)));
+    cands[bad].target = se3::Pose::from_parts(
+        nalgebra::Translation3::from(cands[bad].target.translation.vector + nalgebra::Vector3::new(1.0, 0.0, 0.0)),
+        cands[bad].target.rotation,
+    );
+    assert!(!design::forward_agrees(&chain, &cands[bad].q, &cands[bad].target, (1e-6, 1e-8)));
+    let checked = design::PlanOptions {
+        select,
+        ..Default::default()
+    };
+    let planned = design::plan(&chain, &cands, &checked, None, &mut |_| {}).unwrap();
+    assert_eq!(planned.set_aside, vec![bad]);
+    assert_eq!(planned.selection.selected.len(), 12);
+    assert!(!planned.selection.selected.contains(&bad));
+    for &i in &planned.selection.selected {
+        assert!(design::forward_agrees(&chain, &cands[i].q, &cands[i].target, (1e-6, 1e-8)));
+    }
+}

@@ -19,6 +19,25 @@ fn pm5_filter() -> CandidateFilter {
 }
 
 #[test]
+fn checking_forward_kinematics_on_the_chosen_set_gives_the_plan_of_checking_every_sample() {
+    let mech = Pm5::mechanism(Parasitic::Physical);
+    let ws = mech.system().workspace();
+    let sampling = Sampling::Halton { n: 600, seed: 5 };
+    let (every, _) = design::candidates_in_platform_box(&mech, &ws, &sampling, &pm5_filter(), None).unwrap();
+    let deferred = CandidateFilter {
+        check_forward: false,
+        ..pm5_filter()
+    };
+    let (lazy, _) = design::candidates_in_platform_box(&mech, &ws, &sampling, &deferred, None).unwrap();
+    assert_eq!(every.len(), lazy.len());
+    let opts = design::PlanOptions::default();
+    let a = design::plan(&mech, &every, &opts, None, &mut |_| {}).unwrap();
+    let b = design::plan(&mech, &lazy, &opts, None, &mut |_| {}).unwrap();
+    assert_eq!(a.selection.selected, b.selection.selected);
+    assert!(b.set_aside.is_empty());
+}
+
+#[test]
 fn pm5_candidates_are_reachable_in_stroke_and_round_trip() {
     let mech = Pm5::mechanism(Parasitic::Physical);
     let mut ws = mech.system().workspace();

@@ -251,15 +251,16 @@ const LIMB3: usize = 22;
 
 /// The two equations of a PR(RPRR)S limb reduced to PRPS: rod normal to the rail, rod length
 /// `L22` from the sub-loop.
-fn double_driven<D: Scalar>(p: &v3::V3<D>, r: &v3::M3<D>, g_rail: D, g_sub: D, t: &[D]) -> [D; 2] {
-    // t: [dg, cx, cy, cz, bx, by, bz, φ, l2, l3, l4, l5, dg_sub]
+fn double_driven<D: Scalar>(p: &v3::V3<D>, r: &v3::M3<D>, g_rail: D, g_sub: D, t: &[D], sub: &[D]) -> [D; 2] {
+    // t: [dg, cx, cy, cz, bx, by, bz, φ]; sub: [l2, l3, l4, l5, dg_sub] (two slices of θ, not
+    // a copy: this runs in every Newton step of every candidate).
     let c = v3::add(p, &v3::mul(r, &[t[1], t[2], t[3]]));
     let s = v3::sub(&c, &[t[4], t[5], t[6]]);
     let w = v3::planar(t[7]);
     let g = g_rail + t[0];
     let along = v3::dot(&w, &s) - g;
     let rod = v3::sub(&s, &v3::scale(&w, g));
-    let l = sub_loop_length(t[8], t[9], t[10], t[11], g_sub + t[12]);
+    let l = sub_loop_length(sub[0], sub[1], sub[2], sub[3], g_sub + sub[4]);
     [along, v3::norm(&rod) - l]
 }
 
@@ -303,8 +304,8 @@ impl ConstraintSystem for Pm5 {
         let rod1 = v3::sub(&big_c1, &b1_point);
         let f0 = v3::norm(&rod1) - t[7];
         // Limbs 2 and 3.
-        let [f1, f2] = double_driven(&p, &r, q[1], q[3], &[&t[LIMB2..LIMB2 + 8], &t[17..22]].concat());
-        let [f3, f4] = double_driven(&p, &r, q[2], q[4], &[&t[LIMB3..LIMB3 + 8], &t[30..35]].concat());
+        let [f1, f2] = double_driven(&p, &r, q[1], q[3], &t[LIMB2..LIMB2 + 8], &t[17..22]);
+        let [f3, f4] = double_driven(&p, &r, q[2], q[4], &t[LIMB3..LIMB3 + 8], &t[30..35]);
         // Parasitic motion: coplanarity of O_H B1 (along w1), B1 C1 and O2 C1.
         let f5 = match self.parasitic {
             Parasitic::Physical => v3::dot(&v3::cross(&rc1, &rod1), &w1) / v3::norm(&c1),
