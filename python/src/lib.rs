@@ -609,6 +609,7 @@ fn plan<'py>(
             criterion: criterion.parse().map_err(err)?,
             ..Default::default()
         },
+        ..Default::default()
     };
     let planned = design::plan(&*model.mech, &cands, &opts, None, &mut |_| {}).map_err(err)?;
     let ix = &planned.selection.indices;
