@@ -601,10 +601,7 @@ fn gauss_newton<M: Mechanism + Clone>(
     // The covariance of the minimum-norm solution over the parameters with an effect.
     let covariance = system.covariance(&effective, Some(ident.rank)) * (sigma0 * sigma0);
     let std_dev = DVector::from_iterator(p, (0..p).map(|i| covariance[(i, i)].max(0.0).sqrt()));
-    let information = match &system {
-        System::Gram { n, .. } => n.clone(),
-        System::Triangular { r, .. } => r.tr_mul(r),
-    };
+    let information = system.gram();
     Ok(Identification {
         model,
         identifiability: ident,
@@ -625,10 +622,7 @@ fn gauss_newton<M: Mechanism + Clone>(
 /// without holding the rows × p Jacobian (memory grows with the parameters, not the poses).
 pub fn information<M: Mechanism + ?Sized>(model: &M, data: &[Measurement], noise: &Noise) -> Result<DMatrix<f64>, CalibError> {
     let ev = reduced::evaluate(model, data, noise, Loss::Squares)?;
-    match reduced::factor(model, data, noise, &ev, Form::Gram)? {
-        System::Gram { n, .. } => Ok(n),
-        System::Triangular { r, .. } => Ok(r.transpose() * r),
-    }
+    Ok(reduced::factor(model, data, noise, &ev, Form::Gram)?.gram())
 }
 
 /// Identifiability of a mechanism's parameters from full-pose measurements at `inputs`: the

@@ -24,7 +24,7 @@ pub struct PoseErrors {
 
 /// The forward kinematics of `model` at every measurement's inputs, in parallel; the first pose
 /// (in data order) whose kinematics fail is the error.
-fn forward_all<M: Mechanism + ?Sized>(model: &M, data: &[Measurement]) -> Result<Vec<Pose>, CalibError> {
+pub fn forward_all<M: Mechanism + ?Sized>(model: &M, data: &[Measurement]) -> Result<Vec<Pose>, CalibError> {
     data.par_iter()
         .with_min_len(64)
         .enumerate()
@@ -36,26 +36,29 @@ fn forward_all<M: Mechanism + ?Sized>(model: &M, data: &[Measurement]) -> Result
 
 /// Errors of `model` at every measurement.
 pub fn pose_errors<M: Mechanism + ?Sized>(model: &M, data: &[Measurement]) -> Result<PoseErrors, CalibError> {
+    Ok(errors_at(&forward_all(model, data)?, data))
+}
+
+/// Errors of the predicted poses `reached` (one per measurement, e.g. from [`forward_all`])
+/// against `data`.
+pub fn errors_at(reached: &[Pose], data: &[Measurement]) -> PoseErrors {
     let mut position = Vec::with_capacity(data.len());
     let mut orientation = Vec::with_capacity(data.len());
     let mut tool_axis = Vec::with_capacity(data.len());
-    for (p, o, a) in forward_all(model, data)?.into_iter().zip(data).map(|(t, m)| {
-        let (p, o) = measure::errors(&m.obs, &t);
-        let axis = match &m.obs {
-            Observation::Pose(meas) => Some(tool_axis_angle(meas, &t)),
-            _ => None,
-        };
-        (p, o, axis)
-    }) {
+    for (t, m) in reached.iter().zip(data) {
+        let (p, o) = measure::errors(&m.obs, t);
         position.push(p);
         orientation.push(o);
-        tool_axis.push(a);
+        tool_axis.push(match &m.obs {
+            Observation::Pose(meas) => Some(tool_axis_angle(meas, t)),
+            _ => None,
+        });
     }
-    Ok(PoseErrors {
+    PoseErrors {
         position,
         orientation,
         tool_axis,
-    })
+    }
 }
 
 /// Summary statistics of [`PoseErrors`], in mm and degrees.
@@ -153,7 +156,13 @@ pub struct Outlier {
 /// e.g. `threshold = 3` flags residuals beyond 3σ. Components below 1e-6 mm / 1e-8 rad are never
 /// flagged (noise-free data would otherwise flag round-off).
 pub fn outliers<M: Mechanism + ?Sized>(model: &M, data: &[Measurement], threshold: f64) -> Result<Vec<Outlier>, CalibError> {
-    let res: Vec<_> = forward_all(model, data)?
+    Ok(outliers_at(&forward_all(model, data)?, data, threshold))
+}
+
+/// [`outliers`] of the predicted poses `reached` (one per measurement, e.g. from
+/// [`forward_all`]).
+pub fn outliers_at(reached: &[Pose], data: &[Measurement], threshold: f64) -> Vec<Outlier> {
+    let res: Vec<_> = reached
         .iter()
         .zip(data)
         .map(|(t, m)| (measure::residual(&m.obs, t), measure::errors(&m.obs, t)))
@@ -190,7 +199,7 @@ pub fn outliers<M: Mechanism + ?Sized>(model: &M, data: &[Measurement], threshol
             });
         }
     }
-    Ok(out)
+    out
 }
 
 #[cfg(test)]

@@ -159,6 +159,14 @@ impl System {
         g.dot(step) - 0.5 * p * p
     }
 
+    /// The information matrix `AᵀA` (p × p).
+    pub fn gram(&self) -> DMatrix<f64> {
+        match self {
+            System::Triangular { r, .. } => r.tr_mul(r),
+            System::Gram { n, .. } => n.clone(),
+        }
+    }
+
     /// The unit-weight covariance on `cols` (see [`super::solve::covariance`]).
     pub fn covariance(&self, cols: &[usize], rank: Option<usize>) -> DMatrix<f64> {
         match self {

@@ -10,7 +10,7 @@ use crate::io::model_file::Tolerances;
 use crate::measure::{Measurement, Noise};
 use crate::model::Mechanism;
 use crate::params::Unit;
-use crate::validate::{outliers, pose_errors, ErrorStats, Outlier, PoseErrors};
+use crate::validate::{errors_at, forward_all, outliers_at, pose_errors, ErrorStats, Outlier, PoseErrors};
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
@@ -45,14 +45,16 @@ impl SetErrors {
         data: &[Measurement],
     ) -> Result<SetErrors, CalibError> {
         let before = pose_errors(nominal, data)?;
-        let after = pose_errors(calibrated, data)?;
+        // The calibrated poses once, for the errors and the outliers.
+        let reached = forward_all(calibrated, data)?;
+        let after = errors_at(&reached, data);
         Ok(SetErrors {
             source: source.into(),
             before_stats: ErrorStats::of(&before),
             after_stats: ErrorStats::of(&after),
             before,
             after,
-            outliers: outliers(calibrated, data, 3.0)?,
+            outliers: outliers_at(&reached, data, 3.0),
             ids: (0..data.len() as i64).collect(),
             inputs: data.iter().map(|m| m.q.clone()).collect(),
         })
