@@ -386,15 +386,42 @@ unsafe fn low_rank_one_avx2<const R: usize>(a: &[f64], k: usize, u: &[f64], g: &
 #[inline(always)]
 #[allow(clippy::needless_range_loop)] // fixed-size R×R kernels read best with indices
 fn exact_one_body<const R: usize>(a: &[f64], k: usize, f: &[f64], w: &mut [f64], g: &mut [f64]) {
-    w.iter_mut().for_each(|v| *v = 0.0);
-    // W = A F, F upper triangular: row c of F has entries c..k.
-    for c in 0..k {
-        let fr = &f[c * k + c..(c + 1) * k];
-        for r in 0..R {
-            let x = a[r * k + c];
-            for (wv, fv) in w[r * k + c..(r + 1) * k].iter_mut().zip(fr) {
-                *wv += x * fv;
+    // W = A F, F upper triangular: four columns j at a time with the R rows in registers. Each
+    // w[r][j] is the sum over c = 0..=j in increasing c, as a plain row-by-row product gives it
+    // (the lanes of columns j < c add an exact zero), so the result does not depend on the
+    // blocking.
+    let rows: [&[f64]; R] = std::array::from_fn(|r| &a[r * k..(r + 1) * k]);
+    let mut j0 = 0;
+    while j0 + 4 <= k {
+        let mut acc = [[0.0f64; 4]; R];
+        for c in 0..j0 + 4 {
+            let mut fv: [f64; 4] = f[c * k + j0..c * k + j0 + 4].try_into().expect("four columns");
+            if c > j0 {
+                for (l, v) in fv.iter_mut().enumerate() {
+                    if j0 + l < c {
+                        *v = 0.0;
+                    }
+                }
             }
+            for r in 0..R {
+                let x = rows[r][c];
+                for l in 0..4 {
+                    acc[r][l] += x * fv[l];
+                }
+            }
+        }
+        for r in 0..R {
+            w[r * k + j0..r * k + j0 + 4].copy_from_slice(&acc[r]);
+        }
+        j0 += 4;
+    }
+    for j in j0..k {
+        for r in 0..R {
+            let mut s = 0.0;
+            for c in 0..=j {
+                s += rows[r][c] * f[c * k + j];
+            }
+            w[r * k + j] = s;
         }
     }
     // G = W Wᵀ with independent accumulators (each entry still summed in column order).

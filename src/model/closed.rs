@@ -38,7 +38,7 @@ use super::{check_inputs, Mechanism};
 use crate::error::KinError;
 use crate::params::{Param, Unit};
 use crate::se3::{self, Pose};
-use nalgebra::{DMatrix, DVector, Matrix3, Matrix6xX, Rotation3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{DMatrix, DVector, Dyn, Matrix3, Matrix6xX, Rotation3, Translation3, UnitQuaternion, Vector3, LU};
 use num_dual::DualNum;
 use rand::{Rng, RngExt};
 
@@ -48,6 +48,7 @@ impl<T: DualNum<Primitive = f64> + Copy + Send + Sync> Scalar for T {}
 
 mod derivatives;
 mod mechanism;
+mod reduced_inverse;
 /// Small generic 3-vector / 3×3-matrix algebra on [`Scalar`]s (row-major arrays), used to write
 /// constraint equations once for `f64` and dual numbers.
 pub mod v3;
@@ -207,15 +208,19 @@ fn condition(m: &DMatrix<f64>) -> f64 {
     }
 }
 
+/// LU factors of a square Jacobian.
+type Factors = LU<f64, Dyn, Dyn>;
+
 /// `Some(condition number)` when that of the square matrix `m` exceeds `limit`, `None` when it does
-/// not. The bound `cond₂ ≤ n·‖m‖₁·‖m⁻¹‖₁` from the inverse settles the common, well-conditioned
-/// case without the SVD (several times dearer for a 6 × 6 matrix, and this runs once per forward
-/// kinematics); near the limit the SVD decides.
-fn ill_conditioned(m: &DMatrix<f64>, limit: f64) -> Option<f64> {
+/// not. The bound `cond₂ ≤ n·‖m‖₁·‖m⁻¹‖₁` from the inverse (by `lu`, the LU factors of `m`, which
+/// the caller reuses for its solves) settles the common, well-conditioned case without the SVD
+/// (several times dearer for a 6 × 6 matrix, and this runs once per forward kinematics); near the
+/// limit the SVD decides.
+fn ill_conditioned(m: &DMatrix<f64>, lu: &Factors, limit: f64) -> Option<f64> {
     if m.iter().any(|v| !v.is_finite()) {
         return Some(f64::INFINITY);
     }
-    if let Some(inv) = m.clone().try_inverse() {
+    if let Some(inv) = lu.try_inverse() {
         let norm1 = |a: &DMatrix<f64>| a.column_iter().map(|c| c.iter().map(|v| v.abs()).sum::<f64>()).fold(0.0, f64::max);
         let bound = m.nrows() as f64 * norm1(m) * norm1(&inv);
         if bound.is_finite() && bound <= limit {
@@ -364,9 +369,9 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
         self.solve_platform(q, seed).map(|(x, _)| x)
     }
 
-    /// [`ClosedLoop::platform_pose`] and the constraint Jacobian `F_X` at the solution (computed
-    /// for the conditioning check, and reused by the identification Jacobian).
-    fn solve_platform(&self, q: &[f64], seed: Option<&[f64; 6]>) -> Result<([f64; 6], DMatrix<f64>), KinError> {
+    /// [`ClosedLoop::platform_pose`] and the LU factors of the constraint Jacobian `F_X` at the
+    /// solution (computed for the conditioning check, and reused by the identification Jacobian).
+    fn solve_platform(&self, q: &[f64], seed: Option<&[f64; 6]>) -> Result<([f64; 6], Factors), KinError> {
         check_inputs(q, self.system.input_names().len())?;
         self.check_strokes(q)?;
         let mut x = seed.copied().unwrap_or_else(|| self.system.home());
@@ -425,15 +430,16 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
     /// `x` if the constraint Jacobian `F_X` there is within the solver's condition limit (the
     /// platform is not at a singularity), checked once at the solution rather than at every
     /// Newton iterate.
-    fn well_conditioned(&self, x: [f64; 6], q: &[f64]) -> Result<([f64; 6], DMatrix<f64>), KinError> {
+    fn well_conditioned(&self, x: [f64; 6], q: &[f64]) -> Result<([f64; 6], Factors), KinError> {
         let fx = self.jacobian_x_raw(&x, q);
-        if let Some(cond) = ill_conditioned(&fx, self.solver.max_condition) {
+        let lu = fx.clone().lu();
+        if let Some(cond) = ill_conditioned(&fx, &lu, self.solver.max_condition) {
             return Err(KinError::Singular {
                 what: "forward kinematics (constraint Jacobian F_X)".into(),
                 condition: cond,
             });
         }
-        Ok((x, fx))
+        Ok((x, lu))
     }
 
     /// Tool pose of platform coordinates `x` at the current frames.
@@ -526,16 +532,23 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
                 Pose::from_parts(target.translation, swing)
             }
         };
-        let x0 = self.platform_of_tool(&seed);
-        let q0 = self.system.inputs_for_pose(&x0, &self.geometry)?;
         let n = 6 + nq;
-        let mut z: Vec<f64> = x0.iter().copied().chain(q0.iter().copied()).collect();
         let eval = |z: &[f64]| -> Vec<f64> {
             let x = [z[0], z[1], z[2], z[3], z[4], z[5]];
             let mut e: Vec<f64> = self.system.equations(&x, &z[6..], &self.geometry).to_vec();
             e.extend(self.task_equations(&x, target));
             e
         };
+        // The reduced solve first (the free twist only); kept only if the full system holds.
+        if let Some((q, x)) = self.inverse_reduced(&seed) {
+            let z: Vec<f64> = x.iter().copied().chain(q.iter().copied()).collect();
+            if max_abs(&eval(&z)) <= self.solver.tolerance {
+                return self.finish_inverse(z, target);
+            }
+        }
+        let x0 = self.platform_of_tool(&seed);
+        let q0 = self.system.inputs_for_pose(&x0, &self.geometry)?;
+        let mut z: Vec<f64> = x0.iter().copied().chain(q0.iter().copied()).collect();
         let mut f = eval(&z);
         let mut norm = max_abs(&f);
         for _ in 0..self.solver.max_iterations {
@@ -577,8 +590,15 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
                 residual: norm,
             });
         }
-        // Conditioning checked once, at the solution (a singular pose of the task there).
-        if let Some(cond) = ill_conditioned(&self.ik_jacobian(&z, target), self.solver.max_condition) {
+        self.finish_inverse(z, target)
+    }
+
+    /// The end of an inverse solve at its solution `z = (X, q)`: conditioning checked once (a
+    /// singular pose of the task there), then the strokes.
+    fn finish_inverse(&self, z: Vec<f64>, target: &Pose) -> Result<(Vec<f64>, [f64; 6]), KinError> {
+        let jac = self.ik_jacobian(&z, target);
+        let lu = jac.clone().lu();
+        if let Some(cond) = ill_conditioned(&jac, &lu, self.solver.max_condition) {
             return Err(KinError::Singular {
                 what: format!("{} inverse kinematics", self.system.name()),
                 condition: cond,
@@ -615,9 +635,8 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
     /// Platform coordinates and their sensitivity `dX/dθ` (6 × all parameters; zero columns for
     /// the frame parameters) by the implicit function theorem `dX = −F_X⁻¹·F_θ·dθ`.
     pub fn pose_sensitivity(&self, q: &[f64], seed: Option<&[f64; 6]>) -> Result<([f64; 6], DMatrix<f64>), KinError> {
-        let (x, fx) = self.solve_platform(q, seed)?;
+        let (x, lu) = self.solve_platform(q, seed)?;
         let ft = self.jacobian_theta_raw(&x, q);
-        let lu = fx.lu();
         let sol = lu.solve(&(-ft)).ok_or_else(|| KinError::Singular {
             what: "identification Jacobian (F_X)".into(),
             condition: f64::INFINITY,

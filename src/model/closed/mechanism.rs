@@ -1,7 +1,7 @@
 //! [`ClosedLoop`] as a [`Mechanism`]: forward kinematics with the identification Jacobian,
 //! inverse kinematics, retraction of the geometry, sampling of configurations.
 use super::*;
-use num_dual::Dual64;
+use num_dual::DualSVec64;
 
 impl<C: ConstraintSystem> Mechanism for ClosedLoop<C> {
     fn name(&self) -> &str {
@@ -88,23 +88,53 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
         let r = se3::rotation_matrix(&pose);
         let np = self.n_params_total();
         let ng = self.geometry.len();
+        // Twist of the tool pose per unit of each of the 15 variables (X, tool, base), then the
+        // chain rule: a geometric column is the X columns times dX/dθ.
+        let per_x: [[f64; 6]; 6] = self.tool_twists(&x, 0, &p, &r);
         let mut jac = Matrix6xX::zeros(np);
-        for j in 0..np {
-            let xd: [Dual64; 6] = std::array::from_fn(|i| Dual64::new(x[i], dx[(i, j)]));
-            let tool: [Dual64; 3] =
-                std::array::from_fn(|i| Dual64::new(self.tool[i], if self.frame_errors && j == ng + i { 1.0 } else { 0.0 }));
-            let base: [Dual64; 6] =
-                std::array::from_fn(|i| Dual64::new(self.base[i], if self.frame_errors && j == ng + 3 + i { 1.0 } else { 0.0 }));
-            let (pd, rd) = tool_pose_generic(&xd, &tool, &base);
-            let dp = Vector3::new(pd[0].eps, pd[1].eps, pd[2].eps);
-            let dr = Matrix3::from_fn(|a, b| rd[a][b].eps);
-            let w = se3::unskew(&(dr * r.transpose()));
-            let v = dp - w.cross(&p);
-            for k in 0..3 {
-                jac[(k, j)] = v[k];
-                jac[(3 + k, j)] = w[k];
+        for j in 0..ng {
+            for (i, t) in per_x.iter().enumerate() {
+                let d = dx[(i, j)];
+                if d != 0.0 {
+                    for k in 0..6 {
+                        jac[(k, j)] += t[k] * d;
+                    }
+                }
+            }
+        }
+        if self.frame_errors {
+            let per_frame: [[f64; 6]; 9] = self.tool_twists(&x, 6, &p, &r);
+            for (f, t) in per_frame.iter().enumerate() {
+                for k in 0..6 {
+                    jac[(k, ng + f)] = t[k];
+                }
             }
         }
         Ok((pose, jac))
+    }
+
+    /// Spatial twists of the tool pose `(p, r)` per unit of the variables `from..from + N` of
+    /// `(X, tool, base)` (15 in all), in one pass of `N`-lane dual numbers.
+    fn tool_twists<const N: usize>(&self, x: &[f64; 6], from: usize, p: &Vector3<f64>, r: &Matrix3<f64>) -> [[f64; 6]; N] {
+        let var = |v: f64, i: usize| {
+            let d = DualSVec64::<N>::from_re(v);
+            if i >= from && i < from + N {
+                d.derivative(i - from)
+            } else {
+                d
+            }
+        };
+        let xd: [DualSVec64<N>; 6] = std::array::from_fn(|i| var(x[i], i));
+        let tool: [DualSVec64<N>; 3] = std::array::from_fn(|i| var(self.tool[i], 6 + i));
+        let base: [DualSVec64<N>; 6] = std::array::from_fn(|i| var(self.base[i], 9 + i));
+        let (pd, rd) = tool_pose_generic(&xd, &tool, &base);
+        let lane = |d: &DualSVec64<N>, k: usize| d.eps.0.as_ref().map_or(0.0, |e| e[k]);
+        std::array::from_fn(|k| {
+            let dp = Vector3::new(lane(&pd[0], k), lane(&pd[1], k), lane(&pd[2], k));
+            let dr = Matrix3::from_fn(|a, b| lane(&rd[a][b], k));
+            let w = se3::unskew(&(dr * r.transpose()));
+            let v = dp - w.cross(p);
+            [v[0], v[1], v[2], w[0], w[1], w[2]]
+        })
     }
 }
