@@ -272,3 +272,55 @@ fn jacobian_from_a_known_pose_equals_the_jacobian_from_home() {
         assert!((&j0 - &j1).norm() <= 1e-8 * j0.norm(), "{:e}", (&j0 - &j1).norm() / j0.norm());
     }
 }
+
+/// The reduced inverse (only the free twist solved, inputs from the closed form) gives the full
+/// Newton's answer on the 5-DOF machine (one free coordinate) and the Stewart platform (none),
+/// at random workspace poses and at poses with a twist about the tool axis in the target, and
+/// the same errors where the target cannot be reached.
+#[test]
+fn reduced_inverse_gives_the_full_newton_answer() {
+    let pm5 = Pm5::mechanism(Parasitic::Physical);
+    let stewart = Stewart::mechanism(StewartGeometry::default());
+    fn compare<C: ConstraintSystem>(m: &ClosedLoop<C>, seed: u64) -> (f64, f64, usize) {
+        let full = m.clone().with_solver(SolverOptions {
+            reduced_inverse: false,
+            ..SolverOptions::default()
+        });
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let ws = m.system().workspace();
+        let (mut dq, mut dx, mut both_fail) = (0.0f64, 0.0f64, 0);
+        for i in 0..300 {
+            let mut x = ws.sample(&mut rng);
+            if i % 3 == 0 {
+                // Beyond the workspace: some of these cannot be reached at all.
+                x[0] *= 4.0;
+                x[2] *= 1.6;
+            }
+            let mut target = m.tool_pose_of(&x);
+            if i % 2 == 1 {
+                // A twist about the tool axis the 5-DOF machine must undo.
+                target *= nalgebra::UnitQuaternion::from_axis_angle(&nalgebra::Vector3::z_axis(), 0.3);
+            }
+            match (m.inverse_with_pose(&target), full.inverse_with_pose(&target)) {
+                (Ok((qa, xa)), Ok((qb, xb))) => {
+                    dq = qa.iter().zip(&qb).fold(dq, |d, (a, b)| d.max((a - b).abs()));
+                    dx = xa.iter().zip(&xb).fold(dx, |d, (a, b)| d.max((a - b).abs()));
+                }
+                (Err(a), Err(b)) => {
+                    assert_eq!(std::mem::discriminant(&a), std::mem::discriminant(&b), "{a} / {b}");
+                    both_fail += 1;
+                }
+                (a, b) => panic!("reduced {a:?}, full {b:?} at {x:?}"),
+            }
+        }
+        (dq, dx, both_fail)
+    }
+    for (name, (dq, dx, fails)) in [("pm5", compare(&pm5, 31)), ("stewart", compare(&stewart, 32))] {
+        println!("{name}: reduced vs full Newton: max |Δq| {dq:.2e}, max |ΔX| {dx:.2e}; {fails} unreachable by both");
+        assert!(dq < 1e-9 && dx < 1e-9, "{name}: {dq} {dx}");
+        assert!(
+            fails > 0 && fails < 200,
+            "{name}: {fails} failures: the test should see both outcomes"
+        );
+    }
+}

@@ -6,7 +6,7 @@
 //! frames, and the system's per-limb closed form gives the inputs `q(X)` that satisfy the limb
 //! equations. What is left are the constraints the inputs do not drive (the parasitic-motion
 //! equation of the 5-DOF machine): `6 − inputs` equations in `6 − dof` unknowns, solved here by
-//! Gauss–Newton with a central-difference derivative. That is one scalar equation per candidate
+//! Gauss–Newton with a secant derivative (one evaluation per step). That is one scalar equation per candidate
 //! for the 5-DOF machine and none for the Stewart platform, instead of Newton on the
 //! `6 + inputs` unknowns `(X, q)` with an automatic-differentiation Jacobian per step.
 //!
@@ -52,43 +52,44 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
         let mut psi = 0.0;
         let (mut x, mut q, mut f) = self.at_twist(seed, psi)?;
         let mut norm = max_abs(&f);
+        if norm <= tol {
+            return Some((q, x));
+        }
+        if !free {
+            return None;
+        }
+        // The slope df/dψ: a forward difference first, then secants through the iterates (one
+        // evaluation per step); a step shorter than the difference step keeps the last slope.
+        let (_, _, f1) = self.at_twist(seed, STEP)?;
+        let mut slope: [f64; 6] = std::array::from_fn(|k| (f1[k] - f[k]) / STEP);
         for _ in 0..self.solver.max_iterations {
-            if norm <= tol {
-                return Some((q, x));
-            }
-            if !free {
-                return None;
-            }
-            let (_, _, fp) = self.at_twist(seed, psi + STEP)?;
-            let (_, _, fm) = self.at_twist(seed, psi - STEP)?;
-            let mut jj = 0.0;
-            let mut jf = 0.0;
-            for k in 0..6 {
-                let j = (fp[k] - fm[k]) / (2.0 * STEP);
-                jj += j * j;
-                jf += j * f[k];
-            }
+            let jj: f64 = slope.iter().map(|j| j * j).sum();
+            let jf: f64 = slope.iter().zip(&f).map(|(j, v)| j * v).sum();
             if !(jj > 0.0 && jj.is_finite()) {
                 return None;
             }
             let step = -jf / jj;
             let mut s = 1.0;
-            let mut accepted = false;
+            let mut accepted = None;
             for _ in 0..MAX_BACKTRACKS {
                 if let Some(p) = self.at_twist(seed, psi + s * step) {
-                    let nt = max_abs(&p.2);
-                    if nt < norm {
-                        psi += s * step;
-                        (x, q, f) = p;
-                        norm = nt;
-                        accepted = true;
+                    if max_abs(&p.2) < norm {
+                        accepted = Some(p);
                         break;
                     }
                 }
                 s *= 0.5;
             }
-            if !accepted {
-                return None;
+            let (xn, qn, fn_) = accepted?;
+            let dpsi = s * step;
+            if dpsi.abs() >= STEP {
+                slope = std::array::from_fn(|k| (fn_[k] - f[k]) / dpsi);
+            }
+            psi += dpsi;
+            (x, q, f) = (xn, qn, fn_);
+            norm = max_abs(&f);
+            if norm <= tol {
+                return Some((q, x));
             }
         }
         (norm <= tol).then_some((q, x))
