@@ -36,12 +36,12 @@ use rayon::prelude::*;
 /// `F_q` rank-deficient: it loses one). `None` when `F_X` is singular.
 pub fn actuator_condition<C: ConstraintSystem>(mech: &ClosedLoop<C>, x: &[f64; 6], q: &[f64], length_scale: f64) -> Option<f64> {
     let (fx, fq) = mech.actuator_jacobians(x, q).ok()?;
-    condition_of(&fx, &fq, mech.system().task().dof(), length_scale)
+    condition_of(fx, &fq, mech.system().task().dof(), length_scale)
 }
 
 /// The actuator-Jacobian condition number of [`actuator_condition`] from `F_X` and `F_q`.
-fn condition_of(fx: &DMatrix<f64>, fq: &DMatrix<f64>, rows: usize, length_scale: f64) -> Option<f64> {
-    let dxdq = fx.clone().lu().solve(&(-fq))?;
+fn condition_of(fx: DMatrix<f64>, fq: &DMatrix<f64>, rows: usize, length_scale: f64) -> Option<f64> {
+    let dxdq = fx.lu().solve(&(-fq))?;
     let mut m = DMatrix::zeros(rows, fq.ncols());
     for r in 0..rows {
         let s = if r < 3 { 1.0 } else { length_scale };
@@ -84,7 +84,7 @@ fn classify<C: ConstraintSystem>(mech: &ClosedLoop<C>, x: &[f64; 6], filter: &Ca
     // F_X and F_q are the upper blocks of the inverse solve's Jacobian at (X, q).
     let fx = jac.view((0, 0), (6, 6)).into_owned();
     let fq = jac.view((0, 6), (6, q.len())).into_owned();
-    let cond = match condition_of(&fx, &fq, mech.system().task().dof(), filter.length_scale) {
+    let cond = match condition_of(fx, &fq, mech.system().task().dof(), filter.length_scale) {
         Some(c) => c,
         None => return Outcome::NearSingular,
     };

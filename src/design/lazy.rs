@@ -60,6 +60,16 @@ const FULL_PASS: usize = 5;
 /// round-off in the bounds).
 const MARGIN: f64 = 1e-10;
 
+/// Whether a current `gain` beats every candidate whose stale bound is at most `bound`.
+fn settles(gain: f64, bound: f64) -> bool {
+    gain > bound + MARGIN * (1.0 + bound.abs())
+}
+
+/// Larger gain first, then lower index.
+fn by_gain(a: &(usize, f64), b: &(usize, f64)) -> std::cmp::Ordering {
+    b.1.total_cmp(&a.1).then(a.0.cmp(&b.0))
+}
+
 /// A block that missed more additions than this is recomputed from `F` instead of updated.
 fn max_pending(k: usize, r: usize) -> usize {
     // Update: r²k per addition; recompute: r·k²/2 + r²k/2.
@@ -103,7 +113,7 @@ impl<'a> LazyGains<'a> {
         let m = DMatrix::zeros(k, k);
         let (f, _) = inverse_factor(&m, ridge)?;
         let mut order: Vec<usize> = (0..n).collect();
-        order.par_sort_unstable_by(|a, b| bound[*b].total_cmp(&bound[*a]).then(a.cmp(b)));
+        order.par_sort_unstable_by(|a, b| by_gain(&(*a, bound[*a]), &(*b, bound[*b])));
         Ok(LazyGains {
             blocks,
             ridge,
@@ -193,60 +203,41 @@ impl<'a> LazyGains<'a> {
         gains
     }
 
+    /// Bring the candidates `idx` (increasing, distinct) up to date, record their gains as their
+    /// bounds, and return the `need` best of them (in no particular order).
+    fn refresh_top(&mut self, idx: &[usize], need: usize) -> Vec<(usize, f64)> {
+        let gains = self.refresh_batch(idx);
+        let mut fresh: Vec<(usize, f64)> = idx.iter().copied().zip(gains).collect();
+        for &(i, g) in &fresh {
+            self.bound[i] = g;
+        }
+        if fresh.len() > need {
+            fresh.select_nth_unstable_by(need - 1, by_gain);
+            fresh.truncate(need);
+        }
+        fresh
+    }
+
     /// The `need` unselected candidates of largest current gain, best first (ties by lower
     /// index), with their gains.
     pub fn top(&mut self, need: usize) -> Vec<(usize, f64)> {
-        let by_gain = |a: &(usize, f64), b: &(usize, f64)| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0));
+        if self.full_pass_next {
+            return self.top_by_full_pass(need);
+        }
         // `order` holds the unselected candidates by decreasing bound: walk it in batches, every
         // candidate not yet reached has a bound ≤ that of the next one.
         let mut best: Vec<(usize, f64)> = Vec::new();
         let mut pos = 0;
-        if self.full_pass_next {
-            // Most bounds are about to be brought up to date anyway: one pass in index order
-            // reads the blocks sequentially instead of scattered (several times faster).
-            let mut idx = self.order.clone();
-            idx.sort_unstable();
-            let gains = self.refresh_batch(&idx);
-            let stale: Vec<f64> = idx.iter().map(|&i| self.bound[i]).collect();
-            let mut fresh: Vec<(usize, f64)> = idx.iter().copied().zip(gains).collect();
-            for &(i, g) in &fresh {
-                self.bound[i] = g;
-            }
-            if fresh.len() > need {
-                fresh.select_nth_unstable_by(need - 1, by_gain);
-                fresh.truncate(need);
-            }
-            best = fresh;
-            best.sort_by(by_gain);
-            // How many the lazy walk would have evaluated: the bounds above the answer's last gain.
-            let last = best.last().map_or(f64::NEG_INFINITY, |b| b.1);
-            let walked = stale.iter().filter(|&&b| last <= b + MARGIN * (1.0 + b.abs())).count();
-            self.full_pass_next = FULL_PASS * walked > idx.len();
-            self.reorder(idx.len());
-            return best;
-        }
         while pos < self.order.len() {
-            if best.len() >= need {
-                let next = self.bound[self.order[pos]];
-                if best[need - 1].1 > next + MARGIN * (1.0 + next.abs()) {
-                    break;
-                }
+            if best.len() >= need && settles(best[need - 1].1, self.bound[self.order[pos]]) {
+                break;
             }
             let batch = (4 * need).max(MIN_BATCH).max(pos / 8);
             let end = (pos + batch).min(self.order.len());
             // In index order, so the blocks and leverages are read sequentially.
             let mut idx = self.order[pos..end].to_vec();
             idx.sort_unstable();
-            let gains = self.refresh_batch(&idx);
-            let mut fresh: Vec<(usize, f64)> = idx.iter().copied().zip(gains.iter().copied()).collect();
-            for &(i, g) in &fresh {
-                self.bound[i] = g;
-            }
-            if fresh.len() > need {
-                fresh.select_nth_unstable_by(need - 1, by_gain);
-                fresh.truncate(need);
-            }
-            best.extend(fresh);
+            best.extend(self.refresh_top(&idx, need));
             best.sort_by(by_gain);
             best.truncate(need);
             pos = end;
@@ -257,21 +248,37 @@ impl<'a> LazyGains<'a> {
         best
     }
 
+    /// [`Self::top`] when most bounds are about to be brought up to date anyway: one pass over
+    /// every unselected candidate in index order reads the blocks sequentially instead of
+    /// scattered (several times faster).
+    fn top_by_full_pass(&mut self, need: usize) -> Vec<(usize, f64)> {
+        let idx: Vec<usize> = (0..self.excluded.len()).filter(|&i| !self.excluded[i]).collect();
+        let stale: Vec<f64> = idx.iter().map(|&i| self.bound[i]).collect();
+        let mut best = self.refresh_top(&idx, need);
+        best.sort_by(by_gain);
+        // How many the lazy walk would have evaluated: the bounds the answer's last gain does
+        // not settle.
+        let last = best.last().map_or(f64::NEG_INFINITY, |b| b.1);
+        let walked = stale.iter().filter(|&&b| !settles(last, b)).count();
+        self.full_pass_next = FULL_PASS * walked > idx.len();
+        self.reorder(idx.len());
+        best
+    }
+
     /// Restore the order by decreasing bound after the first `done` entries got new (smaller)
     /// bounds: sort them and merge them with the untouched, still sorted rest.
     fn reorder(&mut self, done: usize) {
         let bound = &self.bound;
         let key = |i: usize| (i, bound[i]);
-        let cmp = |a: &(usize, f64), b: &(usize, f64)| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0));
         let mut head: Vec<(usize, f64)> = self.order[..done].iter().map(|&i| key(i)).collect();
-        head.par_sort_unstable_by(cmp);
+        head.par_sort_unstable_by(by_gain);
         let tail = &self.order[done..];
         let mut merged = Vec::with_capacity(self.order.len());
         let mut h = head.iter().peekable();
         for &t in tail {
             let kt = key(t);
             while let Some(&&x) = h.peek() {
-                if cmp(&x, &kt) == std::cmp::Ordering::Greater {
+                if by_gain(&x, &kt) == std::cmp::Ordering::Greater {
                     break;
                 }
                 merged.push(x.0);

@@ -6,9 +6,9 @@
 //! frames, and the system's per-limb closed form gives the inputs `q(X)` that satisfy the limb
 //! equations. What is left are the constraints the inputs do not drive (the parasitic-motion
 //! equation of the 5-DOF machine): `6 − inputs` equations in `6 − dof` unknowns, solved here by
-//! Gauss–Newton with a secant derivative (one evaluation per step). That is one scalar equation per candidate
-//! for the 5-DOF machine and none for the Stewart platform, instead of Newton on the
-//! `6 + inputs` unknowns `(X, q)` with an automatic-differentiation Jacobian per step.
+//! Gauss–Newton with a secant derivative (one evaluation per step). That is one unknown for the
+//! 5-DOF machine and none for the Stewart platform, instead of Newton on the `6 + inputs`
+//! unknowns `(X, q)` with an automatic-differentiation Jacobian per step.
 //!
 //! [`ClosedLoop::inverse_with_pose`] tries this first and verifies its answer on the full system
 //! (same residual tolerance, same conditioning check); where it does not apply or does not
@@ -17,7 +17,8 @@ use super::{max_abs, ClosedLoop, ConstraintSystem, Task, MAX_BACKTRACKS};
 use crate::se3::Pose;
 use nalgebra::{UnitQuaternion, Vector3};
 
-/// Central-difference step of the free rotation (rad).
+/// Step of the first (forward) difference of the free rotation, and the shortest step that
+/// updates the secant slope (rad).
 const STEP: f64 = 1e-6;
 
 /// One evaluation at a value of the free coordinate: platform coordinates, inputs, residual.
