@@ -35,7 +35,8 @@ pub struct SimulateArgs {
     #[arg(long, default_value_t = 50)]
     pub poses: usize,
     /// Measure the identification set at the configurations of this file (the CSV of `kinecal
-    /// plan`, or any data file with the model's input columns) instead of at random ones;
+    /// plan`, a data file, or the commands of `kinecal compensate`: any file with the model's
+    /// input columns) instead of at random ones;
     /// `--poses` is then the file's row count.
     #[arg(long, value_name = "PLAN.csv")]
     pub at: Option<PathBuf>,
@@ -123,9 +124,9 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
 
     let planned: Option<Vec<Vec<f64>>> = match &a.at {
         Some(p) => {
-            let d = kinecal::io::data_file::read_data(p, &inputs, kinecal::io::data_file::InputColumns::Required)?;
-            anyhow::ensure!(!d.measurements.is_empty(), "{}: no configuration in the file", p.display());
-            Some(d.measurements.into_iter().map(|m| m.q).collect())
+            let qs = kinecal::io::data_file::read_configurations(p, &inputs)?;
+            anyhow::ensure!(!qs.is_empty(), "{}: no configuration in the file", p.display());
+            Some(qs)
         }
         None => None,
     };

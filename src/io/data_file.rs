@@ -276,6 +276,22 @@ pub fn read_data(path: &Path, inputs: &[InputSpec], input_columns: InputColumns)
     data_from_table(&table, inputs, input_columns)
 }
 
+/// The configurations of a file that holds the inputs of each row: a plan, a measurement data
+/// file (its measurement columns are not read) or an inputs-only file such as the commands of
+/// `kinecal compensate`. Inputs in mm / rad, one per row.
+pub fn read_configurations(path: &Path, inputs: &[InputSpec]) -> Result<Vec<Vec<f64>>, IoError> {
+    let table = super::table::read_table_with_gaps(path)?;
+    let inputs_only = table
+        .columns
+        .iter()
+        .all(|c| matches!(classify(path, c, inputs), Ok((Slot::Id | Slot::Input(_), _))));
+    if inputs_only {
+        return Ok(read_inputs(path, inputs)?.1);
+    }
+    let data = data_from_table(&table, inputs, InputColumns::Required)?;
+    Ok(data.measurements.into_iter().map(|m| m.q).collect())
+}
+
 /// Read an inputs-only file (an optional `id` column and one column per input, with unit
 /// suffixes), such as the commands `kinecal compensate` writes. Returns the ids (row numbers from
 /// 0 without an `id` column) and the inputs in mm / rad. Any other column is an error.

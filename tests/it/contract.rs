@@ -3,7 +3,8 @@
 //!
 //! * forward ∘ inverse kinematics returns the pose (proptest over configuration seeds);
 //! * the identification Jacobian equals central finite differences of the retraction (proptest);
-//! * noise-free data of a virtual prototype are fitted to 1e-9 mm, held-out poses included;
+//! * noise-free data of a virtual prototype (errors on the parameters its model file calibrates)
+//!   are fitted to 1e-9 mm, held-out poses included;
 //! * for the model-file kinds: the model file written and read back has the same kinematics, and
 //!   calibrating data moved by a rigid motion (frames estimated) gives the same held-out errors.
 //!
@@ -34,6 +35,21 @@ struct Kind {
     file: Option<fn() -> ModelFile>,
     /// `n` configurations at which it assembles, drawn from `seed`.
     configurations: fn(&dyn Mechanism, usize, u64) -> Vec<Vec<f64>>,
+    /// Largest held-out error (mm) of a noise-free fit with the frames estimated too.
+    framed_floor_mm: f64,
+}
+
+/// A noise-free fit with estimated frames is exact.
+const EXACT: f64 = 1e-8;
+
+impl Kind {
+    /// The parameters its model file calibrates (`[calibration]`), or all of them.
+    fn free(&self, m: &dyn Mechanism) -> Vec<usize> {
+        match self.file {
+            Some(file) => file().free_indices().unwrap(),
+            None => (0..m.params().len()).collect(),
+        }
+    }
 }
 
 fn builtin_file(name: &str) -> ModelFile {
@@ -96,42 +112,59 @@ const KINDS: &[Kind] = &[
         build: || example_file("head-3prs").build(),
         file: Some(|| example_file("head-3prs")),
         configurations: sampled,
+        framed_floor_mm: EXACT,
     },
     Kind {
         name: "6-RUS hexapod (limbs file)",
         build: || example_file("hexapod-6rus").build(),
         file: Some(|| example_file("hexapod-6rus")),
         configurations: sampled,
+        framed_floor_mm: EXACT,
+    },
+    Kind {
+        name: "linear delta (limbs file)",
+        build: || example_file("linear-delta").build(),
+        file: Some(|| example_file("linear-delta")),
+        configurations: sampled,
+        // With the frames estimated, the base frame takes the place of one rail's placement
+        // (rank): equivalent at first order only, the fit stops at 5.9e-6 mm (without frames
+        // it is exact, above). docs/parallel-machines.md.
+        framed_floor_mm: 1e-5,
     },
     Kind {
         name: "irb120 with joint terms",
         build: || irb120_with_terms().build(),
         file: Some(irb120_with_terms),
         configurations: terms_configurations,
+        framed_floor_mm: EXACT,
     },
     Kind {
         name: "irb120",
         build: || builtin_file("irb120").build(),
         file: Some(|| builtin_file("irb120")),
         configurations: sampled,
+        framed_floor_mm: EXACT,
     },
     Kind {
         name: "pm5",
         build: || builtin_file("pm5").build(),
         file: Some(|| builtin_file("pm5")),
         configurations: sampled,
+        framed_floor_mm: EXACT,
     },
     Kind {
         name: "stewart",
         build: || builtin_file("stewart").build(),
         file: Some(|| builtin_file("stewart")),
         configurations: sampled,
+        framed_floor_mm: EXACT,
     },
     Kind {
         name: "t3r1 chain B1",
         build: || Box::new(T3r1::default().chain(ChainId::B1)),
         file: None,
         configurations: t3r1_configurations,
+        framed_floor_mm: EXACT,
     },
 ];
 
@@ -192,10 +225,18 @@ fn noise_free_data_are_fitted_exactly() {
         let nominal = (k.build)();
         let mut rng = ChaCha8Rng::seed_from_u64(4);
         let qs = (k.configurations)(&*nominal, 40, 5);
-        let truth = perturbed(&nominal, &random_errors(&*nominal, &mut rng, 0.2, 0.05f64.to_radians(), None));
+        let free = k.free(&*nominal);
+        let truth = perturbed(
+            &nominal,
+            &random_errors(&*nominal, &mut rng, 0.2, 0.05f64.to_radians(), Some(&free)),
+        );
         let data = measure(&*truth, &qs);
         let held_out = measure(&*truth, &(k.configurations)(&*nominal, 10, 6));
-        let fit = identify(&nominal, &data, &Options::default()).unwrap();
+        let options = Options {
+            free: Some(free),
+            ..Options::default()
+        };
+        let fit = identify(&nominal, &data, &options).unwrap();
         assert!(fit.converged, "{}", k.name);
         let e = largest_position_error(&*fit.model, &held_out);
         assert!(e < 1e-9, "{}: held-out {e:.3e} mm", k.name);
@@ -234,7 +275,11 @@ fn model_files_round_trip_and_frames_do_not_change_the_result() {
         // Data in the model frame and the same data moved far away: the same held-out errors.
         let mut rng = ChaCha8Rng::seed_from_u64(8);
         let qs = (k.configurations)(&*nominal, 40, 9);
-        let truth = perturbed(&nominal, &random_errors(&*nominal, &mut rng, 0.2, 0.05f64.to_radians(), None));
+        let free = k.free(&*nominal);
+        let truth = perturbed(
+            &nominal,
+            &random_errors(&*nominal, &mut rng, 0.2, 0.05f64.to_radians(), Some(&free)),
+        );
         let ident = measure(&*truth, &qs);
         let valid = measure(&*truth, &(k.configurations)(&*nominal, 10, 10));
         let moved = |d: &[Measurement]| -> Vec<Measurement> {
@@ -257,7 +302,11 @@ fn model_files_round_trip_and_frames_do_not_change_the_result() {
             cal.report.validation.unwrap().after_stats.position_max_mm
         };
         let (a, b) = (held_out(ident.clone(), valid.clone()), held_out(moved(&ident), moved(&valid)));
-        assert!(a < 1e-8 && b < 1e-8, "{}: held-out {a:.3e} / moved {b:.3e} mm", k.name);
+        assert!(
+            a < k.framed_floor_mm && (a - b).abs() < 1e-9,
+            "{}: held-out {a:.3e} / moved {b:.3e} mm",
+            k.name
+        );
     }
 }
 

@@ -13,6 +13,7 @@ use std::path::Path;
 
 const HEAD: &str = include_str!("../../examples/models/head-3prs.toml");
 const HEXAPOD: &str = include_str!("../../examples/models/hexapod-6rus.toml");
+const DELTA: &str = include_str!("../../examples/models/linear-delta.toml");
 
 fn commands(path: &Path, angle_inputs: &[bool]) -> Vec<Vec<f64>> {
     read_table(path)
@@ -29,7 +30,9 @@ fn commands(path: &Path, angle_inputs: &[bool]) -> Vec<Vec<f64>> {
         .collect()
 }
 
-fn whole_workflow(text: &str, rank: u64) {
+/// `frames`: how the first identification takes the data's frames (`estimate` unless the
+/// machine's fit with frames is exact only at first order, see the linear delta).
+fn whole_workflow(text: &str, rank: u64, frames: &str) {
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
     std::fs::write(d.join("m.toml"), text).unwrap();
@@ -84,6 +87,8 @@ fn whole_workflow(text: &str, rank: u64) {
             "cal.toml",
             "--report",
             "r.html",
+            "--frames",
+            frames,
         ],
     );
     assert_eq!(rep["converged"], true, "{}", rep["verdict"]);
@@ -117,16 +122,49 @@ fn whole_workflow(text: &str, rank: u64) {
     }
     assert!(worst < 1e-6, "compensated: {worst}");
     assert!(nominal > 0.05, "nominal commands should miss: {nominal}");
+    // The commands file is a configurations file too: the true machine measured there (noise-free)
+    // stands on the targets.
+    ok(
+        d,
+        &[
+            "simulate",
+            "truth.toml",
+            "--at",
+            "cmd.csv",
+            "--error-mm",
+            "0",
+            "--error-deg",
+            "0",
+            "--out",
+            "reached.csv",
+            "--truth",
+            "same.toml",
+        ],
+    );
+    let reached = read_data(&d.join("reached.csv"), &model.inputs(), InputColumns::Required).unwrap();
+    assert_eq!(reached.measurements.len(), targets.len());
+    for (m, t) in reached.measurements.iter().zip(&targets) {
+        let kinecal::measure::Observation::Pose(x) = &m.obs else {
+            panic!("pose data expected")
+        };
+        let (dp, _) = commanded_error(truth.task(), t, x);
+        assert!(dp < 1e-6, "reached: {dp} mm");
+    }
 }
 
 #[test]
 fn a_3prs_head_from_its_model_file_through_the_whole_workflow() {
-    whole_workflow(HEAD, 33);
+    whole_workflow(HEAD, 33, "estimate");
 }
 
 #[test]
 fn a_6rus_hexapod_from_its_model_file_through_the_whole_workflow() {
-    whole_workflow(HEXAPOD, 66);
+    whole_workflow(HEXAPOD, 66, "estimate");
+}
+
+#[test]
+fn a_linear_delta_from_its_model_file_through_the_whole_workflow() {
+    whole_workflow(DELTA, 30, "model");
 }
 
 fn load(text: &str) -> Result<ModelFile, String> {
