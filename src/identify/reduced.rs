@@ -213,6 +213,20 @@ pub(crate) enum Form {
 
 /// The weighted Jacobian of `model` at `data` with the rows weighted as in `ev` (noise and loss
 /// weights) and the residual of `ev`, reduced to `form`.
+/// `acc += mᵀ·m` by matrixmultiply's blocked product (not nalgebra's dot-product `gemm_tr`),
+/// reading `mᵀ` through swapped strides instead of a transposed copy.
+fn add_gram(acc: &mut DMatrix<f64>, m: &DMatrix<f64>) {
+    let (r, c) = m.shape();
+    assert_eq!(acc.shape(), (c, c), "Gram accumulator of the wrong size");
+    let (rs, cs) = (r as isize, c as isize);
+    // SAFETY: `m` is an r×c column-major matrix (element (i, j) at i + j·r), so its transpose is
+    // read with row stride r and column stride 1 and `m` itself with strides 1 and r; `acc` is
+    // c×c column-major (strides 1 and c), owned mutably and not aliased by `m`.
+    unsafe {
+        matrixmultiply::dgemm(c, r, c, 1.0, m.as_ptr(), rs, 1, m.as_ptr(), 1, rs, 1.0, acc.as_mut_ptr(), 1, cs);
+    }
+}
+
 pub(crate) fn factor<M: Mechanism + ?Sized>(
     model: &M,
     data: &[Measurement],
@@ -283,8 +297,7 @@ pub(crate) fn factor<M: Mechanism + ?Sized>(
                     Form::Triangular => fold(&mut acc, block(b, be)?),
                     Form::Gram => {
                         let m = block(b, be)?;
-                        // A blocked matrix product (matrixmultiply), not nalgebra's dot-product `gemm_tr`.
-                        acc += m.transpose() * &m;
+                        add_gram(&mut acc, &m);
                     }
                 }
             }
@@ -353,5 +366,17 @@ mod tests {
             let (x, y) = (r[(i, i)].abs(), reference[(i, i)].abs());
             assert!((x - y).abs() <= 1e-12 * scale, "diagonal {i}: {x} against {y}");
         }
+    }
+
+    /// The strided product adds `mᵀm` to what the accumulator holds, for a tall block and a
+    /// non-square, non-symmetric start, exactly as nalgebra's product of the transposed copy.
+    #[test]
+    fn add_gram_accumulates_the_transposed_product() {
+        let m = DMatrix::from_fn(131, 9, |i, j| ((i * 5 + j * 3) % 17) as f64 * 0.25 - 2.0 + (j as f64).cos());
+        let start = DMatrix::from_fn(9, 9, |i, j| (i * 9 + j) as f64);
+        let mut acc = start.clone();
+        add_gram(&mut acc, &m);
+        let want = &start + m.transpose() * &m;
+        assert!((acc - want).amax() < 1e-12 * (m.transpose() * &m).amax());
     }
 }
