@@ -177,6 +177,13 @@ pub fn adjoint(t: &Pose) -> Matrix6<f64> {
     m
 }
 
+/// `Ad_T·ξ` without forming the matrix: `(R·v + p × R·ω, R·ω)`.
+pub fn adjoint_apply(t: &Pose, xi: &Twist) -> Twist {
+    let rw = t.rotation * ang(xi);
+    let rv = t.rotation * lin(xi);
+    twist(&(rv + t.translation.vector.cross(&rw)), &rw)
+}
+
 /// The small adjoint `ad_ξ = [[ω̂, v̂], [0, ω̂]]`: `ad_ξ η` is the Lie bracket `[ξ, η]`.
 pub fn ad(xi: &Twist) -> Matrix6<f64> {
     let mut m = Matrix6::zeros();

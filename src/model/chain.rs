@@ -201,7 +201,7 @@ impl SerialChain {
         let mut jq = DMatrix::zeros(6, self.joints.len());
         for (j, joint) in self.joints.iter().enumerate() {
             let a = g * self.initial[j];
-            jq.set_column(j, &(se3::adjoint(&a) * joint.twist()));
+            jq.set_column(j, &se3::adjoint_apply(&a, &joint.twist()));
             g = a * se3::exp_joint(&joint.twist(), q[j]);
         }
         Ok((g * self.tool(), jq))

@@ -66,6 +66,13 @@ proptest! {
         assert_relative_eq!(se3::adjoint(&(t1 * t2)), se3::adjoint(&t1) * se3::adjoint(&t2), epsilon = 1e-9, max_relative = 1e-10);
         assert_relative_eq!(se3::adjoint(&t1.inverse()), se3::adjoint(&t1).try_inverse().unwrap(), epsilon = 1e-8, max_relative = 1e-9);
     }
+
+    #[test]
+    fn adjoint_apply_is_the_adjoint_matrix_times_the_twist(a in axis(), b in axis(), v in lin(), u in lin(), s in -3.0..3.0f64) {
+        let t = se3::exp(&se3::twist(&v, &(a * s)));
+        let xi = se3::twist(&u, &(b * 0.7));
+        assert_relative_eq!(se3::adjoint_apply(&t, &xi), se3::adjoint(&t) * xi, epsilon = 1e-9, max_relative = 1e-12);
+    }
 }
 
 #[test]
