@@ -436,7 +436,9 @@ impl Mechanism for LimbMechanism {
             what: "identification Jacobian of a limb mechanism".into(),
             condition: f64::INFINITY,
         };
-        let top = if fz.is_square() {
+        let top = if let Some(top) = self.platform_jacobian_by_limbs(&fz, &fp) {
+            top
+        } else if fz.is_square() {
             let e = DMatrix::from_fn(fz.nrows(), 6, |r, c| if r == c { 1.0 } else { 0.0 });
             let y = fz
                 .transpose()

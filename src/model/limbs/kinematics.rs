@@ -154,24 +154,8 @@ impl LimbMechanism {
                 }
                 bk[12] = -r[row + k];
             }
-            let scale = b[..m].iter().flat_map(|bk| bk[..n].iter()).fold(0.0f64, |a, v| a.max(v.abs()));
-            for j in 0..n {
-                let p = (j..m).max_by(|&a, &c| b[a][j].abs().total_cmp(&b[c][j].abs()))?;
-                // (NaN fails too.)
-                if b[p][j].abs().partial_cmp(&(1e-9 * scale)) != Some(std::cmp::Ordering::Greater) {
-                    return None;
-                }
-                b.swap(j, p);
-                let (top, below) = b.split_at_mut(j + 1);
-                let pivot = &top[j];
-                for bk in below.iter_mut().take(m - j - 1) {
-                    let factor = bk[j] / pivot[j];
-                    if factor != 0.0 {
-                        for (x, y) in bk[j..].iter_mut().zip(&pivot[j..]) {
-                            *x -= factor * y;
-                        }
-                    }
-                }
+            if !eliminate(&mut b[..m], n) {
+                return None;
             }
             for bk in &b[n..m] {
                 if reduced == 6 {
@@ -208,6 +192,66 @@ impl LimbMechanism {
             }
         }
         Some(dz)
+    }
+
+    /// The platform rows of `−F_z⁻¹·F_θ` (the identification Jacobian) by the elimination of
+    /// [`step_by_limbs`](Self::step_by_limbs): limb `i`'s rows of `F_θ` are nonzero only in its
+    /// own parameters' columns, so eliminating its passive joints leaves `S_i·dζ + T_i·dθ_i = 0`
+    /// and `dζ = −S⁻¹·T·dθ`, a 6 × 6 solve. `None` where the step would be (then the caller
+    /// solves `F_z` whole).
+    pub(super) fn platform_jacobian_by_limbs(&self, fz: &DMatrix<f64>, fp: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+        if fz.nrows() != fz.ncols() {
+            return None;
+        }
+        let mut s = nalgebra::Matrix6::zeros();
+        let mut t = DMatrix::zeros(6, fp.ncols());
+        let mut reduced = 0;
+        let (mut row, mut col, mut pcol) = (0, 6, 0);
+        for (i, l) in self.limbs.iter().enumerate() {
+            let (m, p) = (l.rows(), l.n_params());
+            let n = self.passive.iter().filter(|&&(li, _)| li == i).count();
+            if n > m {
+                return None;
+            }
+            // Row k: passive columns 0..n, platform columns n..n+6, the limb's parameters after.
+            let mut b: Vec<Vec<f64>> = (0..m)
+                .map(|k| {
+                    let mut bk = Vec::with_capacity(n + 6 + p);
+                    bk.extend((0..n).map(|j| fz[(row + k, col + j)]));
+                    bk.extend((0..6).map(|j| fz[(row + k, j)]));
+                    bk.extend((0..p).map(|j| fp[(row + k, pcol + j)]));
+                    bk
+                })
+                .collect();
+            if !eliminate(&mut b, n) {
+                return None;
+            }
+            for bk in &b[n..m] {
+                if reduced == 6 {
+                    return None;
+                }
+                for j in 0..6 {
+                    s[(reduced, j)] = bk[n + j];
+                }
+                for j in 0..p {
+                    t[(reduced, pcol + j)] = bk[n + 6 + j];
+                }
+                reduced += 1;
+            }
+            row += m;
+            col += n;
+            pcol += p;
+        }
+        if reduced != 6 {
+            return None;
+        }
+        let lu = s.lu();
+        let d = lu.u().diagonal().map(f64::abs);
+        if !(d.min() > 1e-9 * d.max() && d.max().is_finite()) {
+            return None;
+        }
+        let mut out = -t;
+        lu.solve_mut(&mut out).then_some(out)
     }
 
     pub(super) fn home_passive(&self) -> Vec<f64> {
@@ -432,6 +476,42 @@ impl LimbMechanism {
     }
 }
 
+/// Gaussian elimination with partial pivoting of the first `n` columns of the rows `b` (a limb's
+/// equations): afterwards rows `0..n` are upper triangular in those columns and rows `n..` are
+/// zero there. `false` where a pivot is (nearly) zero or not finite.
+fn eliminate<R: AsMut<[f64]>>(b: &mut [R], n: usize) -> bool {
+    let m = b.len();
+    let mut scale = 0.0f64;
+    for bk in b.iter_mut() {
+        scale = bk.as_mut()[..n].iter().fold(scale, |a, v| a.max(v.abs()));
+    }
+    for j in 0..n {
+        let Some(p) = (j..m).max_by(|&a, &c| {
+            let (x, y) = (b[a].as_mut()[j].abs(), b[c].as_mut()[j].abs());
+            x.total_cmp(&y)
+        }) else {
+            return false;
+        };
+        // (NaN fails too.)
+        if b[p].as_mut()[j].abs().partial_cmp(&(1e-9 * scale)) != Some(std::cmp::Ordering::Greater) {
+            return false;
+        }
+        b.swap(j, p);
+        let (top, below) = b.split_at_mut(j + 1);
+        let pivot = top[j].as_mut();
+        for bk in below.iter_mut() {
+            let bk = bk.as_mut();
+            let factor = bk[j] / pivot[j];
+            if factor != 0.0 {
+                for (x, y) in bk[j..].iter_mut().zip(&pivot[j..]) {
+                    *x -= factor * y;
+                }
+            }
+        }
+    }
+    true
+}
+
 /// `[I | −[p]×]`: the velocity of point `p` under a spatial twist `(v, ω)`.
 pub(super) fn point_map(p: &Vector3<f64>) -> nalgebra::Matrix3x6<f64> {
     let mut m = nalgebra::Matrix3x6::zeros();
@@ -555,6 +635,27 @@ mod tests {
                 let blocked = m.step_by_limbs(&f, &r).expect("a square, regular closure");
                 let dense = lstsq(&f, &(-r), "closure").unwrap();
                 assert!((&blocked - &dense).amax() < 1e-10 * dense.amax(), "{m:?}", m = m.name);
+            }
+        }
+    }
+
+    /// The identification Jacobian's limb-by-limb elimination is the dense `−F_z⁻¹·F_θ`.
+    #[test]
+    fn the_limb_by_limb_jacobian_is_the_dense_one() {
+        for text in [
+            include_str!("../../../examples/models/stewart-limbs.toml"),
+            include_str!("../../../examples/models/hexapod-6rus.toml"),
+            include_str!("../../../examples/models/head-3prs.toml"),
+        ] {
+            let m = limbs(text);
+            for q in m.sample_configurations(5, 4).unwrap().unwrap() {
+                let (x, passive) = m.forward_full(&q).unwrap();
+                let joints = m.joints_of(&q, &passive);
+                let (_, fz) = m.closure(&x, &joints, true);
+                let fp = m.closure_params(&x, &joints);
+                let blocked = m.platform_jacobian_by_limbs(&fz, &fp).expect("a square, regular closure");
+                let dense = -fz.lu().solve(&fp).unwrap().rows(0, 6).into_owned();
+                assert!((&blocked - &dense).amax() < 1e-10 * dense.amax(), "{}", m.name);
             }
         }
     }
