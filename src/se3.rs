@@ -247,7 +247,9 @@ pub fn pose_from_rotation(r: &Matrix3<f64>, p: &Vector3<f64>) -> Pose {
 /// The pose with rotation matrix `r` (projected onto the nearest rotation, so a matrix read from
 /// a file or estimated from data may be slightly off) and translation `p`.
 pub fn pose_from_matrix(r: &Matrix3<f64>, p: &Vector3<f64>) -> Pose {
-    let rot = nalgebra::Rotation3::from_matrix(r);
+    // Müller et al.'s iteration (nalgebra's `from_matrix`) with a bound on its steps: a rotation
+    // slightly off converges in a few, a matrix of garbage (a corrupted file) must not loop forever.
+    let rot = nalgebra::Rotation3::from_matrix_eps(r, f64::EPSILON, 100, nalgebra::Rotation3::identity());
     Isometry3::from_parts(Translation3::from(*p), UnitQuaternion::from_rotation_matrix(&rot))
 }
 
@@ -356,6 +358,21 @@ mod tests {
             sum += term;
         }
         assert_relative_eq!(exp(&xi).to_homogeneous(), sum, epsilon = 1e-12);
+    }
+
+    /// A rotation slightly off is projected back; a matrix of garbage gives an answer (it used
+    /// to loop forever on a corrupted reflector coordinate).
+    #[test]
+    fn pose_from_matrix_projects_and_always_returns() {
+        let q = UnitQuaternion::from_euler_angles(0.3, -1.1, 2.0);
+        let r = q.to_rotation_matrix().into_inner() + Matrix3::from_element(1e-9);
+        let t = pose_from_matrix(&r, &Vector3::new(1.0, 2.0, 3.0));
+        assert!(t.rotation.angle_to(&q) < 1e-8);
+        for bad in [1e156, f64::NAN, f64::INFINITY] {
+            let mut m = Matrix3::identity();
+            m[(1, 2)] = bad;
+            let _ = pose_from_matrix(&m, &Vector3::zeros());
+        }
     }
 
     #[test]

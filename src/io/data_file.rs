@@ -270,6 +270,10 @@ pub fn join_files(inputs_path: &Path, measurements_path: &Path, inputs: &[InputS
     data_from_table(&merged, inputs, InputColumns::Required)
 }
 
+/// Largest measured coordinate a data file may hold (mm): 100 km, far beyond any tracker's range;
+/// a larger value is a corrupted number or a wrong unit, not a measurement.
+pub const MAX_COORDINATE_MM: f64 = 1e8;
+
 /// Read a measurement data file for a mechanism with `inputs` (see the module docs for columns).
 pub fn read_data(path: &Path, inputs: &[InputSpec], input_columns: InputColumns) -> Result<DataSet, IoError> {
     let table = super::table::read_table_with_gaps(path)?;
@@ -497,8 +501,17 @@ pub fn data_from_table(table: &Table, inputs: &[InputSpec], input_columns: Input
         let (mut p, mut quat, mut rpy) = (Vector3::zeros(), [0.0; 4], [0.0; 3]);
         let mut refl = [Vector3::zeros(); 3];
         let mut id = r as i64;
-        for ((slot, f), v) in slots.iter().zip(row) {
+        for (((slot, f), v), col) in slots.iter().zip(row).zip(&table.columns) {
             let v = v * f;
+            if matches!(slot, Slot::Pos(_) | Slot::Reflector(..)) && v.abs() > MAX_COORDINATE_MM {
+                return Err(IoError::AtLine {
+                    path: path.clone(),
+                    line,
+                    message: format!(
+                        "column '{col}': {v:.4e} mm is not a plausible coordinate (more than 100 km from the instrument; check the number and the column's unit)"
+                    ),
+                });
+            }
             match *slot {
                 Slot::Id => {
                     if v.fract() != 0.0 {

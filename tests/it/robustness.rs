@@ -27,6 +27,16 @@ fn duplicate_ids_name_both_lines() {
 }
 
 #[test]
+fn an_implausible_coordinate_is_refused_with_its_line() {
+    // A corrupted number (it once sent the frame estimate into an endless loop).
+    let e = read(&format!("{HEADER}\n1,0,0,0,0,30,0,1,2,3\n2,0,0,0,0,30,0,1,2,4.3e156\n")).unwrap_err();
+    assert!(
+        e.starts_with("d.csv:3: column 'z_mm': 4.3000e156 mm is not a plausible coordinate"),
+        "{e}"
+    );
+}
+
+#[test]
 fn joint_values_outside_the_limits_are_refused() {
     let e = read(&format!("{HEADER}\n1,500,0,0,0,30,0,1,2,3\n")).unwrap_err();
     assert!(e.starts_with("d.csv:2: q1: 500.0000 deg is outside the model's limits"), "{e}");
