@@ -447,6 +447,9 @@ impl Mechanism for LimbMechanism {
                 .filter(|y| y.iter().all(|v| v.is_finite()))
                 .ok_or_else(singular)?;
             -(y.transpose() * fp)
+        } else if fz.iter().chain(fp.iter()).any(|v| !v.is_finite()) {
+            // (nalgebra's SVD does not return on non-finite input.)
+            return Err(singular());
         } else {
             let dz = fz.svd(true, true).solve(&(-fp), 0.0).map_err(|_| singular())?;
             dz.rows(0, 6).into_owned()

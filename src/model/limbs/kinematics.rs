@@ -458,6 +458,7 @@ impl LimbMechanism {
             let square = if f.is_square() { lstsq(&f, &r, "limb").ok() } else { None };
             let d = match square {
                 Some(d) => d,
+                None if f.iter().any(|v| !v.is_finite()) => return (q, f64::INFINITY),
                 None => {
                     let svd = f.svd(true, true);
                     let tol = svd.singular_values.max() * 1e-10;
@@ -579,6 +580,13 @@ pub(super) fn interpolate(a: &Pose, b: &Pose, t: f64) -> Pose {
 
 /// Minimum-norm least-squares solution of `f·x = b`; singular when `f` loses column rank.
 pub(super) fn lstsq(f: &DMatrix<f64>, b: &DVector<f64>, what: &str) -> Result<DVector<f64>, KinError> {
+    // nalgebra's SVD does not return on non-finite input.
+    if f.iter().chain(b.iter()).any(|v| !v.is_finite()) {
+        return Err(KinError::Singular {
+            what: format!("{what} (non-finite values)"),
+            condition: f64::INFINITY,
+        });
+    }
     // A square system (the usual case): LU, unless its pivots say it is nearly singular; then
     // the SVD decides and gives the condition number.
     if f.is_square() {
@@ -637,6 +645,15 @@ mod tests {
                 assert!((&blocked - &dense).amax() < 1e-10 * dense.amax(), "{m:?}", m = m.name);
             }
         }
+    }
+
+    /// A non-finite system is an error, not an endless SVD.
+    #[test]
+    fn lstsq_refuses_non_finite_values() {
+        let mut f = DMatrix::from_element(6, 5, 1.0);
+        f[(2, 3)] = f64::NAN;
+        assert!(lstsq(&f, &DVector::zeros(6), "test").is_err());
+        assert!(lstsq(&DMatrix::identity(3, 3), &DVector::from_element(3, f64::INFINITY), "test").is_err());
     }
 
     /// The identification Jacobian's limb-by-limb elimination is the dense `−F_z⁻¹·F_θ`.
