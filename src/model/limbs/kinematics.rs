@@ -171,15 +171,7 @@ impl LimbMechanism {
             row += m;
             col += n;
         }
-        if reduced != 6 {
-            return None;
-        }
-        let lu = s.lu();
-        let d = lu.u().diagonal().map(f64::abs);
-        if !(d.min() > 1e-9 * d.max() && d.max().is_finite()) {
-            return None;
-        }
-        let dzeta = lu.solve(&t)?;
+        let dzeta = platform_lu(s, reduced)?.solve(&t)?;
         let mut dz = DVector::zeros(f.ncols());
         dz.rows_mut(0, 6).copy_from(&dzeta);
         for (b, n, c) in pivots {
@@ -242,16 +234,8 @@ impl LimbMechanism {
             col += n;
             pcol += p;
         }
-        if reduced != 6 {
-            return None;
-        }
-        let lu = s.lu();
-        let d = lu.u().diagonal().map(f64::abs);
-        if !(d.min() > 1e-9 * d.max() && d.max().is_finite()) {
-            return None;
-        }
         let mut out = -t;
-        lu.solve_mut(&mut out).then_some(out)
+        platform_lu(s, reduced)?.solve_mut(&mut out).then_some(out)
     }
 
     pub(super) fn home_passive(&self) -> Vec<f64> {
@@ -475,6 +459,17 @@ impl LimbMechanism {
         }
         (q, res)
     }
+}
+
+/// The LU factors of the platform equations an elimination left, or `None` unless exactly six
+/// were left and they are regular (pivots above 1e-9 of the largest).
+fn platform_lu(s: nalgebra::Matrix6<f64>, reduced: usize) -> Option<nalgebra::linalg::LU<f64, nalgebra::U6, nalgebra::U6>> {
+    if reduced != 6 {
+        return None;
+    }
+    let lu = s.lu();
+    let d = lu.u().diagonal().map(f64::abs);
+    (d.min() > 1e-9 * d.max() && d.max().is_finite()).then_some(lu)
 }
 
 /// Gaussian elimination with partial pivoting of the first `n` columns of the rows `b` (a limb's
