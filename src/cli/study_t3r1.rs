@@ -128,10 +128,12 @@ pub fn run(args: StudyT3r1Args) -> anyhow::Result<()> {
     config.workspace.half.z = h[2];
     config.workspace.half.yaw = h[3].to_radians();
     let report = run_study(&config)?;
-    let failures: Vec<String> = [("noise-free", &report.noise_free), ("noisy", &report.noisy)]
+    let mut failures: Vec<String> = [("noise-free", &report.noise_free), ("noisy", &report.noisy)]
         .iter()
         .filter_map(|(name, c)| c.failure().map(|f| format!("{name} run: {f}")))
         .collect();
+    // Fitted or not, a pair that the identification poses do not determine is no calibration.
+    failures.extend(report.too_few_poses());
     let verdict = || Err(super::FailedChecks(format!("study t3r1: {}", failures.join("; "))).into());
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);

@@ -870,6 +870,48 @@ pub struct StudyReport {
     pub noise_free: StudyCase,
     /// Noisy case.
     pub noisy: StudyCase,
+    /// What more poses identify: the pair's rank with closure-computed lower angles over the
+    /// identification and validation poses together, and the fewest of them (in drawing order)
+    /// that reach it.
+    pub full_rank: FullRank,
+}
+
+/// The rank of the pair's identification Jacobian (lower angles from the closure) over every drawn
+/// pose, and how many poses reach it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct FullRank {
+    /// Rank over every drawn pose (identification and validation).
+    pub rank: usize,
+    /// Fewest poses, in drawing order, with that rank.
+    pub poses: usize,
+}
+
+impl StudyReport {
+    /// Why a failed run failed, when the identification poses were too few to determine every
+    /// coordinate that more poses determine.
+    pub fn too_few_poses(&self) -> Option<String> {
+        (self.noise_free.identified < self.full_rank.rank).then(|| {
+            format!(
+                "{} identification poses determine {} of the {} coordinates that more poses identify (all {} from {} poses of this draw): use more identification poses",
+                self.config.identification_poses, self.noise_free.identified, self.full_rank.rank, self.full_rank.rank, self.full_rank.poses
+            )
+        })
+    }
+}
+
+/// [`FullRank`] of `data` (noise-free readings of the drawn poses).
+fn full_rank(pair: &ChainPair, data: &[PairMeasurement], tol: f64) -> Result<FullRank, CalibError> {
+    let noise = Noise {
+        position: 1.0,
+        orientation: 1.0,
+    };
+    let lin = linearize_pair(pair, data, &noise, LowerAngles::Closure)?;
+    let all60: Vec<usize> = (0..60).collect();
+    let rank = identifiability::analyze(&lin.jacobian, &all60, tol).rank;
+    let poses = (1..=data.len())
+        .find(|&k| identifiability::analyze(&lin.jacobian.rows(0, 12 * k).into_owned(), &all60, tol).rank == rank)
+        .unwrap_or(data.len());
+    Ok(FullRank { rank, poses })
 }
 
 struct SimPose {
@@ -1080,6 +1122,16 @@ pub fn run_study(config: &StudyConfig) -> Result<StudyReport, CalibError> {
         let (truth, pose) = actual.forward(&cmd.sliders).map_err(kin)?;
         sims.push(SimPose { target, truth, pose });
     }
+    let drawn = full_rank(
+        &ChainPair::nominal(&nominal, false),
+        &measurements(
+            &sims,
+            ChainPair::ids(false),
+            None,
+            &mut rand_chacha::ChaCha8Rng::seed_from_u64(config.seed),
+        ),
+        identifiability::DEFAULT_RANK_TOLERANCE,
+    )?;
     let valid = sims.split_off(config.identification_poses);
     let ident = sims;
     let mut rng0 = rand_chacha::ChaCha8Rng::seed_from_u64(config.seed);
@@ -1127,5 +1179,6 @@ pub fn run_study(config: &StudyConfig) -> Result<StudyReport, CalibError> {
         worst_actuator_condition: worst_cond,
         noise_free,
         noisy,
+        full_rank: drawn,
     })
 }

@@ -406,7 +406,8 @@ fn study_command_meets_the_claims() {
 /// With 8 identification poses the noisy run does not settle (its steps are halved where they
 /// would raise the cost, so it no longer runs away): the study says so and exits with 2, never
 /// "after convergence". With 4 poses (the stated minimum) and 5 the study runs to its verdict
-/// instead of stopping on a pose where the closure no longer assembles.
+/// instead of stopping on a pose where the closure no longer assembles, and names the cause:
+/// too few poses to determine every identifiable coordinate.
 #[test]
 fn study_with_too_few_poses_fails_its_checks() {
     let run = |n: &str| {
@@ -432,9 +433,17 @@ fn study_with_too_few_poses_fails_its_checks() {
         stderr.contains("not converged") && !stderr.contains("closure did not converge"),
         "{stderr}"
     );
-    let (_, stdout, stderr) = run("5");
+    assert!(
+        stderr.contains("4 identification poses determine 26 of the 38 coordinates"),
+        "{stderr}"
+    );
+    // With 5 the identification data are fitted, but 5 poses do not determine the pair: a
+    // failed check naming the cause, not a calibration.
+    let (code, stdout, stderr) = run("5");
     assert!(!stderr.contains("did not converge after"), "{stderr}");
     assert!(stdout.contains("idle-pair cross-validation"), "{stdout}");
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(stderr.contains("use more identification poses"), "{stderr}");
 }
 
 #[test]
