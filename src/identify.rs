@@ -43,6 +43,9 @@ use solve::{covariance, solve_subset};
 /// steps and the covariance always use every pose).
 pub const ANALYSIS_POSES: usize = 10_000;
 
+/// Longest multiple of a Gauss–Newton step the line search along it tries.
+const MAX_EXTENSION: f64 = 10.0;
+
 /// Identification algorithm.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Default)]
 pub enum Method {
@@ -511,12 +514,14 @@ fn gauss_newton<M: Mechanism + Clone>(
         let mut step = step;
         // Where the cost curves more than the linear model says (a weakly determined direction
         // with some curvature: the step overshoots), the minimum of the parabola through the
-        // cost, its slope and the trial cost along the step is tried too.
+        // cost, its slope and the trial cost along the step is tried too; likewise where it
+        // curves less (residuals at noise level bend weakly determined directions the other
+        // way: Gauss–Newton then creeps, each step a fraction of the way), up to ten steps.
         let slope = -(system.predicted_reduction(&step) + 0.5 * pred * pred);
         let curvature = trial_cost - cost - slope;
         if trial_cost.is_finite() && slope < 0.0 && curvature > 0.0 {
-            let alpha = (-slope / (2.0 * curvature)).clamp(0.1, 1.0);
-            if alpha < 0.9 {
+            let alpha = (-slope / (2.0 * curvature)).clamp(0.1, MAX_EXTENSION);
+            if !(0.9..=1.1).contains(&alpha) {
                 let shorter = &step * alpha;
                 let mut t2 = model.clone();
                 t2.retract(&shorter);
