@@ -38,6 +38,7 @@ use crate::se3::{self, Pose, Twist};
 use nalgebra::{DMatrix, DVector, Matrix3, Matrix6xX, Vector3};
 use serde::{Deserialize, Serialize};
 
+mod elimination;
 mod kinematics;
 
 /// What a joint's value is.

@@ -119,125 +119,6 @@ impl LimbMechanism {
         })
     }
 
-    /// The Newton step `F·dz = −r` of [`closure`](Self::closure) (passive columns) limb by limb,
-    /// for a machine with as many equations as unknowns: a limb's rows involve only the platform
-    /// twist `dζ` and its own passive joints, `A_i·dz_i + B_i·dζ = −r_i`. Gaussian elimination
-    /// with partial pivoting on `A_i` (at most 6 × 6, on the stack) leaves `m_i − n_i` equations
-    /// in `dζ` alone; the six of all limbs give `dζ`, back substitution the `dz_i`. The same
-    /// solution as a dense solve of `F`, without factorising the whole of it. `None` where the
-    /// system is not square, a limb has more passive joints than equations, or a pivot is (nearly)
-    /// zero: the caller then solves `F` whole, which also names a singularity.
-    pub(super) fn step_by_limbs(&self, f: &DMatrix<f64>, r: &DVector<f64>) -> Option<DVector<f64>> {
-        if f.nrows() != f.ncols() {
-            return None;
-        }
-        // Each limb's eliminated rows, [U | B' | r'] per pivot row.
-        let mut pivots: Vec<([[f64; 13]; 6], usize, usize)> = Vec::with_capacity(self.limbs.len());
-        let mut s = nalgebra::Matrix6::zeros();
-        let mut t = nalgebra::Vector6::zeros();
-        let mut reduced = 0;
-        let (mut row, mut col) = (0, 6);
-        for (i, l) in self.limbs.iter().enumerate() {
-            let m = l.rows();
-            let n = self.passive.iter().filter(|&&(li, _)| li == i).count();
-            if n > m || m > 6 {
-                return None;
-            }
-            // Row k: passive columns 0..n, platform columns 6..12, right-hand side 12.
-            let mut b = [[0.0f64; 13]; 6];
-            for (k, bk) in b.iter_mut().enumerate().take(m) {
-                for j in 0..n {
-                    bk[j] = f[(row + k, col + j)];
-                }
-                for j in 0..6 {
-                    bk[6 + j] = f[(row + k, j)];
-                }
-                bk[12] = -r[row + k];
-            }
-            if !eliminate(&mut b[..m], n) {
-                return None;
-            }
-            for bk in &b[n..m] {
-                if reduced == 6 {
-                    return None;
-                }
-                for j in 0..6 {
-                    s[(reduced, j)] = bk[6 + j];
-                }
-                t[reduced] = bk[12];
-                reduced += 1;
-            }
-            pivots.push((b, n, col));
-            row += m;
-            col += n;
-        }
-        let dzeta = platform_lu(s, reduced)?.solve(&t)?;
-        let mut dz = DVector::zeros(f.ncols());
-        dz.rows_mut(0, 6).copy_from(&dzeta);
-        for (b, n, c) in pivots {
-            for j in (0..n).rev() {
-                let mut v = b[j][12] - (0..6).map(|k| b[j][6 + k] * dzeta[k]).sum::<f64>();
-                for k in j + 1..n {
-                    v -= b[j][k] * dz[c + k];
-                }
-                dz[c + j] = v / b[j][j];
-            }
-        }
-        Some(dz)
-    }
-
-    /// The platform rows of `−F_z⁻¹·F_θ` (the identification Jacobian) by the elimination of
-    /// [`step_by_limbs`](Self::step_by_limbs): limb `i`'s rows of `F_θ` are nonzero only in its
-    /// own parameters' columns, so eliminating its passive joints leaves `S_i·dζ + T_i·dθ_i = 0`
-    /// and `dζ = −S⁻¹·T·dθ`, a 6 × 6 solve. `None` where the step would be (then the caller
-    /// solves `F_z` whole).
-    pub(super) fn platform_jacobian_by_limbs(&self, fz: &DMatrix<f64>, fp: &DMatrix<f64>) -> Option<DMatrix<f64>> {
-        if fz.nrows() != fz.ncols() {
-            return None;
-        }
-        let mut s = nalgebra::Matrix6::zeros();
-        let mut t = DMatrix::zeros(6, fp.ncols());
-        let mut reduced = 0;
-        let (mut row, mut col, mut pcol) = (0, 6, 0);
-        for (i, l) in self.limbs.iter().enumerate() {
-            let (m, p) = (l.rows(), l.n_params());
-            let n = self.passive.iter().filter(|&&(li, _)| li == i).count();
-            if n > m {
-                return None;
-            }
-            // Row k: passive columns 0..n, platform columns n..n+6, the limb's parameters after.
-            let mut b: Vec<Vec<f64>> = (0..m)
-                .map(|k| {
-                    let mut bk = Vec::with_capacity(n + 6 + p);
-                    bk.extend((0..n).map(|j| fz[(row + k, col + j)]));
-                    bk.extend((0..6).map(|j| fz[(row + k, j)]));
-                    bk.extend((0..p).map(|j| fp[(row + k, pcol + j)]));
-                    bk
-                })
-                .collect();
-            if !eliminate(&mut b, n) {
-                return None;
-            }
-            for bk in &b[n..m] {
-                if reduced == 6 {
-                    return None;
-                }
-                for j in 0..6 {
-                    s[(reduced, j)] = bk[n + j];
-                }
-                for j in 0..p {
-                    t[(reduced, pcol + j)] = bk[n + 6 + j];
-                }
-                reduced += 1;
-            }
-            row += m;
-            col += n;
-            pcol += p;
-        }
-        let mut out = -t;
-        platform_lu(s, reduced)?.solve_mut(&mut out).then_some(out)
-    }
-
     pub(super) fn home_passive(&self) -> Vec<f64> {
         self.passive.iter().map(|&(i, j)| self.limbs[i].home[j]).collect()
     }
@@ -338,13 +219,20 @@ impl LimbMechanism {
     /// The inverse kinematics with every joint value of every limb (inputs first, then the
     /// passive joints) and the platform pose reached.
     pub fn inverse_full(&self, target: &Pose) -> Result<(Vec<f64>, Vec<f64>, Pose), KinError> {
-        // A commanded pose fixes the platform: each limb alone (small systems), from its home.
+        // A commanded pose fixes the platform, and each limb closes on the platform alone: the
+        // limbs one by one (small systems), each followed from its home like the whole machine.
         if self.task == Task::Full {
-            let solved: Vec<(Vec<f64>, f64)> = (0..self.limbs.len()).map(|i| self.solve_limb_at(i, target)).collect();
-            if solved.iter().all(|(_, res)| *res < TOLERANCE) {
-                let pick = |list: &[(usize, usize)]| list.iter().map(|&(i, j)| solved[i].0[j]).collect::<Vec<f64>>();
-                return Ok((pick(&self.inputs), pick(&self.passive), *target));
+            let mut solved = Vec::with_capacity(self.limbs.len());
+            for i in 0..self.limbs.len() {
+                solved.push(self.limb_along_path(i, target).map_err(|res| {
+                    KinError::Unreachable(format!(
+                        "inverse kinematics of '{}': limb '{}' does not reach the target (residual {res:.3e} mm / rad): the target is outside the workspace or across a singularity",
+                        self.name, self.limbs[i].name
+                    ))
+                })?);
             }
+            let pick = |list: &[(usize, usize)]| list.iter().map(|&(i, j)| solved[i][j]).collect::<Vec<f64>>();
+            return Ok((pick(&self.inputs), pick(&self.passive), *target));
         }
         let start = (self.home, self.home_inputs(), self.home_passive());
         let mut last = Err(KinError::Unreachable("no attempt".into()));
@@ -409,11 +297,41 @@ impl LimbMechanism {
         )))
     }
 
+    /// Limb `i`'s joints with its end on the platform at `target`: Newton from its home values,
+    /// else along the straight path of platform poses from home in 4, then 16 stages (the
+    /// continuation of the whole machine, for one limb). The residual reached where it fails.
+    fn limb_along_path(&self, i: usize, target: &Pose) -> Result<Vec<f64>, f64> {
+        let home = &self.limbs[i].home;
+        let (q, mut worst) = self.solve_limb_from(i, target, home.clone());
+        if worst < TOLERANCE {
+            return Ok(q);
+        }
+        'stages: for steps in [4usize, 16] {
+            let mut q = home.clone();
+            for s in 1..=steps {
+                let goal = interpolate(&self.home, target, s as f64 / steps as f64);
+                let (next, res) = self.solve_limb_from(i, &goal, q);
+                // (NaN fails too.)
+                if res.partial_cmp(&TOLERANCE) != Some(std::cmp::Ordering::Less) {
+                    worst = res;
+                    continue 'stages;
+                }
+                q = next;
+            }
+            return Ok(q);
+        }
+        Err(worst)
+    }
+
     /// Limb `i`'s joints that put its end as close as it gets to the platform at `x` (least
     /// squares from its home values), and the largest remaining residual (mm / rad).
     pub(super) fn solve_limb_at(&self, i: usize, x: &Pose) -> (Vec<f64>, f64) {
+        self.solve_limb_from(i, x, self.limbs[i].home.clone())
+    }
+
+    /// [`solve_limb_at`](Self::solve_limb_at) from the joint values `q`.
+    fn solve_limb_from(&self, i: usize, x: &Pose, mut q: Vec<f64>) -> (Vec<f64>, f64) {
         let l = &self.limbs[i];
-        let mut q = l.home.clone();
         let mut res = f64::INFINITY;
         let mut stalled = false;
         for _ in 0..MAX_ITERATIONS {
@@ -460,53 +378,6 @@ impl LimbMechanism {
         }
         (q, res)
     }
-}
-
-/// The LU factors of the platform equations an elimination left, or `None` unless exactly six
-/// were left and they are regular (pivots above 1e-9 of the largest).
-fn platform_lu(s: nalgebra::Matrix6<f64>, reduced: usize) -> Option<nalgebra::linalg::LU<f64, nalgebra::U6, nalgebra::U6>> {
-    if reduced != 6 {
-        return None;
-    }
-    let lu = s.lu();
-    let d = lu.u().diagonal().map(f64::abs);
-    (d.min() > 1e-9 * d.max() && d.max().is_finite()).then_some(lu)
-}
-
-/// Gaussian elimination with partial pivoting of the first `n` columns of the rows `b` (a limb's
-/// equations): afterwards rows `0..n` are upper triangular in those columns and rows `n..` are
-/// zero there. `false` where a pivot is (nearly) zero or not finite.
-fn eliminate<R: AsMut<[f64]>>(b: &mut [R], n: usize) -> bool {
-    let m = b.len();
-    let mut scale = 0.0f64;
-    for bk in b.iter_mut() {
-        scale = bk.as_mut()[..n].iter().fold(scale, |a, v| a.max(v.abs()));
-    }
-    for j in 0..n {
-        let Some(p) = (j..m).max_by(|&a, &c| {
-            let (x, y) = (b[a].as_mut()[j].abs(), b[c].as_mut()[j].abs());
-            x.total_cmp(&y)
-        }) else {
-            return false;
-        };
-        // (NaN fails too.)
-        if b[p].as_mut()[j].abs().partial_cmp(&(1e-9 * scale)) != Some(std::cmp::Ordering::Greater) {
-            return false;
-        }
-        b.swap(j, p);
-        let (top, below) = b.split_at_mut(j + 1);
-        let pivot = top[j].as_mut();
-        for bk in below.iter_mut() {
-            let bk = bk.as_mut();
-            let factor = bk[j] / pivot[j];
-            if factor != 0.0 {
-                for (x, y) in bk[j..].iter_mut().zip(&pivot[j..]) {
-                    *x -= factor * y;
-                }
-            }
-        }
-    }
-    true
 }
 
 /// `[I | −[p]×]`: the velocity of point `p` under a spatial twist `(v, ω)`.
@@ -622,27 +493,6 @@ mod tests {
         }
     }
 
-    /// Away from the solution (a perturbed platform and passive joints), the limb-by-limb step
-    /// is the dense solve of the whole closure, for frame ends (Stewart) and point ends (6-RUS).
-    #[test]
-    fn the_limb_by_limb_step_is_the_dense_solve() {
-        for text in [
-            include_str!("../../../examples/models/stewart-limbs.toml"),
-            include_str!("../../../examples/models/hexapod-6rus.toml"),
-        ] {
-            let m = limbs(text);
-            for q in m.sample_configurations(5, 3).unwrap().unwrap() {
-                let (x, passive) = m.forward_full(&q).unwrap();
-                let x = se3::exp(&Twist::new(0.3, -0.2, 0.1, 0.01, 0.02, -0.01)) * x;
-                let passive: Vec<f64> = passive.iter().enumerate().map(|(k, p)| p + 0.01 * (k as f64).sin()).collect();
-                let (r, f) = m.closure(&x, &m.joints_of(&q, &passive), true);
-                let blocked = m.step_by_limbs(&f, &r).expect("a square, regular closure");
-                let dense = lstsq(&f, &(-r), "closure").unwrap();
-                assert!((&blocked - &dense).amax() < 1e-10 * dense.amax(), "{m:?}", m = m.name);
-            }
-        }
-    }
-
     /// Each limb alone reaches a pose the machine reaches to the closure tolerance: the residual
     /// reported is the one after the last step (a stale one, 1.6e-11 mm, sent the 6-RUS inverse
     /// kinematics down the slow path of the whole machine).
@@ -665,26 +515,5 @@ mod tests {
         f[(2, 3)] = f64::NAN;
         assert!(lstsq(&f, &DVector::zeros(6), "test").is_err());
         assert!(lstsq(&DMatrix::identity(3, 3), &DVector::from_element(3, f64::INFINITY), "test").is_err());
-    }
-
-    /// The identification Jacobian's limb-by-limb elimination is the dense `−F_z⁻¹·F_θ`.
-    #[test]
-    fn the_limb_by_limb_jacobian_is_the_dense_one() {
-        for text in [
-            include_str!("../../../examples/models/stewart-limbs.toml"),
-            include_str!("../../../examples/models/hexapod-6rus.toml"),
-            include_str!("../../../examples/models/head-3prs.toml"),
-        ] {
-            let m = limbs(text);
-            for q in m.sample_configurations(5, 4).unwrap().unwrap() {
-                let (x, passive) = m.forward_full(&q).unwrap();
-                let joints = m.joints_of(&q, &passive);
-                let (_, fz) = m.closure(&x, &joints, true);
-                let fp = m.closure_params(&x, &joints);
-                let blocked = m.platform_jacobian_by_limbs(&fz, &fp).expect("a square, regular closure");
-                let dense = -fz.lu().solve(&fp).unwrap().rows(0, 6).into_owned();
-                assert!((&blocked - &dense).amax() < 1e-10 * dense.amax(), "{}", m.name);
-            }
-        }
     }
 }
