@@ -548,3 +548,13 @@ impl Mechanism for LimbMechanism {
         Some(Ok(out))
     }
 }
+
+/// A limbs machine from model-file text (the tests of this module's parts).
+#[cfg(test)]
+fn limbs_from_text(text: &str) -> LimbMechanism {
+    use crate::io::model_file::{MechanismSpec, ModelFile};
+    match ModelFile::load_str(std::path::Path::new("m.toml"), text).unwrap().mechanism {
+        MechanismSpec::Limbs(m) => m,
+        _ => panic!("a limbs model expected"),
+    }
+}

@@ -176,14 +176,7 @@ fn eliminate<R: AsMut<[f64]>>(b: &mut [R], n: usize) -> bool {
 mod tests {
     use super::kinematics::lstsq;
     use super::*;
-    use crate::io::model_file::{MechanismSpec, ModelFile};
-
-    fn limbs(text: &str) -> LimbMechanism {
-        match ModelFile::load_str(std::path::Path::new("m.toml"), text).unwrap().mechanism {
-            MechanismSpec::Limbs(m) => m,
-            _ => panic!("a limbs model expected"),
-        }
-    }
+    use crate::model::limbs::limbs_from_text as limbs;
 
     /// Away from the solution (a perturbed platform and passive joints), the limb-by-limb step
     /// is the dense solve of the whole closure, for frame ends (Stewart) and point ends (6-RUS).

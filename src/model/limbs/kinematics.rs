@@ -484,14 +484,7 @@ pub(super) fn lstsq(f: &DMatrix<f64>, b: &DVector<f64>, what: &str) -> Result<DV
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::io::model_file::{MechanismSpec, ModelFile};
-
-    fn limbs(text: &str) -> LimbMechanism {
-        match ModelFile::load_str(std::path::Path::new("m.toml"), text).unwrap().mechanism {
-            MechanismSpec::Limbs(m) => m,
-            _ => panic!("a limbs model expected"),
-        }
-    }
+    use crate::model::limbs::limbs_from_text as limbs;
 
     /// Each limb alone reaches a pose the machine reaches to the closure tolerance: the residual
     /// reported is the one after the last step (a stale one, 1.6e-11 mm, sent the 6-RUS inverse
