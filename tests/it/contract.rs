@@ -101,6 +101,7 @@ fn example_file(name: &str) -> ModelFile {
         "hexapod-6rus" => include_str!("../../examples/models/hexapod-6rus.toml"),
         "linear-delta" => include_str!("../../examples/models/linear-delta.toml"),
         "head-3prs" => include_str!("../../examples/models/head-3prs.toml"),
+        "stewart-limbs" => include_str!("../../examples/models/stewart-limbs.toml"),
         other => panic!("no example model '{other}'"),
     };
     ModelFile::load_str(std::path::Path::new(name), text).unwrap()
@@ -130,6 +131,13 @@ const KINDS: &[Kind] = &[
         // (rank): equivalent at first order only, the fit stops at 5.9e-6 mm (without frames
         // it is exact, above). docs/parallel-machines.md.
         framed_floor_mm: 1e-5,
+    },
+    Kind {
+        name: "Stewart platform (limbs file)",
+        build: || example_file("stewart-limbs").build(),
+        file: Some(|| example_file("stewart-limbs")),
+        configurations: sampled,
+        framed_floor_mm: EXACT,
     },
     Kind {
         name: "irb120 with joint terms",
