@@ -211,8 +211,6 @@ pub(crate) enum Form {
     Gram,
 }
 
-/// The weighted Jacobian of `model` at `data` with the rows weighted as in `ev` (noise and loss
-/// weights) and the residual of `ev`, reduced to `form`.
 /// `acc += mᵀ·m` by matrixmultiply's blocked product (not nalgebra's dot-product `gemm_tr`),
 /// reading `mᵀ` through swapped strides instead of a transposed copy.
 fn add_gram(acc: &mut DMatrix<f64>, m: &DMatrix<f64>) {
@@ -227,6 +225,8 @@ fn add_gram(acc: &mut DMatrix<f64>, m: &DMatrix<f64>) {
     }
 }
 
+/// The weighted Jacobian of `model` at `data` with the rows weighted as in `ev` (noise and loss
+/// weights) and the residual of `ev`, reduced to `form`.
 pub(crate) fn factor<M: Mechanism + ?Sized>(
     model: &M,
     data: &[Measurement],
