@@ -284,13 +284,15 @@ pub fn read_data(path: &Path, inputs: &[InputSpec], input_columns: InputColumns)
 /// file (its measurement columns are not read) or an inputs-only file such as the commands of
 /// `kinecal compensate`. Inputs in mm / rad, one per row.
 pub fn read_configurations(path: &Path, inputs: &[InputSpec]) -> Result<Vec<Vec<f64>>, IoError> {
-    let table = super::table::read_table_with_gaps(path)?;
+    let text = super::read_text(path)?;
+    let table = super::table::parse_table_with_gaps(path, &text)?;
     let inputs_only = table
         .columns
         .iter()
         .all(|c| matches!(classify(path, c, inputs), Ok((Slot::Id | Slot::Input(_), _))));
     if inputs_only {
-        return Ok(read_inputs(path, inputs)?.1);
+        // Read as `read_inputs` reads it: an empty cell is an error, not a lost measurement.
+        return Ok(inputs_from_table(path, &super::table::parse_table(path, &text)?, inputs)?.1);
     }
     let data = data_from_table(&table, inputs, InputColumns::Required)?;
     Ok(data.measurements.into_iter().map(|m| m.q).collect())
@@ -300,7 +302,11 @@ pub fn read_configurations(path: &Path, inputs: &[InputSpec]) -> Result<Vec<Vec<
 /// suffixes), such as the commands `kinecal compensate` writes. Returns the ids (row numbers from
 /// 0 without an `id` column) and the inputs in mm / rad. Any other column is an error.
 pub fn read_inputs(path: &Path, inputs: &[InputSpec]) -> Result<(Vec<i64>, Vec<Vec<f64>>), IoError> {
-    let table = read_table(path)?;
+    inputs_from_table(path, &read_table(path)?, inputs)
+}
+
+/// [`read_inputs`] of a table already read.
+fn inputs_from_table(path: &Path, table: &Table, inputs: &[InputSpec]) -> Result<(Vec<i64>, Vec<Vec<f64>>), IoError> {
     let mut slots = Vec::with_capacity(table.columns.len());
     for col in &table.columns {
         match classify(path, col, inputs)? {
