@@ -1122,20 +1122,22 @@ pub fn run_study(config: &StudyConfig) -> Result<StudyReport, CalibError> {
         let (truth, pose) = actual.forward(&cmd.sliders).map_err(kin)?;
         sims.push(SimPose { target, truth, pose });
     }
+    // Noise-free readings of every drawn pose (no draw from the generator): the identification
+    // poses' are the first ones.
+    let mut truth_data = measurements(
+        &sims,
+        ChainPair::ids(false),
+        None,
+        &mut rand_chacha::ChaCha8Rng::seed_from_u64(config.seed),
+    );
     let drawn = full_rank(
         &ChainPair::nominal(&nominal, false),
-        &measurements(
-            &sims,
-            ChainPair::ids(false),
-            None,
-            &mut rand_chacha::ChaCha8Rng::seed_from_u64(config.seed),
-        ),
+        &truth_data,
         identifiability::DEFAULT_RANK_TOLERANCE,
     )?;
+    truth_data.truncate(config.identification_poses);
     let valid = sims.split_off(config.identification_poses);
     let ident = sims;
-    let mut rng0 = rand_chacha::ChaCha8Rng::seed_from_u64(config.seed);
-    let truth_data = measurements(&ident, ChainPair::ids(false), None, &mut rng0);
     let ranks = ranks(
         &ChainPair::nominal(&nominal, false),
         &truth_data,
