@@ -6,7 +6,7 @@ use std::path::Path;
 
 /// Parallel machines that exist only as model files (`kind = "limbs"`, `examples/models/`):
 /// name, description, text.
-const FILES: [(&str, &str, &str); 4] = [
+const FILES: [(&str, &str, &str); 5] = [
     (
         "hexapod-6rus",
         "6-RUS rotary hexapod as limbs (cranks 60 mm, rods 250 mm; 126 error parameters, rank 66)",
@@ -26,6 +26,11 @@ const FILES: [(&str, &str, &str); 4] = [
         "stewart-limbs",
         "the 'stewart' platform written as limbs (90 error parameters, rank 42)",
         include_str!("../../examples/models/stewart-limbs.toml"),
+    ),
+    (
+        "pm5-limbs",
+        "the 'pm5' machine written as limbs, its RPRR sub-closed loops as limbs on the legs (120 error parameters, rank 48)",
+        include_str!("../../examples/models/pm5-limbs.toml"),
     ),
 ];
 

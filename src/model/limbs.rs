@@ -38,6 +38,7 @@ use crate::se3::{self, Pose, Twist};
 use nalgebra::{DMatrix, DVector, Matrix3, Matrix6xX, Vector3};
 use serde::{Deserialize, Serialize};
 
+mod closure;
 mod elimination;
 mod kinematics;
 
@@ -63,7 +64,18 @@ pub enum LimbEnd {
     Point(Vector3<f64>),
 }
 
-/// One limb: a serial chain from the base to its end, each joint's role, and its closure.
+/// A body of a limb: the frame after one of its joints (e.g. the rod of a leg, where a
+/// sub-closed loop's actuator is hinged).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BodyRef {
+    /// The limb (its index in the mechanism's limbs).
+    pub limb: usize,
+    /// The joint (index in that limb's chain) the body comes after.
+    pub joint: usize,
+}
+
+/// One limb: a serial chain from the base (or a body of another limb) to its end, each joint's
+/// role, and its closure.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Limb {
     /// Name (a parameter prefix).
@@ -74,6 +86,12 @@ pub struct Limb {
     pub roles: Vec<JointRole>,
     /// Closure.
     pub end: LimbEnd,
+    /// Where the chain starts: the base (`None`) or a body of an earlier limb that starts on the
+    /// base (a branch, as the actuator of a sub-closed loop).
+    pub start: Option<BodyRef>,
+    /// What the limb closes on: the platform (`None`) or a body of an earlier limb that starts on
+    /// the base (a sub-closed loop). A point end's point is then in that body's frame.
+    pub end_on: Option<BodyRef>,
     /// Joint values at home (the assembly branch: continuation starts here).
     pub home: Vec<f64>,
     /// How the chain's joints group into the joints of the drawing, in order (their counts add
@@ -135,12 +153,12 @@ impl JointGroup {
 }
 
 impl Limb {
-    /// Attach the limb's end to the platform as it stands at its `home` joint values with the
-    /// platform at `home`: a frame end gets its last placement (the chain's end then *is* the
-    /// platform frame at home), a point end its platform point (the end's origin in the platform
-    /// frame). What a model file that gives neither means.
-    pub fn attach_at(&mut self, home: &Pose) -> Result<(), KinError> {
-        let e = self.chain.forward(&self.home)?;
+    /// Attach the limb's end to what it closes on (the platform or a body), standing at `home`,
+    /// with the limb at its `home` joint values starting at `start` (the base: identity): a
+    /// frame end gets its last placement (the chain's end then *is* that frame at home), a point
+    /// end its point (the end's origin in that frame). What a model file that gives neither means.
+    pub fn attach_at(&mut self, start: &Pose, home: &Pose) -> Result<(), KinError> {
+        let e = start * self.chain.forward(&self.home)?;
         match &mut self.end {
             LimbEnd::Frame => {
                 let last = self.chain.initial_poses().len() - 1;
@@ -259,6 +277,18 @@ impl LimbMechanism {
                 }
             }
         }
+        for (i, l) in limbs.iter().enumerate() {
+            for (what, b) in [("starts", &l.start), ("closes", &l.end_on)] {
+                let Some(b) = b else { continue };
+                let ok = b.limb < i && limbs[b.limb].start.is_none() && b.joint < limbs[b.limb].chain.n_joints();
+                if !ok {
+                    return Err(format!(
+                        "limb '{}' {what} on a body of a limb that is not an earlier limb starting on the base (list the limb it {what} on first)",
+                        l.name
+                    ));
+                }
+            }
+        }
         inputs.extend(sensed);
         let mut joint_names = std::collections::HashSet::new();
         for (i, l) in limbs.iter().enumerate() {
@@ -287,7 +317,16 @@ impl LimbMechanism {
         // limb, to name the one that cannot close) ...
         let mut gaps = Vec::with_capacity(m.limbs.len());
         for i in 0..m.limbs.len() {
-            let (solved, gap) = m.solve_limb_at(i, &m.home);
+            // (The bodies a limb starts or ends on belong to earlier limbs, solved already.)
+            let joints: Joints = m.limbs.iter().map(|l| l.home.clone()).collect();
+            let (start, target) = (m.start_pose(i, &joints), m.target_pose(i, &m.home, &joints));
+            let (Ok(start), Ok(target)) = (start, target) else {
+                return Err(format!(
+                    "limb '{}': the body it starts or closes on cannot be evaluated at home",
+                    m.limbs[i].name
+                ));
+            };
+            let (solved, gap) = m.solve_limb_from(i, &start, &target, m.limbs[i].home.clone());
             gaps.push(gap);
             if gap.is_nan() || gap >= HOME_GAP {
                 return Err(format!(

@@ -102,6 +102,7 @@ fn example_file(name: &str) -> ModelFile {
         "linear-delta" => include_str!("../../examples/models/linear-delta.toml"),
         "head-3prs" => include_str!("../../examples/models/head-3prs.toml"),
         "stewart-limbs" => include_str!("../../examples/models/stewart-limbs.toml"),
+        "pm5-limbs" => include_str!("../../examples/models/pm5-limbs.toml"),
         other => panic!("no example model '{other}'"),
     };
     ModelFile::load_str(std::path::Path::new(name), text).unwrap()
@@ -136,6 +137,13 @@ const KINDS: &[Kind] = &[
         name: "Stewart platform (limbs file)",
         build: || example_file("stewart-limbs").build(),
         file: Some(|| example_file("stewart-limbs")),
+        configurations: sampled,
+        framed_floor_mm: EXACT,
+    },
+    Kind {
+        name: "pm5 (limbs file, sub-closed loops as limbs)",
+        build: || example_file("pm5-limbs").build(),
+        file: Some(|| example_file("pm5-limbs")),
         configurations: sampled,
         framed_floor_mm: EXACT,
     },

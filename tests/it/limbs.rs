@@ -194,6 +194,32 @@ fn mistakes_in_a_limbs_file_are_one_line_errors_naming_the_limb() {
         assert!(e.contains(expect) && !e.contains('\n'), "{from} → {to}: {e}");
         assert!(e.starts_with("m.toml:"), "a line number: {e}");
     }
+    // Sub-closed loops (pm5): a body that does not exist, or on a limb listed later.
+    let pm5 = include_str!("../../examples/models/pm5-limbs.toml");
+    for (from, to, expect) in [
+        (
+            "start = { limb = \"leg2\", after = \"r2\" }",
+            "start = { limb = \"leg9\", after = \"r2\" }",
+            "no limb named 'leg9' (limbs: puu, leg2, leg3, act2, act3)",
+        ),
+        (
+            "end_on = { limb = \"leg2\", after = \"k2\" }",
+            "end_on = { limb = \"leg2\", after = \"knee\" }",
+            "limb 'leg2' has no joint 'knee' (its joints: g2, r2, k2)",
+        ),
+        (
+            "end_on = { limb = \"leg2\", after = \"k2\" }",
+            "end_on = { limb = \"act3\", after = \"g5\" }",
+            "limb 'act2' closes on a body of a limb that is not an earlier limb starting on the base",
+        ),
+    ] {
+        assert!(pm5.contains(from), "{from}");
+        let e = load(&pm5.replacen(from, to, 1)).unwrap_err();
+        assert!(
+            e.contains(expect) && !e.contains('\n') && e.starts_with("m.toml:"),
+            "{from} → {to}: {e}"
+        );
+    }
     let e = load(&HEXAPOD.replacen("home = [0.0, -35.0]", "home = [0.0]", 1)).unwrap_err();
     assert!(e.contains("give 2 value(s)") && e.contains("leg1"), "{e}");
     // And through the binary: one line, non-zero exit.
@@ -209,21 +235,74 @@ fn mistakes_in_a_limbs_file_are_one_line_errors_naming_the_limb() {
 
 const STEWART: &str = include_str!("../../examples/models/stewart-limbs.toml");
 
+/// The largest forward-kinematics difference (mm, rad) of two models over `qs`.
+fn forward_difference(a: &dyn Mechanism, b: &dyn Mechanism, qs: &[Vec<f64>]) -> (f64, f64) {
+    let mut worst = (0.0f64, 0.0f64);
+    for q in qs {
+        let e = kinecal::se3::pose_error(&a.forward(q).unwrap(), &b.forward(q).unwrap());
+        worst = (worst.0.max(kinecal::se3::lin(&e).norm()), worst.1.max(kinecal::se3::ang(&e).norm()));
+    }
+    worst
+}
+
+/// The identification Jacobians stacked over `qs`, unit columns (lengths and angles mixed: rank
+/// decisions on the directions only), columns of no effect (round-off) dropped.
+fn stacked_directions(m: &dyn Mechanism, qs: &[Vec<f64>]) -> nalgebra::DMatrix<f64> {
+    let p = m.n_params();
+    let mut j = nalgebra::DMatrix::zeros(6 * qs.len(), p);
+    for (k, q) in qs.iter().enumerate() {
+        let (_, jk) = m.forward_with_jacobian(q).unwrap();
+        j.view_mut((6 * k, 0), (6, p)).copy_from(&jk);
+    }
+    let biggest = j.column_iter().map(|c| c.norm()).fold(0.0, f64::max);
+    let kept: Vec<_> = j
+        .column_iter()
+        .filter(|c| c.norm() > 1e-9 * biggest)
+        .map(|c| c / c.norm())
+        .collect();
+    nalgebra::DMatrix::from_columns(&kept)
+}
+
+/// Ranks of the stacked directions of `a`, of `b` and of both together.
+fn ranks(a: &nalgebra::DMatrix<f64>, b: &nalgebra::DMatrix<f64>) -> (usize, usize, usize) {
+    let rank = |m: &nalgebra::DMatrix<f64>| {
+        let sv = m.clone().singular_values();
+        sv.iter().filter(|s| **s > sv.max() * 1e-9).count()
+    };
+    let both = nalgebra::DMatrix::from_fn(a.nrows(), a.ncols() + b.ncols(), |r, c| {
+        if c < a.ncols() {
+            a[(r, c)]
+        } else {
+            b[(r, c - a.ncols())]
+        }
+    });
+    (rank(a), rank(b), rank(&both))
+}
+
+/// The preset perturbed (0.3 mm / 0.001 rad on every parameter, seed 2).
+fn perturbed_preset(preset: &dyn Mechanism) -> Box<dyn Mechanism> {
+    let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(2);
+    let errors = kinecal::simulate::random_errors(preset, &mut rng, 0.3, 0.001, None);
+    kinecal::simulate::perturbed(&preset.box_clone(), &errors)
+}
+
+/// Largest held-out position difference (mm) of two models over `qs`.
+fn held_out(a: &dyn Mechanism, b: &dyn Mechanism, qs: &[Vec<f64>]) -> f64 {
+    qs.iter()
+        .map(|q| (a.forward(q).unwrap().translation.vector - b.forward(q).unwrap().translation.vector).norm())
+        .fold(0.0, f64::max)
+}
+
 #[test]
 fn the_stewart_platform_written_as_limbs_is_the_preset() {
     use kinecal::identify::{identify, Options};
     use kinecal::measure::Noise;
-    use nalgebra::DMatrix;
     let preset = kinecal::io::builtin::model_file("stewart").unwrap().build();
     let limbs = load(STEWART).unwrap().build();
     assert_eq!(preset.input_names(), limbs.input_names());
     // Forward kinematics at 1000 configurations of the preset's workspace.
     let qs = preset.sample_configurations(1000, 1).unwrap().unwrap();
-    let mut worst = (0.0f64, 0.0f64);
-    for q in &qs {
-        let e = kinecal::se3::pose_error(&preset.forward(q).unwrap(), &limbs.forward(q).unwrap());
-        worst = (worst.0.max(kinecal::se3::lin(&e).norm()), worst.1.max(kinecal::se3::ang(&e).norm()));
-    }
+    let worst = forward_difference(&*preset, &*limbs, &qs);
     eprintln!(
         "stewart preset vs limbs, 1000 configurations: FK differs by {:.2e} mm / {:.2e} rad",
         worst.0, worst.1
@@ -231,52 +310,10 @@ fn the_stewart_platform_written_as_limbs_is_the_preset() {
     assert!(worst.0 < 1e-9 && worst.1 < 1e-12, "FK differs by {worst:?} mm / rad");
     // The identification Jacobians span the same space of prediction changes (rank 42 each and
     // together), stacked over 20 configurations.
-    let stack = |m: &dyn Mechanism| {
-        let p = m.n_params();
-        let mut j = DMatrix::zeros(6 * 20, p);
-        for (k, q) in qs.iter().take(20).enumerate() {
-            let (_, jk) = m.forward_with_jacobian(q).unwrap();
-            for c in 0..p {
-                let n = jk.column(c);
-                for r in 0..6 {
-                    j[(6 * k + r, c)] = n[r];
-                }
-            }
-        }
-        // Unit columns (lengths and angles mixed): rank decisions on the directions only;
-        // columns of no effect (round-off) are dropped.
-        let biggest = j.column_iter().map(|c| c.norm()).fold(0.0, f64::max);
-        let kept: Vec<_> = j
-            .column_iter()
-            .filter(|c| c.norm() > 1e-9 * biggest)
-            .map(|c| c / c.norm())
-            .collect();
-        DMatrix::from_columns(&kept)
-    };
-    let rank = |m: &DMatrix<f64>| {
-        let sv = m.clone().singular_values();
-        sv.iter().filter(|s| **s > sv.max() * 1e-9).count()
-    };
-    let (jp, jl) = (stack(&*preset), stack(&*limbs));
-    let both = DMatrix::from_fn(jp.nrows(), jp.ncols() + jl.ncols(), |r, c| {
-        if c < jp.ncols() {
-            jp[(r, c)]
-        } else {
-            jl[(r, c - jp.ncols())]
-        }
-    });
-    assert_eq!((rank(&jp), rank(&jl), rank(&both)), (42, 42, 42));
+    let (jp, jl) = (stacked_directions(&*preset, &qs[..20]), stacked_directions(&*limbs, &qs[..20]));
+    assert_eq!(ranks(&jp, &jl), (42, 42, 42));
     // The same noisy data identified with either model: the same predictions on held-out poses.
-    let truth = kinecal::simulate::perturbed(
-        &preset,
-        &kinecal::simulate::random_errors(
-            &*preset,
-            &mut <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(2),
-            0.3,
-            0.001,
-            None,
-        ),
-    );
+    let truth = perturbed_preset(&*preset);
     let noise = Noise {
         position: 0.01,
         orientation: 1e-4,
@@ -289,10 +326,7 @@ fn the_stewart_platform_written_as_limbs_is_the_preset() {
     };
     let (a, b) = (identify(&preset, &data, &opts).unwrap(), identify(&limbs, &data, &opts).unwrap());
     assert!(a.converged && b.converged);
-    let diff = qs[100..200]
-        .iter()
-        .map(|q| (a.model.forward(q).unwrap().translation.vector - b.model.forward(q).unwrap().translation.vector).norm())
-        .fold(0.0, f64::max);
+    let diff = held_out(&*a.model, &*b.model, &qs[100..200]);
     eprintln!(
         "identified from the same 60 noisy poses: held-out predictions differ by {diff:.2e} mm, σ̂₀ {:.6} / {:.6}",
         a.sigma0, b.sigma0
@@ -302,11 +336,41 @@ fn the_stewart_platform_written_as_limbs_is_the_preset() {
     // Noise-free data of the perturbed preset: the limbs model recovers it to round-off.
     let exact = kinecal::simulate::measure(&truth, &qs[..60], kinecal::simulate::ObservationKind::Pose, None, &mut rng).unwrap();
     let fit = identify(&limbs, &exact, &Options::default()).unwrap();
-    let worst = qs[100..200]
-        .iter()
-        .map(|q| (fit.model.forward(q).unwrap().translation.vector - truth.forward(q).unwrap().translation.vector).norm())
-        .fold(0.0, f64::max);
+    let worst = held_out(&*fit.model, &*truth, &qs[100..200]);
     eprintln!("noise-free: held-out {worst:.2e} mm from the truth");
+    assert!(worst < 1e-9, "{worst}");
+}
+
+/// pm5 written as limbs (its RPRR sub-closed loops as limbs that start and end on the leg's
+/// bodies) is the hand-derived preset: the same forward kinematics, every error the preset models
+/// is one the limbs model has (the preset's directions lie in the limbs model's span, which also
+/// holds the universal-joint and rail errors the preset leaves out), and noise-free data of a
+/// perturbed preset are fitted to round-off.
+#[test]
+fn pm5_written_as_limbs_is_the_preset() {
+    use kinecal::identify::{identify, Options};
+    let preset = kinecal::io::builtin::model_file("pm5").unwrap().build();
+    let limbs = load(include_str!("../../examples/models/pm5-limbs.toml")).unwrap().build();
+    assert_eq!(preset.input_names(), limbs.input_names());
+    let qs = preset.sample_configurations(1000, 1).unwrap().unwrap();
+    let worst = forward_difference(&*preset, &*limbs, &qs);
+    eprintln!(
+        "pm5 preset vs limbs, 1000 configurations: FK differs by {:.2e} mm / {:.2e} rad",
+        worst.0, worst.1
+    );
+    assert!(worst.0 < 1e-9 && worst.1 < 1e-9, "FK differs by {worst:?} mm / rad");
+    let (jp, jl) = (stacked_directions(&*preset, &qs[..30]), stacked_directions(&*limbs, &qs[..30]));
+    let (rp, rl, both) = ranks(&jp, &jl);
+    eprintln!("ranks: preset {rp}, limbs {rl}, together {both}");
+    assert_eq!((rp, rl, both), (32, 48, 48));
+    // Every parameter free (the file fixes the redundant ones for its own fits).
+    let truth = perturbed_preset(&*preset);
+    let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(3);
+    let exact = kinecal::simulate::measure(&truth, &qs[..60], kinecal::simulate::ObservationKind::Pose, None, &mut rng).unwrap();
+    let fit = identify(&limbs, &exact, &Options::default()).unwrap();
+    assert!(fit.converged);
+    let worst = held_out(&*fit.model, &*truth, &qs[100..200]);
+    eprintln!("noise-free data of the perturbed preset: held-out {worst:.2e} mm from the truth");
     assert!(worst < 1e-9, "{worst}");
 }
 
@@ -330,7 +394,7 @@ fn the_limbs_machines_are_listed_and_exported_like_the_presets() {
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
     let list = ok(d, &["model", "list"]);
-    for name in ["hexapod-6rus", "head-3prs", "linear-delta", "stewart-limbs"] {
+    for name in ["hexapod-6rus", "head-3prs", "linear-delta", "stewart-limbs", "pm5-limbs"] {
         assert!(list.contains(name), "{list}");
         let file = kinecal::io::builtin::model_file(name).unwrap();
         assert_eq!(file.mechanism.kind(), "limbs");
@@ -345,4 +409,9 @@ fn the_limbs_machines_are_listed_and_exported_like_the_presets() {
     // A built-in name works wherever a model file does.
     let id = json(d, &["identifiability", "head-3prs", "--poses", "40"]);
     assert_eq!(id["rank"], 33, "{id}");
+}
+
+#[test]
+fn pm5_as_limbs_with_its_sub_closed_loops_through_the_whole_workflow() {
+    whole_workflow(include_str!("../../examples/models/pm5-limbs.toml"), 48, "estimate");
 }

@@ -20,6 +20,10 @@
 //! name = "leg1"
 //! end = "point"            # "point": a spherical joint on the platform; "frame": the limb's end is the platform frame
 //! platform_point = [...]   # point ends: the joint centre in the platform frame (default: where the limb ends at home)
+//! start = { limb = "leg2", after = "r2" }    # optional: starts on the body after joint r2 of an earlier
+//!                                            #   limb (a branch: the actuator of a sub-closed loop)
+//! end_on = { limb = "leg2", after = "k2" }   # optional: closes on that body instead of the platform
+//!                                            #   (platform_point and end_placement are then in its frame)
 //! [mechanism.limbs.end_placement]   # the limb's end in its last joint frame (a point end: the
 //! position = [...]                  # sphere centre, default its origin; a frame end: default the
 //!                                   # platform frame as it stands at home)
@@ -40,7 +44,7 @@
 //! Inputs (data columns) are the actuated joints in limb order, then the sensed ones.
 use super::{fmt3, num, quote, write_pose, Ctx, IoError, MechanismSpec, RawPose, Units};
 use crate::model::chain::{ChainJoint, JointKind, SerialChain};
-use crate::model::limbs::{GroupKind, JointGroup, JointRole, Limb, LimbEnd, LimbMechanism, PoseBox};
+use crate::model::limbs::{BodyRef, GroupKind, JointGroup, JointRole, Limb, LimbEnd, LimbMechanism, PoseBox};
 use crate::model::{Mechanism as _, Task};
 use crate::se3::Pose;
 use nalgebra::Vector3;
@@ -72,10 +76,20 @@ struct RawBox {
 #[serde(deny_unknown_fields)]
 struct RawLimb {
     name: String,
+    start: Option<Spanned<RawBody>>,
     end: Spanned<String>,
+    end_on: Option<Spanned<RawBody>>,
     platform_point: Option<[f64; 3]>,
     end_placement: Option<Spanned<RawPose>>,
     joints: Option<Vec<Spanned<RawLimbJoint>>>,
+}
+
+/// A body of another limb: the one after its joint `after`.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawBody {
+    limb: String,
+    after: String,
 }
 
 #[derive(Deserialize)]
@@ -173,8 +187,41 @@ impl Ctx<'_> {
         };
         let raw_limbs = raw.limbs.as_deref().filter(|l| !l.is_empty()).ok_or_else(whole)?;
         let mut limbs = Vec::new();
+        let mut derive = Vec::new();
         for (i, sl) in raw_limbs.iter().enumerate() {
-            limbs.push(self.limb(i, sl, &home, units)?);
+            let (limb, d) = self.limb(i, sl, units)?;
+            limbs.push(limb);
+            derive.push(d);
+        }
+        for (i, sl) in raw_limbs.iter().enumerate() {
+            let rl = sl.get_ref();
+            let start = rl
+                .start
+                .as_ref()
+                .map(|b| self.body(b, &limbs, &format!("mechanism.limbs[{i}].start")));
+            limbs[i].start = start.transpose()?;
+            let end_on = rl
+                .end_on
+                .as_ref()
+                .map(|b| self.body(b, &limbs, &format!("mechanism.limbs[{i}].end_on")));
+            limbs[i].end_on = end_on.transpose()?;
+        }
+        // Ends not given: attached where the limb ends at its home values (platform at home).
+        for (i, sl) in raw_limbs.iter().enumerate() {
+            if !derive[i] {
+                continue;
+            }
+            let what = format!("mechanism.limbs[{i}] ('{}')", limbs[i].name);
+            let frame_of = |b: &Option<BodyRef>, otherwise: Pose| match b {
+                None => Ok(otherwise),
+                Some(b) => limbs[b.limb].chain.frames(&limbs[b.limb].home).map(|f| f[b.joint]),
+            };
+            let start = frame_of(&limbs[i].start, Pose::identity());
+            let target = frame_of(&limbs[i].end_on, home);
+            let attached = start
+                .and_then(|s| target.map(|t| (s, t)))
+                .and_then(|(s, t)| limbs[i].attach_at(&s, &t));
+            attached.map_err(|e| self.at(&sl.span(), format!("{what}: {e}")))?;
         }
         LimbMechanism::new(name, limbs, task, home, workspace)
             .map(MechanismSpec::Limbs)
@@ -191,7 +238,38 @@ impl Ctx<'_> {
             })
     }
 
-    fn limb(&self, i: usize, sl: &Spanned<RawLimb>, home: &Pose, units: &Units) -> Result<Limb, IoError> {
+    /// A body named in a limb table: `{ limb = "...", after = "<joint>" }`.
+    fn body(&self, b: &Spanned<RawBody>, limbs: &[Limb], what: &str) -> Result<BodyRef, IoError> {
+        let r = b.get_ref();
+        let limb = limbs.iter().position(|l| l.name == r.limb).ok_or_else(|| {
+            let names: Vec<&str> = limbs.iter().map(|l| l.name.as_str()).collect();
+            self.at(
+                &b.span(),
+                format!("{what}: no limb named '{}' (limbs: {})", r.limb, names.join(", ")),
+            )
+        })?;
+        let mut end = 0;
+        for g in &limbs[limb].groups {
+            end += g.count;
+            if g.name == r.after {
+                return Ok(BodyRef { limb, joint: end - 1 });
+            }
+        }
+        let names: Vec<&str> = limbs[limb].groups.iter().map(|g| g.name.as_str()).collect();
+        Err(self.at(
+            &b.span(),
+            format!(
+                "{what}: limb '{}' has no joint '{}' (its joints: {})",
+                r.limb,
+                r.after,
+                names.join(", ")
+            ),
+        ))
+    }
+
+    /// One limb, and whether its end is to be attached where it stands at home (no end placement
+    /// or point given).
+    fn limb(&self, i: usize, sl: &Spanned<RawLimb>, units: &Units) -> Result<(Limb, bool), IoError> {
         let rl = sl.get_ref();
         let what = format!("mechanism.limbs[{i}] ('{}')", rl.name);
         if rl.name.is_empty() || rl.name.contains(['.', ' ']) {
@@ -330,18 +408,17 @@ impl Ctx<'_> {
             }
         };
         let chain = SerialChain::new(rl.name.clone(), joints, initial, end_placement.unwrap_or_else(Pose::identity));
-        let mut limb = Limb {
+        let limb = Limb {
             name: rl.name.clone(),
             chain,
             roles,
             end,
+            start: None,
+            end_on: None,
             home: homes,
             groups,
         };
-        if derive {
-            limb.attach_at(home).map_err(|e| self.at(&sl.span(), format!("{what}: {e}")))?;
-        }
-        Ok(limb)
+        Ok((limb, derive))
     }
 }
 
@@ -361,8 +438,25 @@ pub(super) fn write_limbs(m: &LimbMechanism, units: &Units, out: &mut String) ->
         let _ = writeln!(out, "position_min = {}\nposition_max = {}", p(&w.position_min), p(&w.position_max));
         let _ = writeln!(out, "rpy_min = {}\nrpy_max = {}", r(&w.rpy_min), r(&w.rpy_max));
     }
+    let body = |b: &BodyRef| -> Result<String, String> {
+        let l = &m.limbs()[b.limb];
+        let mut end = 0;
+        for g in &l.groups {
+            end += g.count;
+            if end == b.joint + 1 {
+                return Ok(format!("{{ limb = {}, after = {} }}", quote(&l.name), quote(&g.name)));
+            }
+        }
+        Err(format!("limb '{}': no joint ends at chain joint {}", l.name, b.joint))
+    };
     for limb in m.limbs() {
         let _ = writeln!(out, "\n[[mechanism.limbs]]\nname = {}", quote(&limb.name));
+        if let Some(b) = &limb.start {
+            let _ = writeln!(out, "start = {}", body(b)?);
+        }
+        if let Some(b) = &limb.end_on {
+            let _ = writeln!(out, "end_on = {}", body(b)?);
+        }
         match &limb.end {
             LimbEnd::Frame => out.push_str("end = \"frame\"\n"),
             LimbEnd::Point(p) => {

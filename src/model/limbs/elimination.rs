@@ -14,7 +14,7 @@ impl LimbMechanism {
     /// system is not square, a limb has more passive joints than equations, or a pivot is (nearly)
     /// zero: the caller then solves `F` whole, which also names a singularity.
     pub(super) fn step_by_limbs(&self, f: &DMatrix<f64>, r: &DVector<f64>) -> Option<DVector<f64>> {
-        if f.nrows() != f.ncols() {
+        if f.nrows() != f.ncols() || self.linked() {
             return None;
         }
         // Each limb's eliminated rows, [U | B' | r'] per pivot row.
@@ -78,7 +78,7 @@ impl LimbMechanism {
     /// and `dζ = −S⁻¹·T·dθ`, a 6 × 6 solve. `None` where the step would be (then the caller
     /// solves `F_z` whole).
     pub(super) fn platform_jacobian_by_limbs(&self, fz: &DMatrix<f64>, fp: &DMatrix<f64>) -> Option<DMatrix<f64>> {
-        if fz.nrows() != fz.ncols() {
+        if fz.nrows() != fz.ncols() || self.linked() {
             return None;
         }
         let mut s = nalgebra::Matrix6::zeros();

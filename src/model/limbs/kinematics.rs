@@ -1,5 +1,6 @@
 //! The kinematics of [`LimbMechanism`]: closure equations and their derivatives, forward and
 //! inverse kinematics by Gauss–Newton with continuation (see the [parent module](super)).
+use super::closure::{moved, point_map};
 use super::*;
 
 /// Most stages of a forward-kinematics continuation.
@@ -16,71 +17,6 @@ impl LimbMechanism {
             j[i][jj] = passive[k];
         }
         j
-    }
-
-    /// Closure residual and its derivative with respect to `[ζ (6) | passive joints]` (with
-    /// `all_joints`: `[ζ | every joint in input order, then passive order]`).
-    pub(super) fn closure(&self, x: &Pose, joints: &Joints, passive_only: bool) -> (DVector<f64>, DMatrix<f64>) {
-        let rows: usize = self.limbs.iter().map(Limb::rows).sum();
-        let cols = 6 + if passive_only {
-            self.passive.len()
-        } else {
-            self.inputs.len() + self.passive.len()
-        };
-        let mut r = DVector::zeros(rows);
-        let mut f = DMatrix::zeros(rows, cols);
-        let mut col_of = vec![Vec::new(); self.limbs.len()];
-        for (i, l) in self.limbs.iter().enumerate() {
-            col_of[i] = vec![None; l.chain.n_joints()];
-        }
-        if !passive_only {
-            for (k, &(i, j)) in self.inputs.iter().enumerate() {
-                col_of[i][j] = Some(6 + k);
-            }
-        }
-        let off = if passive_only { 6 } else { 6 + self.inputs.len() };
-        for (k, &(i, j)) in self.passive.iter().enumerate() {
-            col_of[i][j] = Some(off + k);
-        }
-        let mut row = 0;
-        for (i, l) in self.limbs.iter().enumerate() {
-            // Non-finite joint values (a diverging solve): a non-finite residual, which every
-            // solver takes as failure.
-            let Ok((e, jq)) = l.chain.joint_jacobian(&joints[i]) else {
-                r.fill(f64::NAN);
-                return (r, f);
-            };
-            match &l.end {
-                LimbEnd::Frame => {
-                    let res = se3::log(&(e * x.inverse()));
-                    r.rows_mut(row, 6).copy_from(&res);
-                    for d in 0..6 {
-                        f[(row + d, d)] = -1.0;
-                    }
-                    for (j, c) in col_of[i].iter().enumerate() {
-                        if let Some(c) = c {
-                            f.view_mut((row, *c), (6, 1)).copy_from(&jq.column(j));
-                        }
-                    }
-                }
-                LimbEnd::Point(a) => {
-                    let xa = x * nalgebra::Point3::from(*a);
-                    let pe = e.translation.vector;
-                    r.rows_mut(row, 3).copy_from(&(pe - xa.coords));
-                    let m_plat = point_map(&xa.coords);
-                    f.view_mut((row, 0), (3, 6)).copy_from(&(-m_plat));
-                    let m_end = point_map(&pe);
-                    for (j, c) in col_of[i].iter().enumerate() {
-                        if let Some(c) = c {
-                            let col = m_end * jq.fixed_view::<6, 1>(0, j);
-                            f.view_mut((row, *c), (3, 1)).copy_from(&col);
-                        }
-                    }
-                }
-            }
-            row += l.rows();
-        }
-        (r, f)
     }
 
     /// Gauss–Newton on the closure for the platform pose and passive joints at inputs `q`, from
@@ -179,49 +115,12 @@ impl LimbMechanism {
         }
     }
 
-    /// The closure's derivative with respect to the error parameters (rows × p) at a solved
-    /// configuration.
-    pub(super) fn closure_params(&self, x: &Pose, joints: &Joints) -> DMatrix<f64> {
-        let rows: usize = self.limbs.iter().map(Limb::rows).sum();
-        let p: usize = self.limbs.iter().map(Limb::n_params).sum();
-        let mut f = DMatrix::zeros(rows, p);
-        let (mut row, mut col) = (0, 0);
-        for (i, l) in self.limbs.iter().enumerate() {
-            let Ok((e, jp_all)) = l.chain.forward_with_jacobian(&joints[i]) else {
-                f.fill(f64::NAN);
-                return f;
-            };
-            let keep = l.dyad_has_errors();
-            let n = l.chain_params();
-            let mut jp = Matrix6xX::zeros(n);
-            let mut c = 0;
-            for (d, k) in keep.iter().enumerate() {
-                if *k {
-                    jp.fixed_view_mut::<6, 6>(0, c).copy_from(&jp_all.fixed_view::<6, 6>(0, 6 * d));
-                    c += 6;
-                }
-            }
-            match &l.end {
-                LimbEnd::Frame => f.view_mut((row, col), (6, n)).copy_from(&jp),
-                LimbEnd::Point(_) => {
-                    let m = point_map(&e.translation.vector);
-                    f.view_mut((row, col), (3, n)).copy_from(&(m * &jp));
-                    let r = se3::rotation_matrix(x);
-                    f.view_mut((row, col + n), (3, 3)).copy_from(&(-r));
-                }
-            }
-            row += l.rows();
-            col += l.n_params();
-        }
-        f
-    }
-
     /// The inverse kinematics with every joint value of every limb (inputs first, then the
     /// passive joints) and the platform pose reached.
     pub fn inverse_full(&self, target: &Pose) -> Result<(Vec<f64>, Vec<f64>, Pose), KinError> {
         // A commanded pose fixes the platform, and each limb closes on the platform alone: the
         // limbs one by one (small systems), each followed from its home like the whole machine.
-        if self.task == Task::Full {
+        if self.task == Task::Full && !self.linked() {
             let mut solved = Vec::with_capacity(self.limbs.len());
             for i in 0..self.limbs.len() {
                 solved.push(self.limb_along_path(i, target).map_err(|res| {
@@ -302,7 +201,8 @@ impl LimbMechanism {
     /// continuation of the whole machine, for one limb). The residual reached where it fails.
     fn limb_along_path(&self, i: usize, target: &Pose) -> Result<Vec<f64>, f64> {
         let home = &self.limbs[i].home;
-        let (q, mut worst) = self.solve_limb_from(i, target, home.clone());
+        let base = Pose::identity();
+        let (q, mut worst) = self.solve_limb_from(i, &base, target, home.clone());
         if worst < TOLERANCE {
             return Ok(q);
         }
@@ -310,7 +210,7 @@ impl LimbMechanism {
             let mut q = home.clone();
             for s in 1..=steps {
                 let goal = interpolate(&self.home, target, s as f64 / steps as f64);
-                let (next, res) = self.solve_limb_from(i, &goal, q);
+                let (next, res) = self.solve_limb_from(i, &base, &goal, q);
                 // (NaN fails too.)
                 if res.partial_cmp(&TOLERANCE) != Some(std::cmp::Ordering::Less) {
                     worst = res;
@@ -324,20 +224,29 @@ impl LimbMechanism {
     }
 
     /// Limb `i`'s joints that put its end as close as it gets to the platform at `x` (least
-    /// squares from its home values), and the largest remaining residual (mm / rad).
+    /// squares from its home values), and the largest remaining residual (mm / rad). For a limb
+    /// that starts on the base.
+    #[cfg(test)]
     pub(super) fn solve_limb_at(&self, i: usize, x: &Pose) -> (Vec<f64>, f64) {
-        self.solve_limb_from(i, x, self.limbs[i].home.clone())
+        self.solve_limb_from(i, &Pose::identity(), x, self.limbs[i].home.clone())
     }
 
-    /// [`solve_limb_at`](Self::solve_limb_at) from the joint values `q`.
-    fn solve_limb_from(&self, i: usize, x: &Pose, mut q: Vec<f64>) -> (Vec<f64>, f64) {
+    /// Limb `i`'s joints, from `q`, that put its end, with its chain starting at `start`, as close
+    /// as it gets to `x` (the platform or the body it closes on; least squares), and the largest
+    /// remaining residual (mm / rad).
+    pub(super) fn solve_limb_from(&self, i: usize, start: &Pose, x: &Pose, mut q: Vec<f64>) -> (Vec<f64>, f64) {
         let l = &self.limbs[i];
+        let shifted = *start != Pose::identity();
         let mut res = f64::INFINITY;
         let mut stalled = false;
         for _ in 0..MAX_ITERATIONS {
-            let Ok((e, jq)) = l.chain.joint_jacobian(&q) else {
+            let Ok((mut e, mut jq)) = l.chain.joint_jacobian(&q) else {
                 return (q, f64::INFINITY);
             };
+            if shifted {
+                e = start * e;
+                jq = moved(start, &jq);
+            }
             let (r, f) = match &l.end {
                 LimbEnd::Frame => (DVector::from_column_slice(se3::log(&(e * x.inverse())).as_slice()), jq.clone()),
                 LimbEnd::Point(a) => {
@@ -378,14 +287,6 @@ impl LimbMechanism {
         }
         (q, res)
     }
-}
-
-/// `[I | −[p]×]`: the velocity of point `p` under a spatial twist `(v, ω)`.
-pub(super) fn point_map(p: &Vector3<f64>) -> nalgebra::Matrix3x6<f64> {
-    let mut m = nalgebra::Matrix3x6::zeros();
-    m.fixed_view_mut::<3, 3>(0, 0).copy_from(&Matrix3::identity());
-    m.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-se3::skew(p)));
-    m
 }
 
 /// The commanded part of `x` against `target` and its derivative with respect to `ζ`.

@@ -1,0 +1,300 @@
+//! The closure equations of [`LimbMechanism`] and their derivatives with respect to the unknowns
+//! (platform twist, joint values) and the error parameters (see the [parent module](super)).
+//!
+//! A limb starts on the base or on a body of another limb (the frame after one of its joints:
+//! [`Limb::start`]) and closes on the platform or on such a body ([`Limb::end_on`]). A limb that
+//! starts on a body `S` reaches `S·C(q)`, so its own columns are `Ad_S` times its chain's, and
+//! the joints and parameters up to that body add their own spatial columns; a limb that closes on
+//! a body `Y` sees `Y`'s columns with the opposite sign, as it sees the platform's.
+use super::*;
+use nalgebra::{Matrix3x6, Vector6};
+
+/// How a limb's rows see a spatial twist: all six components (a frame end) or the velocity of a
+/// point (a point end).
+enum RowMap {
+    Frame,
+    Point(Matrix3x6<f64>),
+}
+
+impl RowMap {
+    /// `f[row.., col] += sign·map·v`.
+    fn add(&self, f: &mut DMatrix<f64>, row: usize, col: usize, v: &Vector6<f64>, sign: f64) {
+        match self {
+            RowMap::Frame => {
+                for d in 0..6 {
+                    f[(row + d, col)] += sign * v[d];
+                }
+            }
+            RowMap::Point(m) => {
+                let w = m * v;
+                for d in 0..3 {
+                    f[(row + d, col)] += sign * w[d];
+                }
+            }
+        }
+    }
+}
+
+/// A spatial joint Jacobian of a chain that starts at `s` instead of the base: `Ad_s·J`.
+pub(super) fn moved(s: &Pose, j: &DMatrix<f64>) -> DMatrix<f64> {
+    let a = se3::adjoint(s);
+    DMatrix::from_fn(6, j.ncols(), |r, c| (0..6).map(|k| a[(r, k)] * j[(k, c)]).sum())
+}
+
+/// `[I | −[p]×]`: the velocity of point `p` under a spatial twist `(v, ω)`.
+pub(super) fn point_map(p: &Vector3<f64>) -> nalgebra::Matrix3x6<f64> {
+    let mut m = nalgebra::Matrix3x6::zeros();
+    m.fixed_view_mut::<3, 3>(0, 0).copy_from(&Matrix3::identity());
+    m.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-se3::skew(p)));
+    m
+}
+
+/// Column `j` of a 6-row matrix.
+fn col6(m: &DMatrix<f64>, j: usize) -> Vector6<f64> {
+    m.fixed_view::<6, 1>(0, j).into_owned()
+}
+
+/// What a limb's closure is built from at one configuration: its end in the world, the frame it
+/// closes on, and the maps of its rows for its own end and for that frame.
+struct LimbClosure {
+    /// The pose it closes on (the platform or a body).
+    target: Pose,
+    /// The rows' view of a twist of the end.
+    end_map: RowMap,
+    /// The rows' view of a twist of the target.
+    target_map: RowMap,
+}
+
+impl LimbMechanism {
+    /// Whether some limb starts or ends on another limb's body (the limb-by-limb elimination
+    /// then does not apply: a limb's rows involve another limb's joints).
+    pub(super) fn linked(&self) -> bool {
+        self.limbs.iter().any(|l| l.start.is_some() || l.end_on.is_some())
+    }
+
+    /// The frame after joint `b.joint` of limb `b.limb` at `joints`, and the spatial Jacobian of
+    /// that frame in the limb's joints up to it (`6 × (b.joint + 1)`).
+    fn body_with_jacobian(&self, b: &BodyRef, joints: &Joints) -> Result<(Pose, DMatrix<f64>), KinError> {
+        let chain = &self.limbs[b.limb].chain;
+        let q = &joints[b.limb];
+        let frames = chain.frames(q)?;
+        let (_, jq) = chain.joint_jacobian(q)?;
+        Ok((frames[b.joint], jq.columns(0, b.joint + 1).into_owned()))
+    }
+
+    /// Where limb `i` starts (the base: identity) at `joints`.
+    pub(super) fn start_pose(&self, i: usize, joints: &Joints) -> Result<Pose, KinError> {
+        match &self.limbs[i].start {
+            None => Ok(Pose::identity()),
+            Some(b) => Ok(self.limbs[b.limb].chain.frames(&joints[b.limb])?[b.joint]),
+        }
+    }
+
+    /// What limb `i` closes on at `joints`: the platform at `x`, or a body.
+    pub(super) fn target_pose(&self, i: usize, x: &Pose, joints: &Joints) -> Result<Pose, KinError> {
+        match &self.limbs[i].end_on {
+            None => Ok(*x),
+            Some(b) => Ok(self.limbs[b.limb].chain.frames(&joints[b.limb])?[b.joint]),
+        }
+    }
+
+    /// Limb `i`'s residual rows into `r` (from `row`) and what its derivatives need.
+    fn limb_closure(&self, i: usize, end: Pose, target: Pose, r: &mut DVector<f64>, row: usize) -> LimbClosure {
+        match &self.limbs[i].end {
+            LimbEnd::Frame => {
+                r.rows_mut(row, 6).copy_from(&se3::log(&(end * target.inverse())));
+                LimbClosure {
+                    target,
+                    end_map: RowMap::Frame,
+                    target_map: RowMap::Frame,
+                }
+            }
+            LimbEnd::Point(a) => {
+                let ta = (target * nalgebra::Point3::from(*a)).coords;
+                let pe = end.translation.vector;
+                r.rows_mut(row, 3).copy_from(&(pe - ta));
+                LimbClosure {
+                    target,
+                    end_map: RowMap::Point(point_map(&pe)),
+                    target_map: RowMap::Point(point_map(&ta)),
+                }
+            }
+        }
+    }
+
+    /// Closure residual and its derivative with respect to `[ζ (6) | passive joints]` (with
+    /// `all_joints`: `[ζ | every joint in input order, then passive order]`).
+    pub(super) fn closure(&self, x: &Pose, joints: &Joints, passive_only: bool) -> (DVector<f64>, DMatrix<f64>) {
+        let rows: usize = self.limbs.iter().map(Limb::rows).sum();
+        let cols = 6 + if passive_only {
+            self.passive.len()
+        } else {
+            self.inputs.len() + self.passive.len()
+        };
+        let mut r = DVector::zeros(rows);
+        let mut f = DMatrix::zeros(rows, cols);
+        let mut col_of: Vec<Vec<Option<usize>>> = self.limbs.iter().map(|l| vec![None; l.chain.n_joints()]).collect();
+        if !passive_only {
+            for (k, &(i, j)) in self.inputs.iter().enumerate() {
+                col_of[i][j] = Some(6 + k);
+            }
+        }
+        let off = if passive_only { 6 } else { 6 + self.inputs.len() };
+        for (k, &(i, j)) in self.passive.iter().enumerate() {
+            col_of[i][j] = Some(off + k);
+        }
+        let mut row = 0;
+        for (i, l) in self.limbs.iter().enumerate() {
+            // Non-finite joint values (a diverging solve): a non-finite residual, which every
+            // solver takes as failure.
+            let Ok(c) = self.limb_rows(i, x, joints, &col_of, &mut r, &mut f, row) else {
+                r.fill(f64::NAN);
+                return (r, f);
+            };
+            // Closing on the platform: its twist, with the opposite sign.
+            if l.end_on.is_none() {
+                match &c.target_map {
+                    RowMap::Frame => {
+                        for d in 0..6 {
+                            f[(row + d, d)] = -1.0;
+                        }
+                    }
+                    RowMap::Point(m) => f.view_mut((row, 0), (3, 6)).copy_from(&(-m)),
+                }
+            }
+            row += l.rows();
+        }
+        (r, f)
+    }
+
+    /// Limb `i`'s residual and its joint columns (its own, and those of the bodies it starts or
+    /// ends on) at `row`.
+    #[allow(clippy::too_many_arguments)]
+    fn limb_rows(
+        &self,
+        i: usize,
+        x: &Pose,
+        joints: &Joints,
+        col_of: &[Vec<Option<usize>>],
+        r: &mut DVector<f64>,
+        f: &mut DMatrix<f64>,
+        row: usize,
+    ) -> Result<LimbClosure, KinError> {
+        let l = &self.limbs[i];
+        let (mut e, mut jq) = l.chain.joint_jacobian(&joints[i])?;
+        let start = match &l.start {
+            Some(b) => {
+                let (s, js) = self.body_with_jacobian(b, joints)?;
+                e = s * e;
+                jq = moved(&s, &jq);
+                Some((b, js))
+            }
+            None => None,
+        };
+        let (target, end_body) = match &l.end_on {
+            Some(b) => {
+                let (y, jy) = self.body_with_jacobian(b, joints)?;
+                (y, Some((b, jy)))
+            }
+            None => (*x, None),
+        };
+        let c = self.limb_closure(i, e, target, r, row);
+        for (j, col) in col_of[i].iter().enumerate() {
+            if let Some(col) = col {
+                c.end_map.add(f, row, *col, &col6(&jq, j), 1.0);
+            }
+        }
+        if let Some((b, js)) = start {
+            for (j, col) in col_of[b.limb].iter().enumerate().take(b.joint + 1) {
+                if let Some(col) = col {
+                    c.end_map.add(f, row, *col, &col6(&js, j), 1.0);
+                }
+            }
+        }
+        if let Some((b, jy)) = end_body {
+            for (j, col) in col_of[b.limb].iter().enumerate().take(b.joint + 1) {
+                if let Some(col) = col {
+                    c.target_map.add(f, row, *col, &col6(&jy, j), -1.0);
+                }
+            }
+        }
+        Ok(c)
+    }
+
+    /// The closure's derivative with respect to the error parameters (rows × p) at a solved
+    /// configuration.
+    pub(super) fn closure_params(&self, x: &Pose, joints: &Joints) -> DMatrix<f64> {
+        let rows: usize = self.limbs.iter().map(Limb::rows).sum();
+        let p: usize = self.limbs.iter().map(Limb::n_params).sum();
+        let mut f = DMatrix::zeros(rows, p);
+        let mut offsets = Vec::with_capacity(self.limbs.len());
+        let mut o = 0;
+        for l in &self.limbs {
+            offsets.push(o);
+            o += l.n_params();
+        }
+        // Each limb's spatial parameter Jacobian (all dyads), in the world.
+        let mut world = Vec::with_capacity(self.limbs.len());
+        for (i, l) in self.limbs.iter().enumerate() {
+            let Ok((e, jp)) = l.chain.forward_with_jacobian(&joints[i]) else {
+                f.fill(f64::NAN);
+                return f;
+            };
+            world.push((e, jp));
+        }
+        let mut row = 0;
+        let mut scratch = DVector::zeros(rows);
+        for (i, l) in self.limbs.iter().enumerate() {
+            let (mut e, mut jp) = (world[i].0, world[i].1.clone());
+            let (Ok(s), Ok(target)) = (self.start_pose(i, joints), self.target_pose(i, x, joints)) else {
+                f.fill(f64::NAN);
+                return f;
+            };
+            if l.start.is_some() {
+                e = s * e;
+                jp = se3::adjoint(&s) * jp;
+            }
+            let c = self.limb_closure(i, e, target, &mut scratch, row);
+            // Its own dyads, then those of the bodies it starts on (its end moves with them) and
+            // closes on (the target moves).
+            let add = |f: &mut DMatrix<f64>, limb: usize, upto: usize, jac: &Matrix6xX<f64>, map: &RowMap, sign: f64| {
+                for (d, col) in param_columns(&self.limbs[limb]).iter().enumerate().take(upto) {
+                    if let Some(col) = col {
+                        for k in 0..6 {
+                            let v = jac.fixed_view::<6, 1>(0, 6 * d + k).into_owned();
+                            map.add(f, row, offsets[limb] + col + k, &v, sign);
+                        }
+                    }
+                }
+            };
+            add(&mut f, i, usize::MAX, &jp, &c.end_map, 1.0);
+            if let Some(b) = &l.start {
+                add(&mut f, b.limb, b.joint + 1, &world[b.limb].1, &c.end_map, 1.0);
+            }
+            if let Some(b) = &l.end_on {
+                add(&mut f, b.limb, b.joint + 1, &world[b.limb].1, &c.target_map, -1.0);
+            }
+            if matches!(l.end, LimbEnd::Point(_)) {
+                let r = se3::rotation_matrix(&c.target);
+                f.view_mut((row, offsets[i] + l.chain_params()), (3, 3)).copy_from(&(-r));
+            }
+            row += l.rows();
+        }
+        f
+    }
+}
+
+/// Per dyad of `l`'s chain: the offset of its six parameter columns within the limb's, or `None`
+/// for a dyad without error parameters.
+fn param_columns(l: &Limb) -> Vec<Option<usize>> {
+    let mut c = 0;
+    l.dyad_has_errors()
+        .into_iter()
+        .map(|k| {
+            k.then(|| {
+                c += 6;
+                c - 6
+            })
+        })
+        .collect()
+}
