@@ -1,5 +1,6 @@
 //! Timings of the closed-loop engine on the 5-DOF preset: forward kinematics, forward kinematics
-//! with the identification Jacobian, inverse kinematics; and the same three of the Stewart
+//! with the identification Jacobian, inverse kinematics, beside the same machine written as limbs
+//! (`examples/models/pm5-limbs.toml`); and the same three of the Stewart
 //! platform as its hand-written preset (constraint equations) beside the same machine written as
 //! limbs (`examples/models/stewart-limbs.toml`, the generic `kind = "limbs"`), and the 6-RUS
 //! hexapod and 3-PRS head that exist only as limbs files.
@@ -20,6 +21,16 @@ fn pm5(c: &mut Criterion) {
         b.iter(|| m.forward_with_jacobian(black_box(&q)).unwrap())
     });
     c.bench_function("pm5 inverse", |b| b.iter(|| m.inverse(black_box(&target), None).unwrap()));
+    // The same machine written as limbs (its sub-closed loops as limbs), at the same configuration.
+    let l =
+        kinecal::io::model_file::ModelFile::load_str(std::path::Path::new("pm5-limbs"), include_str!("../examples/models/pm5-limbs.toml"))
+            .unwrap()
+            .build();
+    c.bench_function("pm5 limbs forward", |b| b.iter(|| l.forward(black_box(&q)).unwrap()));
+    c.bench_function(&format!("pm5 limbs forward_with_jacobian ({} params)", l.n_params()), |b| {
+        b.iter(|| l.forward_with_jacobian(black_box(&q)).unwrap())
+    });
+    c.bench_function("pm5 limbs inverse", |b| b.iter(|| l.inverse(black_box(&target), None).unwrap()));
 }
 
 fn limbs(c: &mut Criterion) {

@@ -224,6 +224,10 @@ pub struct LimbMechanism {
     inputs: Vec<(usize, usize)>,
     /// Per passive unknown: (limb, joint).
     passive: Vec<(usize, usize)>,
+    /// The limbs grouped for the elimination of the closure's Newton systems.
+    clusters: Option<Vec<elimination::Cluster>>,
+    /// The forward kinematics' tangent at home (the first continuation stage's predictor).
+    tangent: Option<DMatrix<f64>>,
 }
 
 /// Newton iterations of one solve.
@@ -306,10 +310,12 @@ impl LimbMechanism {
         }
         let mut m = LimbMechanism {
             name: name.into(),
-            limbs,
             task,
             home,
             workspace,
+            clusters: elimination::clusters(&limbs, &inputs, &passive),
+            tangent: None,
+            limbs,
             inputs,
             passive,
         };
@@ -352,6 +358,7 @@ impl LimbMechanism {
             l.home = j;
         }
         m.home = x;
+        m.tangent = m.home_tangent();
         let rows: usize = m.limbs.iter().map(Limb::rows).sum();
         let unknowns = 6 + m.passive.len();
         if rows < unknowns {
@@ -423,6 +430,7 @@ impl LimbMechanism {
             l.home = j;
         }
         out.home = x;
+        out.tangent = out.home_tangent();
         Ok(out)
     }
 }

@@ -54,6 +54,16 @@ fn col6(m: &DMatrix<f64>, j: usize) -> Vector6<f64> {
     m.fixed_view::<6, 1>(0, j).into_owned()
 }
 
+/// A limb's chain evaluated at its joint values (in its own start frame).
+struct ChainEvaluation {
+    /// The chain's end.
+    end: Pose,
+    /// Its spatial joint Jacobian.
+    jq: DMatrix<f64>,
+    /// The frame after each joint (only for a limb others start or close on).
+    frames: Vec<Pose>,
+}
+
 /// What a limb's closure is built from at one configuration: its end in the world, the frame it
 /// closes on, and the maps of its rows for its own end and for that frame.
 struct LimbClosure {
@@ -72,14 +82,42 @@ impl LimbMechanism {
         self.limbs.iter().any(|l| l.start.is_some() || l.end_on.is_some())
     }
 
-    /// The frame after joint `b.joint` of limb `b.limb` at `joints`, and the spatial Jacobian of
-    /// that frame in the limb's joints up to it (`6 × (b.joint + 1)`).
-    fn body_with_jacobian(&self, b: &BodyRef, joints: &Joints) -> Result<(Pose, DMatrix<f64>), KinError> {
-        let chain = &self.limbs[b.limb].chain;
-        let q = &joints[b.limb];
-        let frames = chain.frames(q)?;
-        let (_, jq) = chain.joint_jacobian(q)?;
-        Ok((frames[b.joint], jq.columns(0, b.joint + 1).into_owned()))
+    /// Each limb's chain at `joints`, evaluated once: its end, its spatial joint Jacobian and, for
+    /// a limb that others start or close on, the frame after each joint.
+    fn chain_evaluations(&self, joints: &Joints) -> Result<Vec<ChainEvaluation>, KinError> {
+        let mut referenced = vec![false; self.limbs.len()];
+        for l in &self.limbs {
+            for b in [l.start, l.end_on].into_iter().flatten() {
+                referenced[b.limb] = true;
+            }
+        }
+        self.limbs
+            .iter()
+            .zip(joints)
+            .zip(referenced)
+            .map(|((l, q), keep)| {
+                let chain = &l.chain;
+                if q.len() != chain.n_joints() || q.iter().any(|v| !v.is_finite()) {
+                    return Err(KinError::NonFinite("limb joint values".into()));
+                }
+                let mut g = Pose::identity();
+                let mut jq = DMatrix::zeros(6, q.len());
+                let mut frames = Vec::with_capacity(if keep { q.len() } else { 0 });
+                for (j, joint) in chain.joints().iter().enumerate() {
+                    let a = g * chain.initial_poses()[j];
+                    jq.set_column(j, &se3::adjoint_apply(&a, &joint.twist()));
+                    g = a * se3::exp_joint(&joint.twist(), q[j]);
+                    if keep {
+                        frames.push(g);
+                    }
+                }
+                Ok(ChainEvaluation {
+                    end: g * chain.tool(),
+                    jq,
+                    frames,
+                })
+            })
+            .collect()
     }
 
     /// Where limb `i` starts (the base: identity) at `joints`.
@@ -143,14 +181,15 @@ impl LimbMechanism {
         for (k, &(i, j)) in self.passive.iter().enumerate() {
             col_of[i][j] = Some(off + k);
         }
+        // Non-finite joint values (a diverging solve): a non-finite residual, which every solver
+        // takes as failure.
+        let Ok(evals) = self.chain_evaluations(joints) else {
+            r.fill(f64::NAN);
+            return (r, f);
+        };
         let mut row = 0;
         for (i, l) in self.limbs.iter().enumerate() {
-            // Non-finite joint values (a diverging solve): a non-finite residual, which every
-            // solver takes as failure.
-            let Ok(c) = self.limb_rows(i, x, joints, &col_of, &mut r, &mut f, row) else {
-                r.fill(f64::NAN);
-                return (r, f);
-            };
+            let c = self.limb_rows(i, x, &evals, &col_of, &mut r, &mut f, row);
             // Closing on the platform: its twist, with the opposite sign.
             if l.end_on.is_none() {
                 match &c.target_map {
@@ -174,51 +213,43 @@ impl LimbMechanism {
         &self,
         i: usize,
         x: &Pose,
-        joints: &Joints,
+        evals: &[ChainEvaluation],
         col_of: &[Vec<Option<usize>>],
         r: &mut DVector<f64>,
         f: &mut DMatrix<f64>,
         row: usize,
-    ) -> Result<LimbClosure, KinError> {
+    ) -> LimbClosure {
         let l = &self.limbs[i];
-        let (mut e, mut jq) = l.chain.joint_jacobian(&joints[i])?;
-        let start = match &l.start {
+        let own = &evals[i];
+        let (e, moved_jq) = match &l.start {
             Some(b) => {
-                let (s, js) = self.body_with_jacobian(b, joints)?;
-                e = s * e;
-                jq = moved(&s, &jq);
-                Some((b, js))
+                let s = evals[b.limb].frames[b.joint];
+                (s * own.end, Some(moved(&s, &own.jq)))
             }
-            None => None,
+            None => (own.end, None),
         };
-        let (target, end_body) = match &l.end_on {
-            Some(b) => {
-                let (y, jy) = self.body_with_jacobian(b, joints)?;
-                (y, Some((b, jy)))
-            }
-            None => (*x, None),
+        let jq = moved_jq.as_ref().unwrap_or(&own.jq);
+        let target = match &l.end_on {
+            Some(b) => evals[b.limb].frames[b.joint],
+            None => *x,
         };
         let c = self.limb_closure(i, e, target, r, row);
         for (j, col) in col_of[i].iter().enumerate() {
             if let Some(col) = col {
-                c.end_map.add(f, row, *col, &col6(&jq, j), 1.0);
+                c.end_map.add(f, row, *col, &col6(jq, j), 1.0);
             }
         }
-        if let Some((b, js)) = start {
+        // The joints before the body it starts on move its end; those before the body it closes
+        // on move the target (a body's spatial Jacobian is its limb's first columns).
+        for (b, map, sign) in [(&l.start, &c.end_map, 1.0), (&l.end_on, &c.target_map, -1.0)] {
+            let Some(b) = b else { continue };
             for (j, col) in col_of[b.limb].iter().enumerate().take(b.joint + 1) {
                 if let Some(col) = col {
-                    c.end_map.add(f, row, *col, &col6(&js, j), 1.0);
+                    map.add(f, row, *col, &col6(&evals[b.limb].jq, j), sign);
                 }
             }
         }
-        if let Some((b, jy)) = end_body {
-            for (j, col) in col_of[b.limb].iter().enumerate().take(b.joint + 1) {
-                if let Some(col) = col {
-                    c.target_map.add(f, row, *col, &col6(&jy, j), -1.0);
-                }
-            }
-        }
-        Ok(c)
+        c
     }
 
     /// The closure's derivative with respect to the error parameters (rows × p) at a solved

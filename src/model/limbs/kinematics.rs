@@ -39,20 +39,42 @@ impl LimbMechanism {
             if res < tolerance {
                 return Ok((x, passive));
             }
-            let dz = match self.step_by_limbs(&f, &r) {
-                Some(dz) => dz,
-                None => lstsq(&f, &(-r), "forward kinematics of a limb mechanism")?,
-            };
-            x = se3::exp(&Twist::from_iterator(dz.rows(0, 6).iter().copied())) * x;
-            for (p, d) in passive.iter_mut().zip(dz.rows(6, dz.len() - 6).iter()) {
-                *p += d;
-            }
+            self.forward_step(&f, &r, &mut x, &mut passive)?;
         }
         Err(KinError::NoConvergence {
             what: format!("forward kinematics of '{}' (closure)", self.name),
             iterations: MAX_ITERATIONS,
             residual: res,
         })
+    }
+
+    /// The Gauss–Newton step `F·dz = −r` applied to the platform pose and passive joints.
+    fn forward_step(&self, f: &DMatrix<f64>, r: &DVector<f64>, x: &mut Pose, passive: &mut [f64]) -> Result<(), KinError> {
+        let dz = match self.step_by_limbs(f, r, false) {
+            Some(dz) => dz,
+            None => lstsq(f, &(-r), "forward kinematics of a limb mechanism")?,
+        };
+        *x = se3::exp(&Twist::from_iterator(dz.rows(0, 6).iter().copied())) * *x;
+        for (p, d) in passive.iter_mut().zip(dz.rows(6, dz.len() - 6).iter()) {
+            *p += d;
+        }
+        Ok(())
+    }
+
+    /// The tangent of the forward kinematics at home, `dz/dq = −F_z⁻¹·F_q` (`[ζ | passive]` per
+    /// input): the first continuation stage's predictor. `None` where `F_z` is not regular there.
+    pub(super) fn home_tangent(&self) -> Option<DMatrix<f64>> {
+        let joints: Joints = self.limbs.iter().map(|l| l.home.clone()).collect();
+        let (_, f) = self.closure(&self.home, &joints, false);
+        let ni = self.inputs.len();
+        let np = self.passive.len();
+        if f.nrows() != 6 + np {
+            return None;
+        }
+        let fz = DMatrix::from_fn(6 + np, 6 + np, |r, c| if c < 6 { f[(r, c)] } else { f[(r, c + ni)] });
+        let fq = f.columns(6, ni).into_owned();
+        let t = fz.lu().solve(&(-fq))?;
+        t.iter().all(|v| v.is_finite()).then_some(t)
     }
 
     pub(super) fn home_passive(&self) -> Vec<f64> {
@@ -94,7 +116,17 @@ impl LimbMechanism {
                         let p: Vec<f64> = state.1.iter().zip(p1).map(|(a, b)| 2.0 * a - b).collect();
                         (se3::exp(&step) * state.0, p)
                     }
-                    None => state.clone(),
+                    // The first stage: along the tangent at home, `dz = −F_z⁻¹·F_q·dq`.
+                    None => match &self.tangent {
+                        Some(tangent) => {
+                            let dq = DVector::from_iterator(q.len(), qs.iter().zip(&q0).map(|(a, b)| a - b));
+                            let dz = tangent * dq;
+                            let x = se3::exp(&Twist::from_iterator(dz.rows(0, 6).iter().copied())) * state.0;
+                            let p = state.1.iter().zip(dz.rows(6, dz.len() - 6).iter()).map(|(a, d)| a + d).collect();
+                            (x, p)
+                        }
+                        None => state.clone(),
+                    },
                 };
                 let tol = if s == stages { TOLERANCE } else { STAGE_TOLERANCE };
                 match self.solve_forward(&qs, seed.0, seed.1, tol) {
@@ -181,7 +213,10 @@ impl LimbMechanism {
             if res < TOLERANCE {
                 return Ok((x, q, passive));
             }
-            let dz = lstsq(&big, &(-rr), "inverse kinematics of a limb mechanism")?;
+            let dz = match self.step_by_limbs(&big, &rr, true) {
+                Some(dz) => dz,
+                None => lstsq(&big, &(-rr), "inverse kinematics of a limb mechanism")?,
+            };
             x = se3::exp(&Twist::from_iterator(dz.rows(0, 6).iter().copied())) * x;
             for (v, d) in q.iter_mut().zip(dz.rows(6, self.inputs.len()).iter()) {
                 *v += d;
