@@ -224,10 +224,31 @@ pub struct LimbMechanism {
     inputs: Vec<(usize, usize)>,
     /// Per passive unknown: (limb, joint).
     passive: Vec<(usize, usize)>,
+    /// Per limb and joint: the input or passive unknown it is.
+    slots: Vec<Vec<Slot>>,
     /// The limbs grouped for the elimination of the closure's Newton systems.
     clusters: Option<Vec<elimination::Cluster>>,
     /// The forward kinematics' tangent at home (the first continuation stage's predictor).
     tangent: Option<DMatrix<f64>>,
+}
+
+/// What a joint's value is among the unknowns: the `k`-th input or the `k`-th passive joint.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Slot {
+    Input(usize),
+    Passive(usize),
+}
+
+/// Per limb and joint, its [`Slot`].
+fn slots(limbs: &[Limb], inputs: &[(usize, usize)], passive: &[(usize, usize)]) -> Vec<Vec<Slot>> {
+    let mut out: Vec<Vec<Slot>> = limbs.iter().map(|l| vec![Slot::Passive(0); l.chain.n_joints()]).collect();
+    for (k, &(i, j)) in inputs.iter().enumerate() {
+        out[i][j] = Slot::Input(k);
+    }
+    for (k, &(i, j)) in passive.iter().enumerate() {
+        out[i][j] = Slot::Passive(k);
+    }
+    out
 }
 
 /// Newton iterations of one solve.
@@ -314,6 +335,7 @@ impl LimbMechanism {
             home,
             workspace,
             clusters: elimination::clusters(&limbs, &inputs, &passive),
+            slots: slots(&limbs, &inputs, &passive),
             tangent: None,
             limbs,
             inputs,

@@ -54,14 +54,28 @@ fn col6(m: &DMatrix<f64>, j: usize) -> Vector6<f64> {
     m.fixed_view::<6, 1>(0, j).into_owned()
 }
 
-/// A limb's chain evaluated at its joint values (in its own start frame).
-struct ChainEvaluation {
-    /// The chain's end.
-    end: Pose,
-    /// Its spatial joint Jacobian.
+/// Every limb's chain evaluated at its joint values (each in its own start frame), in one
+/// allocation per quantity.
+struct Evaluations {
+    /// Each chain's end.
+    ends: Vec<Pose>,
+    /// The spatial joint Jacobians side by side (limb `i`'s columns from `offsets[i]`).
     jq: DMatrix<f64>,
-    /// The frame after each joint (only for a limb others start or close on).
+    /// The frame after each joint, same columns.
     frames: Vec<Pose>,
+    /// Each limb's first column.
+    offsets: Vec<usize>,
+}
+
+impl Evaluations {
+    /// Column `j` of limb `i`'s joint Jacobian.
+    fn column(&self, i: usize, j: usize) -> Vector6<f64> {
+        col6(&self.jq, self.offsets[i] + j)
+    }
+    /// The frame after joint `b.joint` of limb `b.limb`.
+    fn body(&self, b: &BodyRef) -> Pose {
+        self.frames[self.offsets[b.limb] + b.joint]
+    }
 }
 
 /// What a limb's closure is built from at one configuration: its end in the world, the frame it
@@ -82,42 +96,33 @@ impl LimbMechanism {
         self.limbs.iter().any(|l| l.start.is_some() || l.end_on.is_some())
     }
 
-    /// Each limb's chain at `joints`, evaluated once: its end, its spatial joint Jacobian and, for
-    /// a limb that others start or close on, the frame after each joint.
-    fn chain_evaluations(&self, joints: &Joints) -> Result<Vec<ChainEvaluation>, KinError> {
-        let mut referenced = vec![false; self.limbs.len()];
-        for l in &self.limbs {
-            for b in [l.start, l.end_on].into_iter().flatten() {
-                referenced[b.limb] = true;
+    /// Each limb's chain at `joints`, evaluated once: its end, its spatial joint Jacobian and the
+    /// frame after each joint.
+    fn chain_evaluations(&self, joints: &Joints) -> Result<Evaluations, KinError> {
+        let total: usize = self.limbs.iter().map(|l| l.chain.n_joints()).sum();
+        let mut out = Evaluations {
+            ends: Vec::with_capacity(self.limbs.len()),
+            jq: DMatrix::zeros(6, total),
+            frames: Vec::with_capacity(total),
+            offsets: Vec::with_capacity(self.limbs.len()),
+        };
+        for (l, q) in self.limbs.iter().zip(joints) {
+            let chain = &l.chain;
+            if q.len() != chain.n_joints() || q.iter().any(|v| !v.is_finite()) {
+                return Err(KinError::NonFinite("limb joint values".into()));
             }
+            let off = out.frames.len();
+            out.offsets.push(off);
+            let mut g = Pose::identity();
+            for (j, joint) in chain.joints().iter().enumerate() {
+                let a = g * chain.initial_poses()[j];
+                out.jq.set_column(off + j, &se3::adjoint_apply(&a, &joint.twist()));
+                g = a * se3::exp_joint(&joint.twist(), q[j]);
+                out.frames.push(g);
+            }
+            out.ends.push(g * chain.tool());
         }
-        self.limbs
-            .iter()
-            .zip(joints)
-            .zip(referenced)
-            .map(|((l, q), keep)| {
-                let chain = &l.chain;
-                if q.len() != chain.n_joints() || q.iter().any(|v| !v.is_finite()) {
-                    return Err(KinError::NonFinite("limb joint values".into()));
-                }
-                let mut g = Pose::identity();
-                let mut jq = DMatrix::zeros(6, q.len());
-                let mut frames = Vec::with_capacity(if keep { q.len() } else { 0 });
-                for (j, joint) in chain.joints().iter().enumerate() {
-                    let a = g * chain.initial_poses()[j];
-                    jq.set_column(j, &se3::adjoint_apply(&a, &joint.twist()));
-                    g = a * se3::exp_joint(&joint.twist(), q[j]);
-                    if keep {
-                        frames.push(g);
-                    }
-                }
-                Ok(ChainEvaluation {
-                    end: g * chain.tool(),
-                    jq,
-                    frames,
-                })
-            })
-            .collect()
+        Ok(out)
     }
 
     /// Where limb `i` starts (the base: identity) at `joints`.
@@ -163,6 +168,21 @@ impl LimbMechanism {
     /// Closure residual and its derivative with respect to `[ζ (6) | passive joints]` (with
     /// `all_joints`: `[ζ | every joint in input order, then passive order]`).
     pub(super) fn closure(&self, x: &Pose, joints: &Joints, passive_only: bool) -> (DVector<f64>, DMatrix<f64>) {
+        // (Below −∞ nothing is: the derivative is always there.)
+        let (r, f) = self.closure_unless_within(x, joints, passive_only, f64::NEG_INFINITY);
+        let f = f.unwrap_or_else(|| DMatrix::zeros(0, 0));
+        (r, f)
+    }
+
+    /// [`closure`](Self::closure), without the derivative where the residual's max-norm is below
+    /// `tolerance` (a converged solve needs only the residual).
+    pub(super) fn closure_unless_within(
+        &self,
+        x: &Pose,
+        joints: &Joints,
+        passive_only: bool,
+        tolerance: f64,
+    ) -> (DVector<f64>, Option<DMatrix<f64>>) {
         let rows: usize = self.limbs.iter().map(Limb::rows).sum();
         let cols = 6 + if passive_only {
             self.passive.len()
@@ -170,26 +190,46 @@ impl LimbMechanism {
             self.inputs.len() + self.passive.len()
         };
         let mut r = DVector::zeros(rows);
-        let mut f = DMatrix::zeros(rows, cols);
-        let mut col_of: Vec<Vec<Option<usize>>> = self.limbs.iter().map(|l| vec![None; l.chain.n_joints()]).collect();
-        if !passive_only {
-            for (k, &(i, j)) in self.inputs.iter().enumerate() {
-                col_of[i][j] = Some(6 + k);
-            }
-        }
-        let off = if passive_only { 6 } else { 6 + self.inputs.len() };
-        for (k, &(i, j)) in self.passive.iter().enumerate() {
-            col_of[i][j] = Some(off + k);
-        }
         // Non-finite joint values (a diverging solve): a non-finite residual, which every solver
         // takes as failure.
         let Ok(evals) = self.chain_evaluations(joints) else {
             r.fill(f64::NAN);
-            return (r, f);
+            return (r, Some(DMatrix::zeros(rows, cols)));
         };
+        let mut limbs = Vec::with_capacity(self.limbs.len());
         let mut row = 0;
         for (i, l) in self.limbs.iter().enumerate() {
-            let c = self.limb_rows(i, x, &evals, &col_of, &mut r, &mut f, row);
+            limbs.push(self.limb_state(i, x, &evals, &mut r, row));
+            row += l.rows();
+        }
+        if r.amax() < tolerance {
+            return (r, None);
+        }
+        let mut f = DMatrix::zeros(rows, cols);
+        let off = if passive_only { 6 } else { 6 + self.inputs.len() };
+        let col_of = |i: usize, j: usize| match self.slots[i][j] {
+            Slot::Input(k) => (!passive_only).then_some(6 + k),
+            Slot::Passive(k) => Some(off + k),
+        };
+        let mut row = 0;
+        for (i, (l, (c, start))) in self.limbs.iter().zip(&limbs).enumerate() {
+            for j in 0..l.chain.n_joints() {
+                if let Some(col) = col_of(i, j) {
+                    let v = evals.column(i, j);
+                    let v = start.as_ref().map_or(v, |a| a * v);
+                    c.end_map.add(&mut f, row, col, &v, 1.0);
+                }
+            }
+            // The joints before the body it starts on move its end; those before the body it
+            // closes on move the target (a body's spatial Jacobian is its limb's first columns).
+            for (b, map, sign) in [(&l.start, &c.end_map, 1.0), (&l.end_on, &c.target_map, -1.0)] {
+                let Some(b) = b else { continue };
+                for j in 0..=b.joint {
+                    if let Some(col) = col_of(b.limb, j) {
+                        map.add(&mut f, row, col, &evals.column(b.limb, j), sign);
+                    }
+                }
+            }
             // Closing on the platform: its twist, with the opposite sign.
             if l.end_on.is_none() {
                 match &c.target_map {
@@ -203,53 +243,32 @@ impl LimbMechanism {
             }
             row += l.rows();
         }
-        (r, f)
+        (r, Some(f))
     }
 
-    /// Limb `i`'s residual and its joint columns (its own, and those of the bodies it starts or
-    /// ends on) at `row`.
-    #[allow(clippy::too_many_arguments)]
-    fn limb_rows(
+    /// Limb `i`'s residual rows into `r` (from `row`), what its derivatives need, and the adjoint
+    /// of where it starts (for a limb that starts on a body: its joint columns move with it).
+    fn limb_state(
         &self,
         i: usize,
         x: &Pose,
-        evals: &[ChainEvaluation],
-        col_of: &[Vec<Option<usize>>],
+        evals: &Evaluations,
         r: &mut DVector<f64>,
-        f: &mut DMatrix<f64>,
         row: usize,
-    ) -> LimbClosure {
+    ) -> (LimbClosure, Option<nalgebra::Matrix6<f64>>) {
         let l = &self.limbs[i];
-        let own = &evals[i];
-        let (e, moved_jq) = match &l.start {
+        let (e, start) = match &l.start {
             Some(b) => {
-                let s = evals[b.limb].frames[b.joint];
-                (s * own.end, Some(moved(&s, &own.jq)))
+                let s = evals.body(b);
+                (s * evals.ends[i], Some(se3::adjoint(&s)))
             }
-            None => (own.end, None),
+            None => (evals.ends[i], None),
         };
-        let jq = moved_jq.as_ref().unwrap_or(&own.jq);
         let target = match &l.end_on {
-            Some(b) => evals[b.limb].frames[b.joint],
+            Some(b) => evals.body(b),
             None => *x,
         };
-        let c = self.limb_closure(i, e, target, r, row);
-        for (j, col) in col_of[i].iter().enumerate() {
-            if let Some(col) = col {
-                c.end_map.add(f, row, *col, &col6(jq, j), 1.0);
-            }
-        }
-        // The joints before the body it starts on move its end; those before the body it closes
-        // on move the target (a body's spatial Jacobian is its limb's first columns).
-        for (b, map, sign) in [(&l.start, &c.end_map, 1.0), (&l.end_on, &c.target_map, -1.0)] {
-            let Some(b) = b else { continue };
-            for (j, col) in col_of[b.limb].iter().enumerate().take(b.joint + 1) {
-                if let Some(col) = col {
-                    map.add(f, row, *col, &col6(&evals[b.limb].jq, j), sign);
-                }
-            }
-        }
-        c
+        (self.limb_closure(i, e, target, r, row), start)
     }
 
     /// The closure's derivative with respect to the error parameters (rows × p) at a solved

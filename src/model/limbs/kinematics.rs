@@ -29,16 +29,19 @@ impl LimbMechanism {
         tolerance: f64,
     ) -> Result<(Pose, Vec<f64>), KinError> {
         let mut res = f64::INFINITY;
+        let mut joints = self.joints_of(q, &passive);
         for _ in 0..MAX_ITERATIONS {
-            let joints = self.joints_of(q, &passive);
-            let (r, f) = self.closure(&x, &joints, true);
+            for (&(i, j), p) in self.passive.iter().zip(&passive) {
+                joints[i][j] = *p;
+            }
+            let (r, f) = self.closure_unless_within(&x, &joints, true, tolerance);
             res = r.amax();
             if !res.is_finite() {
                 break;
             }
-            if res < tolerance {
+            let Some(f) = f else {
                 return Ok((x, passive));
-            }
+            };
             self.forward_step(&f, &r, &mut x, &mut passive)?;
         }
         Err(KinError::NoConvergence {
