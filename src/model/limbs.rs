@@ -379,6 +379,25 @@ impl LimbMechanism {
         for (l, j) in m.limbs.iter_mut().zip(joints) {
             l.home = j;
         }
+        // The home values are only seeds of the assembly: a solve that closed the machine with a
+        // joint beyond its limits (e.g. a crank wound by turns) found another configuration.
+        for l in &m.limbs {
+            for (jt, v) in l.chain.joints().iter().zip(&l.home) {
+                if let Some((lo, hi)) = jt.limits {
+                    if *v < lo - 1e-6 || *v > hi + 1e-6 {
+                        let (f, unit) = if jt.kind == JointKind::Revolute {
+                            (180.0 / std::f64::consts::PI, "deg")
+                        } else {
+                            (1.0, "mm")
+                        };
+                        return Err(format!(
+                            "limb '{}' closes at the home pose only with joint {} = {:.3} {unit}, outside its limits [{:.3}, {:.3}] {unit}: check the home values (they choose the assembly branch) and the geometry",
+                            l.name, jt.name, v * f, lo * f, hi * f
+                        ));
+                    }
+                }
+            }
+        }
         m.home = x;
         m.tangent = m.home_tangent();
         let rows: usize = m.limbs.iter().map(Limb::rows).sum();

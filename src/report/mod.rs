@@ -363,10 +363,28 @@ impl CalibrationReport {
             })
             .map(|p| format!("{} {:+.3} {}", p.name, p.value, p.unit))
             .collect();
+        let ratio = [
+            self.noise_mm_deg.0 / stated.position,
+            self.noise_mm_deg.1.to_radians() / stated.orientation,
+        ]
+        .into_iter()
+        .filter(|r| r.is_finite())
+        .fold(1.0, f64::max);
+        let excess = self.sigma0 * ratio;
         if !beyond.is_empty() {
             let names: Vec<&str> = beyond.iter().map(String::as_str).collect();
+            // A fit down to the noise with implausible corrections: not a wrong model but a
+            // combination of parameters the poses barely separate.
+            let advice = if excess <= SIGMA0_WARN {
+                format!(
+                    "the fit matches the data (σ̂₀ {:.3}): either a combination of parameters the poses barely separate (fix one of them in [calibration] fixed, or add or spread poses) or a model of another machine (check its dimensions; raise the tolerances if the machine really is this far from its drawing)",
+                    self.sigma0
+                )
+            } else {
+                "is the model of this machine, and are the joint columns in the right order and unit?".to_string()
+            };
             failed.push(format!(
-                "corrections beyond the model's tolerances ({} mm, {} deg): {}: is the model of this machine, and are the joint columns in the right order and unit?",
+                "corrections beyond the model's tolerances ({} mm, {} deg): {}: {advice}",
                 tolerances.length_mm,
                 tolerances.angle_deg,
                 short(&names)
@@ -378,14 +396,6 @@ impl CalibrationReport {
                 self.iterations
             ));
         }
-        let ratio = [
-            self.noise_mm_deg.0 / stated.position,
-            self.noise_mm_deg.1.to_radians() / stated.orientation,
-        ]
-        .into_iter()
-        .filter(|r| r.is_finite())
-        .fold(1.0, f64::max);
-        let excess = self.sigma0 * ratio;
         if !excess.is_finite() {
             failed.push("the residual is not finite".into());
         } else if excess > SIGMA0_FAIL {

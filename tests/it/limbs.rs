@@ -194,6 +194,14 @@ fn mistakes_in_a_limbs_file_are_one_line_errors_naming_the_limb() {
         assert!(e.contains(expect) && !e.contains('\n'), "{from} → {to}: {e}");
         assert!(e.starts_with("m.toml:"), "a line number: {e}");
     }
+    // A machine that closes at home only with a joint beyond its limits (home values are seeds
+    // of the assembly: a solve can land on another branch, e.g. a crank wound by turns).
+    let e = load(&HEAD.replacen("limits = [200.0, 400.0]", "limits = [200.0, 250.0]", 1)).unwrap_err();
+    assert!(
+        e.contains("limb 'leg1' closes at the home pose only with joint s1 = 300.000 mm, outside its limits [200.000, 250.000] mm")
+            && !e.contains('\n'),
+        "{e}"
+    );
     // Sub-closed loops (pm5): a body that does not exist, or on a limb listed later.
     let pm5 = include_str!("../../examples/models/pm5-limbs.toml");
     for (from, to, expect) in [

@@ -279,6 +279,11 @@ fn wrong_units_and_wrong_models_are_named() {
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8(out.stderr).unwrap();
     assert!(err.contains("beyond the model's tolerances"), "{err}");
+    // The link absorbs the difference, the fit matches the data: the message says both readings.
+    assert!(
+        err.contains("the fit matches the data") && err.contains("a model of another machine (check its dimensions"),
+        "{err}"
+    );
     assert!(!String::from_utf8(out.stdout).unwrap().contains(" converged after"));
 }
 
