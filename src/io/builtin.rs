@@ -6,7 +6,7 @@ use std::path::Path;
 
 /// Parallel machines that exist only as model files (`kind = "limbs"`, `examples/models/`):
 /// name, description, text.
-const FILES: [(&str, &str, &str); 5] = [
+const FILES: [(&str, &str, &str); 6] = [
     (
         "hexapod-6rus",
         "6-RUS rotary hexapod as limbs (cranks 60 mm, rods 250 mm; 126 error parameters, rank 66)",
@@ -31,6 +31,11 @@ const FILES: [(&str, &str, &str); 5] = [
         "pm5-limbs",
         "the 'pm5' machine written as limbs, its RPRR sub-closed loops as limbs on the legs (120 error parameters, rank 48)",
         include_str!("../../examples/models/pm5-limbs.toml"),
+    ),
+    (
+        "t3r1-chain",
+        "one chain of the 3T1R machine (slider, two parallelograms, revolute; every joint sensed) as limbs (36 error parameters, rank 20)",
+        include_str!("../../examples/models/t3r1-chain.toml"),
     ),
 ];
 

@@ -130,6 +130,11 @@ pub enum GroupKind {
     Universal,
     /// Three revolute joints with intersecting axes.
     Spherical,
+    /// A parallelogram: two revolute joints about parallel axes, the distal one turning back
+    /// by the proximal one's angle (`exp(ŝq)·T_bar·exp(−ŝq)`, the 3T1R paper's eq. (5)–(7)): the
+    /// distal bar translates on a circle and keeps its orientation. One value `q`; the bar
+    /// placement between the two carries error parameters (length, phase, mounting).
+    Parallelogram,
 }
 
 impl JointGroup {
@@ -170,20 +175,45 @@ impl Limb {
         Ok(())
     }
 
-    /// Per dyad of the chain (the placement before each joint, then the end placement): whether
-    /// it carries error parameters (the placements inside a universal or spherical joint do not).
-    pub fn dyad_has_errors(&self) -> Vec<bool> {
-        let mut out = Vec::with_capacity(self.chain.n_joints() + 1);
+    /// The error parameters of the chain, in order: (dyad, component) with dyads the placement
+    /// before each joint, then the end placement, and components `vx vy vz wx wy wz` of
+    /// `T ← T·exp(δ)`. The placements inside a universal or spherical joint carry none; a
+    /// parallelogram's bar carries its three translations only (length, phase and the offset
+    /// along the pivots: a rotation of the bar would tilt the distal pivot, and a parallelogram
+    /// whose pivots are not parallel does not move; the distal bar's orientation error is the next
+    /// placement's).
+    pub fn param_slots(&self) -> Vec<(usize, usize)> {
+        let mut out = Vec::with_capacity(6 * (self.chain.n_joints() + 1));
+        let mut dyad = 0;
         for g in &self.groups {
-            out.push(!g.exact);
-            out.extend(std::iter::repeat_n(false, g.count.saturating_sub(1)));
+            if !g.exact {
+                out.extend((0..6).map(|c| (dyad, c)));
+            }
+            if g.kind == GroupKind::Parallelogram {
+                out.extend((0..3).map(|c| (dyad + 1, c)));
+            }
+            dyad += g.count;
         }
-        out.push(true);
+        out.extend((0..6).map(|c| (dyad, c)));
+        out
+    }
+
+    /// Per chain joint: the joint it follows (its value the negative of that joint's: the distal
+    /// joint of a parallelogram), if any.
+    pub fn followers(&self) -> Vec<Option<usize>> {
+        let mut out = Vec::with_capacity(self.chain.n_joints());
+        for g in &self.groups {
+            let first = out.len();
+            out.push(None);
+            for _ in 1..g.count {
+                out.push((g.kind == GroupKind::Parallelogram).then_some(first));
+            }
+        }
         out
     }
 
     fn chain_params(&self) -> usize {
-        6 * self.dyad_has_errors().iter().filter(|b| **b).count()
+        self.param_slots().len()
     }
 
     fn rows(&self) -> usize {
@@ -237,6 +267,8 @@ pub struct LimbMechanism {
 enum Slot {
     Input(usize),
     Passive(usize),
+    /// The distal joint of a parallelogram: minus the value of this joint of its limb.
+    Follows(usize),
 }
 
 /// Per limb and joint, its [`Slot`].
@@ -247,6 +279,13 @@ fn slots(limbs: &[Limb], inputs: &[(usize, usize)], passive: &[(usize, usize)]) 
     }
     for (k, &(i, j)) in passive.iter().enumerate() {
         out[i][j] = Slot::Passive(k);
+    }
+    for (i, l) in limbs.iter().enumerate() {
+        for (j, f) in l.followers().into_iter().enumerate() {
+            if let Some(m) = f {
+                out[i][j] = Slot::Follows(m);
+            }
+        }
     }
     out
 }
@@ -294,7 +333,14 @@ impl LimbMechanism {
             if !names.insert(l.name.clone()) {
                 return Err(format!("limb '{}': limb names must be unique", l.name));
             }
+            if l.groups.iter().any(|g| g.kind == GroupKind::Parallelogram && g.count != 2) {
+                return Err(format!("limb '{}': a parallelogram is two chain joints", l.name));
+            }
+            let followers = l.followers();
             for (j, r) in l.roles.iter().enumerate() {
+                if followers[j].is_some() {
+                    continue;
+                }
                 match r {
                     JointRole::Actuated => inputs.push((i, j)),
                     JointRole::Sensed => sensed.push((i, j)),
@@ -491,11 +537,10 @@ impl Mechanism for LimbMechanism {
     fn params(&self) -> Vec<Param> {
         let mut out = Vec::new();
         for l in &self.limbs {
-            let keep = l.dyad_has_errors();
-            for (k, p) in l.chain.params().into_iter().enumerate() {
-                if keep[k / 6] {
-                    out.push(Param::new(format!("{}.{}", l.name, p.name), p.unit, format!("limb {}", l.name)));
-                }
+            let all = l.chain.params();
+            for (d, c) in l.param_slots() {
+                let p = &all[6 * d + c];
+                out.push(Param::new(format!("{}.{}", l.name, p.name), p.unit, format!("limb {}", l.name)));
             }
             if matches!(l.end, LimbEnd::Point(_)) {
                 for c in ["x", "y", "z"] {
@@ -551,11 +596,10 @@ impl Mechanism for LimbMechanism {
     fn retract(&mut self, delta: &DVector<f64>) {
         let mut k = 0;
         for l in &mut self.limbs {
-            let keep = l.dyad_has_errors();
             let mut d = DVector::zeros(l.chain.n_params());
-            for (dyad, _) in keep.iter().enumerate().filter(|(_, k)| **k) {
-                d.rows_mut(6 * dyad, 6).copy_from(&delta.rows(k, 6));
-                k += 6;
+            for (dyad, c) in l.param_slots() {
+                d[6 * dyad + c] = delta[k];
+                k += 1;
             }
             l.chain.retract(&d);
             if let LimbEnd::Point(a) = &mut l.end {

@@ -103,6 +103,7 @@ fn example_file(name: &str) -> ModelFile {
         "head-3prs" => include_str!("../../examples/models/head-3prs.toml"),
         "stewart-limbs" => include_str!("../../examples/models/stewart-limbs.toml"),
         "pm5-limbs" => include_str!("../../examples/models/pm5-limbs.toml"),
+        "t3r1-chain" => include_str!("../../examples/models/t3r1-chain.toml"),
         other => panic!("no example model '{other}'"),
     };
     ModelFile::load_str(std::path::Path::new(name), text).unwrap()
@@ -144,6 +145,13 @@ const KINDS: &[Kind] = &[
         name: "pm5 (limbs file, sub-closed loops as limbs)",
         build: || example_file("pm5-limbs").build(),
         file: Some(|| example_file("pm5-limbs")),
+        configurations: sampled,
+        framed_floor_mm: EXACT,
+    },
+    Kind {
+        name: "3T1R chain (limbs file, parallelogram joints, every joint sensed)",
+        build: || example_file("t3r1-chain").build(),
+        file: Some(|| example_file("t3r1-chain")),
         configurations: sampled,
         framed_floor_mm: EXACT,
     },

@@ -202,6 +202,16 @@ fn mistakes_in_a_limbs_file_are_one_line_errors_naming_the_limb() {
             && !e.contains('\n'),
         "{e}"
     );
+    // A parallelogram without its bar, or with two home values.
+    let chain = include_str!("../../examples/models/t3r1-chain.toml");
+    for (from, to, expect) in [
+        ("bar = { position = [0.0, 700.0, 0.0] }\n", "", "a parallelogram needs 'bar'"),
+        ("home = 45.0", "home = [45.0, -45.0]", "give one value (the parallelogram's angle)"),
+    ] {
+        assert!(chain.contains(from), "{from}");
+        let e = load(&chain.replacen(from, to, 1)).unwrap_err();
+        assert!(e.contains(expect) && e.contains("('q12')") && !e.contains('\n'), "{e}");
+    }
     // Sub-closed loops (pm5): a body that does not exist, or on a limb listed later.
     let pm5 = include_str!("../../examples/models/pm5-limbs.toml");
     for (from, to, expect) in [
@@ -402,7 +412,14 @@ fn the_limbs_machines_are_listed_and_exported_like_the_presets() {
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
     let list = ok(d, &["model", "list"]);
-    for name in ["hexapod-6rus", "head-3prs", "linear-delta", "stewart-limbs", "pm5-limbs"] {
+    for name in [
+        "hexapod-6rus",
+        "head-3prs",
+        "linear-delta",
+        "stewart-limbs",
+        "pm5-limbs",
+        "t3r1-chain",
+    ] {
         assert!(list.contains(name), "{list}");
         let file = kinecal::io::builtin::model_file(name).unwrap();
         assert_eq!(file.mechanism.kind(), "limbs");
@@ -422,4 +439,36 @@ fn the_limbs_machines_are_listed_and_exported_like_the_presets() {
 #[test]
 fn pm5_as_limbs_with_its_sub_closed_loops_through_the_whole_workflow() {
     whole_workflow(include_str!("../../examples/models/pm5-limbs.toml"), 48, "estimate");
+}
+
+/// One chain of the 3T1R machine written as a one-limb file with two parallelogram joints is the
+/// study's branched chain: the same forward kinematics on 1000 configurations, the same span of
+/// identification directions (the paper's per-chain rank 20, together 20), every joint a data
+/// column.
+#[test]
+fn a_3t1r_chain_with_parallelograms_is_the_studys_chain() {
+    use kinecal::studies::t3r1_machine::{BranchedChain, ChainId, Geometry};
+    let study = BranchedChain::nominal(&Geometry::default(), ChainId::B1);
+    let limbs = load(include_str!("../../examples/models/t3r1-chain.toml")).unwrap().build();
+    assert_eq!(limbs.input_names(), ["q11", "q12", "q13", "q14"]);
+    let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(11);
+    let qs: Vec<Vec<f64>> = (0..1000)
+        .map(|_| {
+            use rand::RngExt;
+            vec![
+                rng.random_range(-300.0..300.0),
+                rng.random_range(30.0f64..60.0).to_radians(),
+                rng.random_range(50.0f64..70.0).to_radians(),
+                rng.random_range(-20.0f64..20.0).to_radians(),
+            ]
+        })
+        .collect();
+    let worst = forward_difference(&study, &*limbs, &qs);
+    eprintln!(
+        "3T1R chain, study vs limbs file, 1000 configurations: FK differs by {:.2e} mm / {:.2e} rad",
+        worst.0, worst.1
+    );
+    assert!(worst.0 < 1e-9 && worst.1 < 1e-12, "{worst:?}");
+    let (js, jl) = (stacked_directions(&study, &qs[..30]), stacked_directions(&*limbs, &qs[..30]));
+    assert_eq!(ranks(&js, &jl), (20, 20, 20));
 }

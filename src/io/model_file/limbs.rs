@@ -30,7 +30,9 @@
 //!
 //! [[mechanism.limbs.joints]]   # as in a serial chain, plus role and home
 //! name = "m1"
-//! type = "revolute"        # or "prismatic"; a universal joint is two revolute joints, a spherical joint three
+//! type = "revolute"        # or "prismatic"; a universal joint is two revolute joints, a spherical joint three;
+//!                          #   "parallelogram": two pivots about `axis`, the distal bar keeping its orientation,
+//!                          #   with bar = { position = [...] } (the distal pivot in the proximal one's frame)
 //! role = "actuated"        # "actuated", "sensed" (a passive joint with a sensor: a data column) or "passive"
 //! axis = [0.0, 1.0, 0.0]
 //! position = [...]         # the joint frame in the previous one (the first: in the base frame)
@@ -107,6 +109,7 @@ struct RawLimbJoint {
     rotvec: Option<[f64; 3]>,
     home: Option<HomeValue>,
     exact_placement: Option<bool>,
+    bar: Option<Spanned<RawPose>>,
 }
 
 #[derive(Deserialize)]
@@ -298,17 +301,32 @@ impl Ctx<'_> {
                 "prismatic" => (GroupKind::Prismatic, 1, &[]),
                 "universal" => (GroupKind::Universal, 2, &[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]),
                 "spherical" => (GroupKind::Spherical, 3, &[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]),
+                "parallelogram" => (GroupKind::Parallelogram, 2, &[]),
                 other => {
                     return Err(self.at(
                         &rj.kind.span(),
                         format!(
-                            "{jw}.type: unknown joint type '{other}' (use \"revolute\", \"prismatic\", \"universal\" or \"spherical\")"
+                            "{jw}.type: unknown joint type '{other}' (use \"revolute\", \"prismatic\", \"universal\", \"spherical\" or \"parallelogram\")"
                         ),
                     ))
                 }
             };
+            let parallelogram = group == GroupKind::Parallelogram;
+            if parallelogram != rj.bar.is_some() {
+                return Err(self.at(
+                    &span,
+                    format!("{jw}: a parallelogram needs 'bar' (the distal pivot in the proximal one's frame, e.g. bar = {{ position = [0.0, 700.0, 0.0] }}), and only a parallelogram has one"),
+                ));
+            }
             let axes: Vec<[f64; 3]> = match (count, &rj.axis, &rj.axes) {
                 (1, Some(a), None) => vec![*a],
+                (2, Some(a), None) if parallelogram => vec![*a, *a],
+                (2, _, _) if parallelogram => {
+                    return Err(self.at(
+                        &span,
+                        format!("{jw}: a parallelogram needs 'axis' (its pivots' direction; no 'axes')"),
+                    ))
+                }
                 (1, _, _) => return Err(self.at(&span, format!("{jw}: a {} joint needs 'axis' (and no 'axes')", rj.kind.get_ref()))),
                 (_, None, None) => default_axes.to_vec(),
                 (n, None, Some(v)) if v.len() == n => v.clone(),
@@ -335,6 +353,10 @@ impl Ctx<'_> {
             let home: Vec<f64> = match &rj.home {
                 None => vec![0.0; count],
                 Some(HomeValue::One(v)) if count == 1 => vec![*v],
+                Some(HomeValue::One(v)) if parallelogram => vec![*v, -*v],
+                Some(HomeValue::Many(_)) if parallelogram => {
+                    return Err(self.at(&span, format!("{jw}.home: give one value (the parallelogram's angle)")))
+                }
                 Some(HomeValue::Many(v)) if v.len() == count => v.clone(),
                 Some(_) => return Err(self.at(&span, format!("{jw}.home: give {count} value(s), one per axis"))),
             };
@@ -354,23 +376,35 @@ impl Ctx<'_> {
             };
             let limits = self.limits(&span, &jw, rj.limits, kind, units)?;
             let placement = self.pose(&span, &jw, rj.position, rj.rpy, rj.rotvec, units)?;
+            let bar = match &rj.bar {
+                Some(b) => {
+                    let r = b.get_ref();
+                    self.pose(&b.span(), &format!("{jw}.bar"), r.position, r.rpy, r.rotvec, units)?
+                }
+                None => Pose::identity(),
+            };
             for (k, axis) in axes.iter().enumerate() {
                 let axis = Vector3::from(*axis);
                 if !axis.iter().all(|v| v.is_finite()) || axis.norm() < 1e-9 {
                     return Err(self.at(&span, format!("{jw}: every axis must be a finite non-zero vector")));
                 }
-                let name = if count == 1 {
-                    rj.name.clone()
-                } else {
-                    format!("{}_{}", rj.name, k + 1)
+                // (A parallelogram's value is its proximal joint's, named as the joint.)
+                let name = match (count, parallelogram, k) {
+                    (1, _, _) | (_, true, 0) => rj.name.clone(),
+                    (_, true, _) => format!("{}_distal", rj.name),
+                    _ => format!("{}_{}", rj.name, k + 1),
                 };
                 let mut joint = match kind {
                     JointKind::Revolute => ChainJoint::revolute(name, axis),
                     JointKind::Prismatic => ChainJoint::prismatic(name, axis),
                 };
-                joint.limits = limits;
+                joint.limits = if k == 0 { limits } else { None };
                 joints.push(joint);
-                initial.push(if k == 0 { placement } else { Pose::identity() });
+                initial.push(match (k, parallelogram) {
+                    (0, _) => placement,
+                    (_, true) => bar,
+                    _ => Pose::identity(),
+                });
                 roles.push(role);
                 homes.push(home[k] * f);
             }
@@ -486,6 +520,7 @@ pub(super) fn write_limbs(m: &LimbMechanism, units: &Units, out: &mut String) ->
                 GroupKind::Prismatic => "prismatic",
                 GroupKind::Universal => "universal",
                 GroupKind::Spherical => "spherical",
+                GroupKind::Parallelogram => "parallelogram",
             };
             let _ = write!(
                 out,
@@ -493,7 +528,7 @@ pub(super) fn write_limbs(m: &LimbMechanism, units: &Units, out: &mut String) ->
                 quote(&g.name)
             );
             let members = &limb.chain.joints()[j..j + g.count];
-            if g.count == 1 {
+            if g.count == 1 || g.kind == GroupKind::Parallelogram {
                 let _ = writeln!(out, "axis = {}\nhome = {}", fmt3(axis_of(joint)), num(limb.home[j] / f));
             } else {
                 let axes: Vec<String> = members.iter().map(|m| fmt3(axis_of(m))).collect();
@@ -507,6 +542,10 @@ pub(super) fn write_limbs(m: &LimbMechanism, units: &Units, out: &mut String) ->
                 out.push_str("exact_placement = true\n");
             }
             write_pose(&limb.chain.initial_poses()[j], units, out);
+            if g.kind == GroupKind::Parallelogram {
+                out.push_str("\n[mechanism.limbs.joints.bar]\n");
+                write_pose(&limb.chain.initial_poses()[j + 1], units, out);
+            }
             j += g.count;
         }
     }

@@ -207,17 +207,26 @@ impl LimbMechanism {
         }
         let mut f = DMatrix::zeros(rows, cols);
         let off = if passive_only { 6 } else { 6 + self.inputs.len() };
-        let col_of = |i: usize, j: usize| match self.slots[i][j] {
-            Slot::Input(k) => (!passive_only).then_some(6 + k),
-            Slot::Passive(k) => Some(off + k),
+        // A joint's column and the factor its own column enters with (a parallelogram's distal
+        // joint turns with −1 times its proximal one).
+        let col_of = |i: usize, j: usize| {
+            let (slot, factor) = match self.slots[i][j] {
+                Slot::Follows(m) => (self.slots[i][m], -1.0),
+                s => (s, 1.0),
+            };
+            match slot {
+                Slot::Input(k) => (!passive_only).then_some((6 + k, factor)),
+                Slot::Passive(k) => Some((off + k, factor)),
+                Slot::Follows(_) => None,
+            }
         };
         let mut row = 0;
         for (i, (l, (c, start))) in self.limbs.iter().zip(&limbs).enumerate() {
             for j in 0..l.chain.n_joints() {
-                if let Some(col) = col_of(i, j) {
+                if let Some((col, factor)) = col_of(i, j) {
                     let v = evals.column(i, j);
                     let v = start.as_ref().map_or(v, |a| a * v);
-                    c.end_map.add(&mut f, row, col, &v, 1.0);
+                    c.end_map.add(&mut f, row, col, &v, factor);
                 }
             }
             // The joints before the body it starts on move its end; those before the body it
@@ -225,8 +234,8 @@ impl LimbMechanism {
             for (b, map, sign) in [(&l.start, &c.end_map, 1.0), (&l.end_on, &c.target_map, -1.0)] {
                 let Some(b) = b else { continue };
                 for j in 0..=b.joint {
-                    if let Some(col) = col_of(b.limb, j) {
-                        map.add(&mut f, row, col, &evals.column(b.limb, j), sign);
+                    if let Some((col, factor)) = col_of(b.limb, j) {
+                        map.add(&mut f, row, col, &evals.column(b.limb, j), sign * factor);
                     }
                 }
             }
@@ -308,12 +317,10 @@ impl LimbMechanism {
             // Its own dyads, then those of the bodies it starts on (its end moves with them) and
             // closes on (the target moves).
             let add = |f: &mut DMatrix<f64>, limb: usize, upto: usize, jac: &Matrix6xX<f64>, map: &RowMap, sign: f64| {
-                for (d, col) in param_columns(&self.limbs[limb]).iter().enumerate().take(upto) {
-                    if let Some(col) = col {
-                        for k in 0..6 {
-                            let v = jac.fixed_view::<6, 1>(0, 6 * d + k).into_owned();
-                            map.add(f, row, offsets[limb] + col + k, &v, sign);
-                        }
+                for (col, (d, k)) in self.limbs[limb].param_slots().into_iter().enumerate() {
+                    if d < upto {
+                        let v = jac.fixed_view::<6, 1>(0, 6 * d + k).into_owned();
+                        map.add(f, row, offsets[limb] + col, &v, sign);
                     }
                 }
             };
@@ -332,19 +339,4 @@ impl LimbMechanism {
         }
         f
     }
-}
-
-/// Per dyad of `l`'s chain: the offset of its six parameter columns within the limb's, or `None`
-/// for a dyad without error parameters.
-fn param_columns(l: &Limb) -> Vec<Option<usize>> {
-    let mut c = 0;
-    l.dyad_has_errors()
-        .into_iter()
-        .map(|k| {
-            k.then(|| {
-                c += 6;
-                c - 6
-            })
-        })
-        .collect()
 }

@@ -16,7 +16,19 @@ impl LimbMechanism {
         for (k, &(i, jj)) in self.passive.iter().enumerate() {
             j[i][jj] = passive[k];
         }
+        self.couple(&mut j);
         j
+    }
+
+    /// Set each parallelogram's distal joint to minus its proximal one.
+    pub(super) fn couple(&self, joints: &mut Joints) {
+        for (slots, q) in self.slots.iter().zip(joints.iter_mut()) {
+            for (j, s) in slots.iter().enumerate() {
+                if let Slot::Follows(m) = s {
+                    q[j] = -q[*m];
+                }
+            }
+        }
     }
 
     /// Gauss–Newton on the closure for the platform pose and passive joints at inputs `q`, from
@@ -34,6 +46,7 @@ impl LimbMechanism {
             for (&(i, j), p) in self.passive.iter().zip(&passive) {
                 joints[i][j] = *p;
             }
+            self.couple(&mut joints);
             let (r, f) = self.closure_unless_within(&x, &joints, true, tolerance);
             res = r.amax();
             if !res.is_finite() {
@@ -275,15 +288,36 @@ impl LimbMechanism {
     pub(super) fn solve_limb_from(&self, i: usize, start: &Pose, x: &Pose, mut q: Vec<f64>) -> (Vec<f64>, f64) {
         let l = &self.limbs[i];
         let shifted = *start != Pose::identity();
+        // A parallelogram's distal joint follows its proximal one: one column for both.
+        let followers = l.followers();
+        let free: Vec<usize> = (0..q.len()).filter(|j| followers[*j].is_none()).collect();
         let mut res = f64::INFINITY;
         let mut stalled = false;
         for _ in 0..MAX_ITERATIONS {
+            for (j, f) in followers.iter().enumerate() {
+                if let Some(m) = f {
+                    q[j] = -q[*m];
+                }
+            }
             let Ok((mut e, mut jq)) = l.chain.joint_jacobian(&q) else {
                 return (q, f64::INFINITY);
             };
             if shifted {
                 e = start * e;
                 jq = moved(start, &jq);
+            }
+            if free.len() < q.len() {
+                let mut reduced = DMatrix::zeros(6, free.len());
+                for (c, &j) in free.iter().enumerate() {
+                    reduced.set_column(c, &jq.column(j));
+                    for (k, f) in followers.iter().enumerate() {
+                        if *f == Some(j) {
+                            let col = reduced.column(c) - jq.column(k);
+                            reduced.set_column(c, &col);
+                        }
+                    }
+                }
+                jq = reduced;
             }
             let (r, f) = match &l.end {
                 LimbEnd::Frame => (DVector::from_column_slice(se3::log(&(e * x.inverse())).as_slice()), jq.clone()),
@@ -318,10 +352,15 @@ impl LimbMechanism {
                     d
                 }
             };
-            for (v, dv) in q.iter_mut().zip(d.iter()) {
-                *v += dv;
+            for (&j, dv) in free.iter().zip(d.iter()) {
+                q[j] += dv;
             }
             stalled = d.amax() < 1e-13;
+        }
+        for (j, f) in followers.iter().enumerate() {
+            if let Some(m) = f {
+                q[j] = -q[*m];
+            }
         }
         (q, res)
     }
