@@ -311,21 +311,30 @@ fn held_out(a: &dyn Mechanism, b: &dyn Mechanism, qs: &[Vec<f64>]) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// A preset, the same machine as a limbs file, and configurations.
+type Beside = (Box<dyn Mechanism>, Box<dyn Mechanism>, Vec<Vec<f64>>);
+
+/// A preset and the same machine as a limbs file, and 1000 configurations of the preset's
+/// workspace at which their forward kinematics agree to 1e-9 mm / 1e-12 rad.
+fn preset_beside_limbs(name: &str, text: &str) -> Beside {
+    let preset = kinecal::io::builtin::model_file(name).unwrap().build();
+    let limbs = load(text).unwrap().build();
+    assert_eq!(preset.input_names(), limbs.input_names());
+    let qs = preset.sample_configurations(1000, 1).unwrap().unwrap();
+    let worst = forward_difference(&*preset, &*limbs, &qs);
+    eprintln!(
+        "{name} preset vs limbs, 1000 configurations: FK differs by {:.2e} mm / {:.2e} rad",
+        worst.0, worst.1
+    );
+    assert!(worst.0 < 1e-9 && worst.1 < 1e-12, "FK differs by {worst:?} mm / rad");
+    (preset, limbs, qs)
+}
+
 #[test]
 fn the_stewart_platform_written_as_limbs_is_the_preset() {
     use kinecal::identify::{identify, Options};
     use kinecal::measure::Noise;
-    let preset = kinecal::io::builtin::model_file("stewart").unwrap().build();
-    let limbs = load(STEWART).unwrap().build();
-    assert_eq!(preset.input_names(), limbs.input_names());
-    // Forward kinematics at 1000 configurations of the preset's workspace.
-    let qs = preset.sample_configurations(1000, 1).unwrap().unwrap();
-    let worst = forward_difference(&*preset, &*limbs, &qs);
-    eprintln!(
-        "stewart preset vs limbs, 1000 configurations: FK differs by {:.2e} mm / {:.2e} rad",
-        worst.0, worst.1
-    );
-    assert!(worst.0 < 1e-9 && worst.1 < 1e-12, "FK differs by {worst:?} mm / rad");
+    let (preset, limbs, qs) = preset_beside_limbs("stewart", STEWART);
     // The identification Jacobians span the same space of prediction changes (rank 42 each and
     // together), stacked over 20 configurations.
     let (jp, jl) = (stacked_directions(&*preset, &qs[..20]), stacked_directions(&*limbs, &qs[..20]));
@@ -367,16 +376,7 @@ fn the_stewart_platform_written_as_limbs_is_the_preset() {
 #[test]
 fn pm5_written_as_limbs_is_the_preset() {
     use kinecal::identify::{identify, Options};
-    let preset = kinecal::io::builtin::model_file("pm5").unwrap().build();
-    let limbs = load(include_str!("../../examples/models/pm5-limbs.toml")).unwrap().build();
-    assert_eq!(preset.input_names(), limbs.input_names());
-    let qs = preset.sample_configurations(1000, 1).unwrap().unwrap();
-    let worst = forward_difference(&*preset, &*limbs, &qs);
-    eprintln!(
-        "pm5 preset vs limbs, 1000 configurations: FK differs by {:.2e} mm / {:.2e} rad",
-        worst.0, worst.1
-    );
-    assert!(worst.0 < 1e-9 && worst.1 < 1e-9, "FK differs by {worst:?} mm / rad");
+    let (preset, limbs, qs) = preset_beside_limbs("pm5", include_str!("../../examples/models/pm5-limbs.toml"));
     let (jp, jl) = (stacked_directions(&*preset, &qs[..30]), stacked_directions(&*limbs, &qs[..30]));
     let (rp, rl, both) = ranks(&jp, &jl);
     eprintln!("ranks: preset {rp}, limbs {rl}, together {both}");
