@@ -281,6 +281,37 @@ fn stacked_directions(m: &dyn Mechanism, qs: &[Vec<f64>]) -> nalgebra::DMatrix<f
     nalgebra::DMatrix::from_columns(&kept)
 }
 
+/// How far the identification Jacobian of `a` is from a fixed linear map of `b`'s: the map `M`
+/// fitted on the configurations `fit` (`J_b·M = J_a` stacked, least squares on unit columns), the
+/// largest `|J_b(q)·M − J_a(q)|` over the configurations `check`, relative to `J_a(q)`'s largest
+/// column. Round-off when every error `a` models is one `b` models, the same way everywhere.
+fn jacobian_map_residual(a: &dyn Mechanism, b: &dyn Mechanism, fit: &[Vec<f64>], check: &[Vec<f64>]) -> f64 {
+    use nalgebra::DMatrix;
+    let stack = |m: &dyn Mechanism, qs: &[Vec<f64>]| {
+        let p = m.n_params();
+        let mut j = DMatrix::zeros(6 * qs.len(), p);
+        for (k, q) in qs.iter().enumerate() {
+            j.view_mut((6 * k, 0), (6, p)).copy_from(&m.forward_with_jacobian(q).unwrap().1);
+        }
+        j
+    };
+    let (ja, jb) = (stack(a, fit), stack(b, fit));
+    let scale: Vec<f64> = jb.column_iter().map(|c| c.norm().max(1e-300)).collect();
+    let jb_unit = DMatrix::from_fn(jb.nrows(), jb.ncols(), |r, c| jb[(r, c)] / scale[c]);
+    let svd = jb_unit.svd(true, true);
+    let tol = svd.singular_values.max() * 1e-10;
+    let m_unit = svd.solve(&ja, tol).unwrap();
+    let m = DMatrix::from_fn(m_unit.nrows(), m_unit.ncols(), |r, c| m_unit[(r, c)] / scale[r]);
+    let mut worst = 0.0f64;
+    for q in check {
+        let (ja, jb) = (a.forward_with_jacobian(q).unwrap().1, b.forward_with_jacobian(q).unwrap().1);
+        let biggest = ja.column_iter().map(|c| c.norm()).fold(0.0, f64::max);
+        let diff = (&jb * &m - &ja).amax();
+        worst = worst.max(diff / biggest);
+    }
+    worst
+}
+
 /// Ranks of the stacked directions of `a`, of `b` and of both together.
 fn ranks(a: &nalgebra::DMatrix<f64>, b: &nalgebra::DMatrix<f64>) -> (usize, usize, usize) {
     let rank = |m: &nalgebra::DMatrix<f64>| {
@@ -339,6 +370,10 @@ fn the_stewart_platform_written_as_limbs_is_the_preset() {
     // together), stacked over 20 configurations.
     let (jp, jl) = (stacked_directions(&*preset, &qs[..20]), stacked_directions(&*limbs, &qs[..20]));
     assert_eq!(ranks(&jp, &jl), (42, 42, 42));
+    // And the preset's Jacobian is one fixed linear map of the limbs model's at all 1000.
+    let map = jacobian_map_residual(&*preset, &*limbs, &qs[..20], &qs);
+    eprintln!("stewart: preset Jacobian = limbs Jacobian · M on 1000 configurations to {map:.2e} (relative)");
+    assert!(map < 1e-9, "{map}");
     // The same noisy data identified with either model: the same predictions on held-out poses.
     let truth = perturbed_preset(&*preset);
     let noise = Noise {
@@ -381,6 +416,9 @@ fn pm5_written_as_limbs_is_the_preset() {
     let (rp, rl, both) = ranks(&jp, &jl);
     eprintln!("ranks: preset {rp}, limbs {rl}, together {both}");
     assert_eq!((rp, rl, both), (32, 48, 48));
+    let map = jacobian_map_residual(&*preset, &*limbs, &qs[..30], &qs);
+    eprintln!("pm5: preset Jacobian = limbs Jacobian · M on 1000 configurations to {map:.2e} (relative)");
+    assert!(map < 1e-9, "{map}");
     // Every parameter free (the file fixes the redundant ones for its own fits).
     let truth = perturbed_preset(&*preset);
     let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(3);
@@ -471,4 +509,7 @@ fn a_3t1r_chain_with_parallelograms_is_the_studys_chain() {
     assert!(worst.0 < 1e-9 && worst.1 < 1e-12, "{worst:?}");
     let (js, jl) = (stacked_directions(&study, &qs[..30]), stacked_directions(&*limbs, &qs[..30]));
     assert_eq!(ranks(&js, &jl), (20, 20, 20));
+    let map = jacobian_map_residual(&study, &*limbs, &qs[..30], &qs);
+    eprintln!("3T1R chain: study Jacobian = limbs Jacobian · M on 1000 configurations to {map:.2e} (relative)");
+    assert!(map < 1e-9, "{map}");
 }
