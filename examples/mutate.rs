@@ -41,7 +41,7 @@ struct Kind {
     targets: &'static str,
 }
 
-const KINDS: [Kind; 5] = [
+const KINDS: [Kind; 7] = [
     Kind {
         model: "irb120.toml",
         data: "irb120-d.csv",
@@ -72,10 +72,26 @@ const KINDS: [Kind; 5] = [
         validation: "head-v.csv",
         targets: "head-t.csv",
     },
+    Kind {
+        model: "pm5-limbs.toml",
+        data: "pm5l-d.csv",
+        validation: "pm5l-v.csv",
+        targets: "pm5l-t.csv",
+    },
+    Kind {
+        model: "chain.toml",
+        data: "chain-d.csv",
+        validation: "chain-v.csv",
+        targets: "chain-t.csv",
+    },
 ];
 
 fn setup(bin: &Path, dir: &Path) {
-    for (k, name) in KINDS.iter().zip(["irb120", "pm5", "stewart", "irb120", "head"]) {
+    // (pm5-limbs: limbs on other limbs' bodies; t3r1-chain: parallelogram joints.)
+    for (k, name) in KINDS
+        .iter()
+        .zip(["irb120", "pm5", "stewart", "irb120", "head", "pm5-limbs", "t3r1-chain"])
+    {
         if name == "head" {
             // A parallel machine that is only a model file (kind = "limbs").
             std::fs::write(dir.join(k.model), include_str!("models/head-3prs.toml")).unwrap();
