@@ -448,20 +448,22 @@ impl LimbMechanism {
         m.tangent = m.home_tangent();
         let rows: usize = m.limbs.iter().map(Limb::rows).sum();
         let unknowns = 6 + m.passive.len();
-        if rows < unknowns {
-            return Err(format!(
-                "wrong mobility: {rows} closure equations for {unknowns} unknowns (the platform's 6 and {} passive joints): with the inputs fixed the platform could still move; actuate or sense more joints, or close limbs with a full frame",
-                m.passive.len()
-            ));
-        }
         let joints: Joints = m.limbs.iter().map(|l| l.home.clone()).collect();
         let (_, fz) = m.closure(&m.home, &joints, true);
+        if rows < unknowns {
+            return Err(format!(
+                "wrong mobility: {rows} closure equations for {unknowns} unknowns (the platform's 6 and {} passive joints): with the inputs fixed the platform could still move{}; actuate or sense more joints, or close limbs with a full frame",
+                m.passive.len(),
+                m.free_motion(&fz)
+            ));
+        }
         let sv = fz.singular_values();
         let (hi, lo) = (sv.max(), sv.min());
         if lo.is_nan() || lo <= hi / MAX_CONDITION {
             let free = sv.iter().filter(|s| **s <= hi / MAX_CONDITION).count();
             return Err(format!(
-                "wrong mobility: with the inputs fixed at home the platform and passive joints keep {free} freedom(s) (the closure equations do not determine them); actuate or sense more joints, or check the limb geometry (a limb at a singularity at home)"
+                "wrong mobility: with the inputs fixed at home the platform and passive joints keep {free} freedom(s) (the closure equations do not determine them){}; actuate or sense more joints, or check the limb geometry (a limb at a singularity at home)",
+                m.free_motion(&fz)
             ));
         }
         Ok(m)

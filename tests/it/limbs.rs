@@ -184,6 +184,11 @@ fn mistakes_in_a_limbs_file_are_one_line_errors_naming_the_limb() {
     // An actuator made passive: the platform keeps a freedom.
     let e = load(&HEAD.replacen("role = \"actuated\"", "role = \"passive\"", 1)).unwrap_err();
     assert!(e.contains("wrong mobility"), "{e}");
+    // ... naming what moves, and the limb's line.
+    assert!(
+        e.contains("it moves the platform and joint s1 of limb 'leg1'") && e.starts_with("m.toml:"),
+        "{e}"
+    );
     for (from, to, expect) in [
         ("role = \"passive\"", "role = \"pasive\"", "m.toml:"),
         ("type = \"revolute\"", "type = \"ball\"", "unknown joint type 'ball'"),

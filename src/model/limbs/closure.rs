@@ -90,6 +90,42 @@ struct LimbClosure {
 }
 
 impl LimbMechanism {
+    /// What the weakest motion the closure `fz` (`[ζ | passive]` columns) leaves free moves: ": it
+    /// moves the platform and joint r1 of limb 'leg1'" (the unknowns with at least a tenth of the
+    /// largest component of the null direction), or nothing where it cannot be told.
+    pub(super) fn free_motion(&self, fz: &DMatrix<f64>) -> String {
+        if fz.iter().any(|v| !v.is_finite()) {
+            return String::new();
+        }
+        // (Through the normal matrix: square, so its SVD has the whole null space even where
+        // there are fewer equations than unknowns.)
+        let svd = (fz.transpose() * fz).svd(false, true);
+        let Some(vt) = svd.v_t else { return String::new() };
+        let Some(k) = (0..svd.singular_values.len()).min_by(|a, b| svd.singular_values[*a].total_cmp(&svd.singular_values[*b])) else {
+            return String::new();
+        };
+        let v = vt.row(k);
+        let big = v.amax();
+        let mut parts = Vec::new();
+        if (0..6).any(|c| v[c].abs() >= 0.1 * big) {
+            parts.push("the platform".to_string());
+        }
+        for (c, &(i, j)) in self.passive.iter().enumerate() {
+            if v[6 + c].abs() >= 0.1 * big {
+                parts.push(format!(
+                    "joint {} of limb '{}'",
+                    self.limbs[i].chain.joints()[j].name,
+                    self.limbs[i].name
+                ));
+            }
+        }
+        if parts.is_empty() {
+            String::new()
+        } else {
+            format!(": it moves {}", parts.join(" and "))
+        }
+    }
+
     /// Whether some limb starts or ends on another limb's body (the limb-by-limb elimination
     /// then does not apply: a limb's rows involve another limb's joints).
     pub(super) fn linked(&self) -> bool {
