@@ -166,6 +166,17 @@ pub fn exp_joint(s: &Twist, q: f64) -> Pose {
     Isometry3::from_parts(Translation3::from(p), r)
 }
 
+/// The yaw `atan2(R₁₀, R₀₀)` of `b` minus that of `a` (rad, in (−π, π]): the rotation about the
+/// base z-axis a 3T1R machine commands (its tilts are parasitic).
+pub fn yaw_difference(a: &Pose, b: &Pose) -> f64 {
+    let yaw = |p: &Pose| {
+        let x = p.rotation * nalgebra::Vector3::x();
+        x.y.atan2(x.x)
+    };
+    let d = yaw(b) - yaw(a);
+    d.sin().atan2(d.cos())
+}
+
 /// The adjoint matrix `Ad_T = [[R, p̂R], [0, R]]` in (v, ω) order.
 pub fn adjoint(t: &Pose) -> Matrix6<f64> {
     let r = t.rotation.to_rotation_matrix().into_inner();

@@ -120,7 +120,8 @@ impl std::fmt::Display for ErrorStats {
 /// against its target: the full rotation angle for [`Task::Full`], the angle between the tool
 /// z-axes for [`Task::PositionAndAxis`] (the rotation about the tool axis is not commanded), 0
 /// for [`Task::Position`] (no orientation is commanded); for [`Task::HeightAndAxis`] the height
-/// error and the axis angle.
+/// error and the axis angle; for [`Task::PositionAndYaw`] the position error and the yaw
+/// difference.
 pub fn commanded_error(task: Task, target: &Pose, reached: &Pose) -> (f64, f64) {
     let e = se3::pose_error(target, reached);
     match task {
@@ -128,6 +129,7 @@ pub fn commanded_error(task: Task, target: &Pose, reached: &Pose) -> (f64, f64) 
         Task::PositionAndAxis => (se3::lin(&e).norm(), tool_axis_angle(target, reached)),
         Task::Position => (se3::lin(&e).norm(), 0.0),
         Task::HeightAndAxis => (se3::lin(&e).z.abs(), tool_axis_angle(target, reached)),
+        Task::PositionAndYaw => (se3::lin(&e).norm(), se3::yaw_difference(target, reached).abs()),
     }
 }
 

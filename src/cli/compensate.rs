@@ -98,7 +98,7 @@ pub fn run(a: CompensateArgs) -> anyhow::Result<()> {
     // A 5-DOF machine matches position and tool axis; the rotation about the axis follows from its
     // constraints. Say how far it is from the targets' (the whole rotation error, the axis being met).
     let parasitic_deg = match model.task() {
-        Task::Full | Task::Position | Task::HeightAndAxis => None,
+        Task::Full | Task::Position | Task::HeightAndAxis | Task::PositionAndYaw => None,
         Task::PositionAndAxis => {
             let mut worst: f64 = 0.0;
             for (q, t) in commands.iter().zip(&targets) {
@@ -113,7 +113,7 @@ pub fn run(a: CompensateArgs) -> anyhow::Result<()> {
             "{}",
             serde_json::to_string_pretty(&serde_json::json!({"model": file.name, "targets": a.targets,
                 "commands": a.out, "count": commands.len(), "columns": header,
-                "commanded": match model.task() { Task::Full => "pose", Task::PositionAndAxis => "position and tool axis", Task::Position => "position", Task::HeightAndAxis => "height and tool axis" },
+                "commanded": match model.task() { Task::Full => "pose", Task::PositionAndAxis => "position and tool axis", Task::Position => "position", Task::HeightAndAxis => "height and tool axis", Task::PositionAndYaw => "position and yaw" },
                 "rotation_about_tool_axis_max_deg": parasitic_deg}))?
         );
     } else {

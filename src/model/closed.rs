@@ -508,7 +508,7 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
                     g.push(v3::dot(&z, &a) * scale);
                 }
             }
-            Task::Position | Task::HeightAndAxis => {}
+            Task::Position | Task::HeightAndAxis | Task::PositionAndYaw => {}
         }
         g
     }
@@ -541,7 +541,7 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
         // the target's axis without its twist (a yaw of ±90° in the targets file then starts
         // Newton where the machine is, not in a singular corner of its platform coordinates).
         let seed = match task {
-            Task::Full | Task::Position | Task::HeightAndAxis => *target,
+            Task::Full | Task::Position | Task::HeightAndAxis | Task::PositionAndYaw => *target,
             Task::PositionAndAxis => {
                 let axis = target.rotation * nalgebra::Vector3::z();
                 let swing = nalgebra::UnitQuaternion::rotation_between(&nalgebra::Vector3::z(), &axis)

@@ -110,7 +110,7 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Framed<M> {
     fn inverse(&self, target: &Pose, seed: Option<&[f64]>) -> Result<Vec<f64>, KinError> {
         let inner_target = self.measurement.inverse() * target * self.tool.inverse();
         let task = self.inner.task();
-        if !matches!(task, Task::Position | Task::HeightAndAxis) {
+        if !matches!(task, Task::Position | Task::HeightAndAxis | Task::PositionAndYaw) {
             return self.inner.inverse(&inner_target, seed);
         }
         // A machine that commands the tool point's position (or height) but not its whole
@@ -125,9 +125,16 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Framed<M> {
         // The commanded platform axis, moved by the tool axis' miss each round.
         let mut axis = inner_target.rotation * nalgebra::Vector3::z();
         let mut miss = f64::INFINITY;
+        // The tool's yaw in the base frame (a 3T1R machine): the platform's yaw, corrected each
+        // round by what the tilt the constraints give adds through the tool's rotation.
+        let target_in_base = self.measurement.inverse() * target;
+        let mut yaw_fix = 0.0;
         for _ in 0..MAX_TOOL_POINT_ITERATIONS {
             let want = match task {
                 Task::HeightAndAxis => nalgebra::UnitQuaternion::rotation_between(&nalgebra::Vector3::z(), &axis).unwrap_or(rot),
+                Task::PositionAndYaw => {
+                    nalgebra::UnitQuaternion::from_axis_angle(&nalgebra::Vector3::z_axis(), yaw_fix) * inner_target.rotation
+                }
                 _ => inner_target.rotation,
             };
             let platform = Pose::from_parts((goal.coords - rot * y.coords).into(), want);
@@ -135,8 +142,10 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Framed<M> {
             let reached = self.inner.forward(&q)?;
             let d = reached * y - goal;
             let axis_miss = b - reached.rotation * a;
+            let yaw_miss = se3::yaw_difference(&target_in_base, &(reached * self.tool));
             miss = match task {
                 Task::Position => d.norm(),
+                Task::PositionAndYaw => d.norm() + yaw_miss.abs() * 1e3,
                 _ => d.z.abs() + axis_miss.norm() * 1e3,
             };
             if miss < 1e-10 {
@@ -144,6 +153,7 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Framed<M> {
             }
             rot = reached.rotation;
             axis = (axis + axis_miss).normalize();
+            yaw_fix -= yaw_miss;
         }
         Err(KinError::NoConvergence {
             what: "inverse kinematics of the tool point".into(),

@@ -43,6 +43,10 @@ pub enum Task {
     /// x, y and rotation about the axis are parasitic motions its constraints decide (commanding
     /// x and y instead would be ill-posed: they change only at second order in the tilts).
     HeightAndAxis,
+    /// Tool position and the rotation about the base z-axis, the yaw `atan2(R₁₀, R₀₀)` (4 DOF,
+    /// "3T1R"): the tilts are parasitic motions its constraints decide (e.g. the 3T1R machine of
+    /// the 3T1R paper, a pick-and-place delta with a rotating axis, a SCARA).
+    PositionAndYaw,
 }
 
 impl Task {
@@ -53,6 +57,7 @@ impl Task {
             Task::PositionAndAxis => 5,
             Task::Position => 3,
             Task::HeightAndAxis => 3,
+            Task::PositionAndYaw => 4,
         }
     }
 }

@@ -518,3 +518,8 @@ fn a_3t1r_chain_with_parallelograms_is_the_studys_chain() {
     eprintln!("3T1R chain: study Jacobian = limbs Jacobian · M on 1000 configurations to {map:.2e} (relative)");
     assert!(map < 1e-9, "{map}");
 }
+
+#[test]
+fn a_3t1r_chain_commanded_in_position_and_yaw_through_the_whole_workflow() {
+    whole_workflow(include_str!("../../examples/models/t3r1-chain.toml"), 20, "estimate");
+}

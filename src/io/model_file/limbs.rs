@@ -4,7 +4,8 @@
 //! ```toml
 //! [mechanism]
 //! kind = "limbs"
-//! task = "pose"            # what the inputs command: "pose", "position", "position-and-axis" or "height-and-axis"
+//! task = "pose"            # what the inputs command: "pose", "position", "position-and-axis", "height-and-axis"
+//!                          #   or "position-and-yaw" (3T1R: position and the rotation about the base z)
 //!
 //! [mechanism.home]         # the platform frame at home, in the base frame
 //! position = [0.0, 0.0, 220.0]
@@ -125,6 +126,7 @@ fn task_of(s: &str) -> Option<Task> {
         "position" => Some(Task::Position),
         "position-and-axis" => Some(Task::PositionAndAxis),
         "height-and-axis" => Some(Task::HeightAndAxis),
+        "position-and-yaw" => Some(Task::PositionAndYaw),
         _ => None,
     }
 }
@@ -135,6 +137,7 @@ fn task_name(t: Task) -> &'static str {
         Task::Position => "position",
         Task::PositionAndAxis => "position-and-axis",
         Task::HeightAndAxis => "height-and-axis",
+        Task::PositionAndYaw => "position-and-yaw",
     }
 }
 
@@ -151,7 +154,7 @@ impl Ctx<'_> {
                 self.at(
                     &t.span(),
                     format!(
-                        "mechanism.task: unknown task '{}' (use \"pose\", \"position\", \"position-and-axis\" or \"height-and-axis\")",
+                        "mechanism.task: unknown task '{}' (use \"pose\", \"position\", \"position-and-axis\", \"height-and-axis\" or \"position-and-yaw\")",
                         t.get_ref()
                     ),
                 )

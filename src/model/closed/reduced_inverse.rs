@@ -47,7 +47,7 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
         let free = match self.system.task() {
             Task::Full => false,
             Task::PositionAndAxis => true,
-            Task::Position | Task::HeightAndAxis => return None,
+            Task::Position | Task::HeightAndAxis | Task::PositionAndYaw => return None,
         };
         let tol = self.solver.tolerance;
         let mut psi = 0.0;

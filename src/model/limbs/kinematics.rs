@@ -381,6 +381,22 @@ pub(super) fn task_equations(task: Task, x: &Pose, target: &Pose) -> (DVector<f6
                 DMatrix::from_fn(3, 6, |r, c| m[(r, c)]),
             )
         }
+        Task::PositionAndYaw => {
+            // Position, and the yaw atan2(R₁₀, R₀₀) of the x-axis r: d(yaw) = (r₀·dr₁ − r₁·dr₀)/(r₀² + r₁²)
+            // with dr = ω × r.
+            let p = x.translation.vector;
+            let r = x.rotation * Vector3::x();
+            let mut res = DVector::zeros(4);
+            res.rows_mut(0, 3).copy_from(&(p - target.translation.vector));
+            res[3] = se3::yaw_difference(target, x);
+            let mut f = DMatrix::zeros(4, 6);
+            f.view_mut((0, 0), (3, 6)).copy_from(&point_map(&p));
+            let h = r.x * r.x + r.y * r.y;
+            f[(3, 3)] = -r.x * r.z / h;
+            f[(3, 4)] = -r.y * r.z / h;
+            f[(3, 5)] = 1.0;
+            (res, f)
+        }
         Task::HeightAndAxis => {
             let (r, f) = task_equations(Task::PositionAndAxis, x, target);
             let keep = [2usize, 3, 4];
@@ -475,6 +491,28 @@ mod tests {
             for i in 0..m.limbs.len() {
                 let (_, res) = m.solve_limb_at(i, &x);
                 assert!(res < TOLERANCE, "limb {i}: {res:.3e}");
+            }
+        }
+    }
+
+    /// The task equations (all but the full pose's, whose identity is exact only at the target)
+    /// have the derivative of central finite differences in the platform twist (`x ← exp(ζ)·x`),
+    /// away from the target.
+    #[test]
+    fn task_equations_derivatives_are_the_finite_differences() {
+        let x = se3::exp(&Twist::new(12.0, -30.0, 250.0, 0.2, -0.15, 0.7));
+        let target = se3::exp(&Twist::new(10.0, -25.0, 240.0, 0.1, -0.1, 0.9));
+        for task in [Task::Position, Task::PositionAndAxis, Task::HeightAndAxis, Task::PositionAndYaw] {
+            let (_, f) = task_equations(task, &x, &target);
+            let h = 1e-6;
+            for c in 0..6 {
+                let mut d = Twist::zeros();
+                d[c] = h;
+                let (rp, _) = task_equations(task, &(se3::exp(&d) * x), &target);
+                let (rm, _) = task_equations(task, &(se3::exp(&(-d)) * x), &target);
+                let fd = (rp - rm) / (2.0 * h);
+                let err = (&fd - f.column(c)).amax();
+                assert!(err < 1e-6 * (1.0 + fd.amax()), "{task:?} column {c}: {err:e}");
             }
         }
     }
