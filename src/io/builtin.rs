@@ -6,7 +6,7 @@ use std::path::Path;
 
 /// Parallel machines that exist only as model files (`kind = "limbs"`, `examples/models/`):
 /// name, description, text.
-const FILES: [(&str, &str, &str); 6] = [
+const FILES: [(&str, &str, &str); 7] = [
     (
         "hexapod-6rus",
         "6-RUS rotary hexapod as limbs (cranks 60 mm, rods 250 mm; 126 error parameters, rank 66)",
@@ -36,6 +36,11 @@ const FILES: [(&str, &str, &str); 6] = [
         "t3r1-chain",
         "one chain of the 3T1R machine (slider, two parallelograms, revolute; every joint sensed) as limbs (36 error parameters, rank 20)",
         include_str!("../../examples/models/t3r1-chain.toml"),
+    ),
+    (
+        "t3r1",
+        "3T1R machine of the 3T1R paper, four sliders, as limbs (its minimal-constraint equivalent; 117 error parameters, rank 38)",
+        include_str!("../../examples/models/t3r1.toml"),
     ),
 ];
 
