@@ -8,7 +8,7 @@ impl LimbMechanism {
     /// The Newton step `F·dz = −r` of [`closure`](Self::closure) (passive columns) limb by limb,
     /// for a machine with as many equations as unknowns: a limb's rows involve only the platform
     /// twist `dζ` and its own passive joints, `A_i·dz_i + B_i·dζ = −r_i`. Gaussian elimination
-    /// with partial pivoting on `A_i` (at most 6 × 6, on the stack) leaves `m_i − n_i` equations
+    /// with partial pivoting on `A_i` (at most 12 × 6, on the stack) leaves `m_i − n_i` equations
     /// in `dζ` alone; the six of all limbs give `dζ`, back substitution the `dz_i`. The same
     /// solution as a dense solve of `F`, without factorising the whole of it. `None` where the
     /// system is not square, a limb has more passive joints than equations, or a pivot is (nearly)
@@ -24,7 +24,7 @@ impl LimbMechanism {
         let clusters = self.clusters.as_ref()?;
         let ni = self.inputs.len();
         // Each cluster's eliminated rows, [U | B' | r'] per pivot row, and its unknowns' columns.
-        let mut pivots: Vec<([[f64; 13]; 6], [usize; 6], usize)> = Vec::with_capacity(clusters.len());
+        let mut pivots: Vec<([[f64; 13]; MAX_ROWS], [usize; 6], usize)> = Vec::with_capacity(clusters.len());
         let mut s = nalgebra::Matrix6::zeros();
         let mut t = nalgebra::Vector6::zeros();
         let mut reduced = 0;
@@ -43,11 +43,11 @@ impl LimbMechanism {
             }
             let m = c.rows.len();
             closure_rows += m;
-            if n > m || m > 6 {
+            if n > m || m > MAX_ROWS {
                 return None;
             }
             // Row k: unknown columns 0..n, platform columns 6..12, right-hand side 12.
-            let mut b = [[0.0f64; 13]; 6];
+            let mut b = [[0.0f64; 13]; MAX_ROWS];
             for (bk, &row) in b.iter_mut().zip(&c.rows) {
                 for (j, &col) in cols[..n].iter().enumerate() {
                     bk[j] = f[(row, col)];
@@ -147,6 +147,10 @@ impl LimbMechanism {
         platform_lu(s, reduced)?.solve_mut(&mut out).then_some(out)
     }
 }
+
+/// Most closure rows of a cluster the stack elimination takes (a limb closing on a frame, 6, with
+/// an idle chain closing on one of its bodies with a point, 3; or two such).
+const MAX_ROWS: usize = 12;
 
 /// Limbs whose closure rows share passive joints: a limb that starts on the base with the limbs
 /// that start or close on its bodies (its sub-closed loops). A cluster's rows involve only the
@@ -264,6 +268,7 @@ mod tests {
             include_str!("../../../examples/models/stewart-limbs.toml"),
             include_str!("../../../examples/models/hexapod-6rus.toml"),
             include_str!("../../../examples/models/pm5-limbs.toml"),
+            include_str!("../../../examples/models/t3r1.toml"),
         ] {
             let m = limbs(text);
             for q in m.sample_configurations(5, 3).unwrap().unwrap() {
@@ -313,6 +318,7 @@ mod tests {
             include_str!("../../../examples/models/hexapod-6rus.toml"),
             include_str!("../../../examples/models/head-3prs.toml"),
             include_str!("../../../examples/models/pm5-limbs.toml"),
+            include_str!("../../../examples/models/t3r1.toml"),
         ] {
             let m = limbs(text);
             for q in m.sample_configurations(5, 4).unwrap().unwrap() {
