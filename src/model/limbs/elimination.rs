@@ -24,7 +24,8 @@ impl LimbMechanism {
         let clusters = self.clusters.as_ref()?;
         let ni = self.inputs.len();
         // Each cluster's eliminated rows, [U | B' | r'] per pivot row, and its unknowns' columns.
-        let mut pivots: Vec<([[f64; 13]; MAX_ROWS], [usize; 6], usize)> = Vec::with_capacity(clusters.len());
+        // (The pivot rows only: at most six, one per unknown.)
+        let mut pivots: Vec<([[f64; 13]; 6], [usize; 6], usize)> = Vec::with_capacity(clusters.len());
         let mut s = nalgebra::Matrix6::zeros();
         let mut t = nalgebra::Vector6::zeros();
         let mut reduced = 0;
@@ -70,7 +71,9 @@ impl LimbMechanism {
                 t[reduced] = bk[12];
                 reduced += 1;
             }
-            pivots.push((b, cols, n));
+            let mut top = [[0.0f64; 13]; 6];
+            top[..n].copy_from_slice(&b[..n]);
+            pivots.push((top, cols, n));
         }
         for row in closure_rows..f.nrows() {
             if reduced == 6 {
