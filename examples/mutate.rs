@@ -41,7 +41,7 @@ struct Kind {
     targets: &'static str,
 }
 
-const KINDS: [Kind; 7] = [
+const KINDS: [Kind; 8] = [
     Kind {
         model: "irb120.toml",
         data: "irb120-d.csv",
@@ -84,13 +84,19 @@ const KINDS: [Kind; 7] = [
         validation: "chain-v.csv",
         targets: "chain-t.csv",
     },
+    Kind {
+        model: "t3r1.toml",
+        data: "t3r1-d.csv",
+        validation: "t3r1-v.csv",
+        targets: "t3r1-t.csv",
+    },
 ];
 
 fn setup(bin: &Path, dir: &Path) {
     // (pm5-limbs: limbs on other limbs' bodies; t3r1-chain: parallelogram joints.)
     for (k, name) in KINDS
         .iter()
-        .zip(["irb120", "pm5", "stewart", "irb120", "head", "pm5-limbs", "t3r1-chain"])
+        .zip(["irb120", "pm5", "stewart", "irb120", "head", "pm5-limbs", "t3r1-chain", "t3r1"])
     {
         if name == "head" {
             // A parallel machine that is only a model file (kind = "limbs").
