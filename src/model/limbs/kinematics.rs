@@ -23,11 +23,7 @@ impl LimbMechanism {
     /// Set each parallelogram's distal joint to minus its proximal one.
     pub(super) fn couple(&self, joints: &mut Joints) {
         for (slots, q) in self.slots.iter().zip(joints.iter_mut()) {
-            for (j, s) in slots.iter().enumerate() {
-                if let Slot::Follows(m) = s {
-                    q[j] = -q[*m];
-                }
-            }
+            couple_limb(slots, q);
         }
     }
 
@@ -289,16 +285,17 @@ impl LimbMechanism {
         let l = &self.limbs[i];
         let shifted = *start != Pose::identity();
         // A parallelogram's distal joint follows its proximal one: one column for both.
-        let followers = l.followers();
-        let free: Vec<usize> = (0..q.len()).filter(|j| followers[*j].is_none()).collect();
+        let slots = &self.slots[i];
+        let free: Vec<usize> = (0..q.len()).filter(|j| !matches!(slots[*j], Slot::Follows(_))).collect();
+        // Each free joint's column in the reduced Jacobian.
+        let mut reduced_col = vec![0; q.len()];
+        for (c, &j) in free.iter().enumerate() {
+            reduced_col[j] = c;
+        }
         let mut res = f64::INFINITY;
         let mut stalled = false;
         for _ in 0..MAX_ITERATIONS {
-            for (j, f) in followers.iter().enumerate() {
-                if let Some(m) = f {
-                    q[j] = -q[*m];
-                }
-            }
+            couple_limb(slots, &mut q);
             let Ok((mut e, mut jq)) = l.chain.joint_jacobian(&q) else {
                 return (q, f64::INFINITY);
             };
@@ -310,11 +307,12 @@ impl LimbMechanism {
                 let mut reduced = DMatrix::zeros(6, free.len());
                 for (c, &j) in free.iter().enumerate() {
                     reduced.set_column(c, &jq.column(j));
-                    for (k, f) in followers.iter().enumerate() {
-                        if *f == Some(j) {
-                            let col = reduced.column(c) - jq.column(k);
-                            reduced.set_column(c, &col);
-                        }
+                }
+                for (k, s) in slots.iter().enumerate() {
+                    if let Slot::Follows(m) = s {
+                        let c = reduced_col[*m];
+                        let col = reduced.column(c) - jq.column(k);
+                        reduced.set_column(c, &col);
                     }
                 }
                 jq = reduced;
@@ -357,12 +355,18 @@ impl LimbMechanism {
             }
             stalled = d.amax() < 1e-13;
         }
-        for (j, f) in followers.iter().enumerate() {
-            if let Some(m) = f {
-                q[j] = -q[*m];
-            }
-        }
+        couple_limb(slots, &mut q);
         (q, res)
+    }
+}
+
+/// Set each parallelogram's distal joint of a limb (`slots`: its joints' [`Slot`]s) to minus its
+/// proximal one.
+fn couple_limb(slots: &[Slot], q: &mut [f64]) {
+    for (j, s) in slots.iter().enumerate() {
+        if let Slot::Follows(m) = s {
+            q[j] = -q[*m];
+        }
     }
 }
 
