@@ -26,6 +26,10 @@ pub struct StudyT3r1Args {
     /// Workspace half widths x,y,z (mm) and yaw (degrees) around its centre, e.g. 80,200,80,15.
     #[arg(long, value_delimiter = ',', default_values_t = [80.0, 200.0, 80.0, 15.0])]
     pub workspace_half: Vec<f64>,
+    /// The whole machine's model file the same data are also identified with, from the sliders
+    /// alone (a path, or the built-in `t3r1`); its inputs must be the sliders s1..s4.
+    #[arg(long, default_value = "t3r1")]
+    pub model: String,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
@@ -96,11 +100,46 @@ fn print_case(name: &str, c: &StudyCase) {
             c.converged[1].max_orientation_deg
         );
     }
+    print_whole_machine(c);
     let k = &c.compensation;
     println!("compensation (§7, validation targets, calibrated IK -> sliders; T_cp = nominal FK of those sliders):");
     println!(
         "  before: position {:.3e} mm, yaw {:.3e} deg;  after: position {:.3e} mm, yaw {:.3e} deg;  tilt (not compensable) {:.4} deg;  |T_cp - T_co| up to {:.3} mm",
         k.before_position_mm, k.before_yaw_deg, k.after_position_mm, k.after_yaw_deg, k.tilt_deg, k.program_change_mm
+    );
+}
+
+fn print_whole_machine(c: &StudyCase) {
+    let Some(w) = &c.whole_machine else {
+        println!(
+            "the whole machine's model file: identification failed: {}",
+            c.whole_machine_error.as_deref().unwrap_or("?")
+        );
+        return;
+    };
+    println!(
+        "the whole machine's model file, same poses and tracker noise, predicted from the sliders alone (general identify, {} of {} free parameters identifiable):",
+        w.rank, w.free
+    );
+    println!(
+        "  {} after {} iterations, sigma0 {:.3}",
+        if w.converged { "converged" } else { "NOT converged (FAILED)" },
+        w.iterations,
+        w.sigma0
+    );
+    for (label, e) in [("nominal model", &w.nominal_validation), ("calibrated, validation", &w.validation)] {
+        println!(
+            "  {label:<28} position mean {:>10.3e} max {:>10.3e} mm   orientation mean {:>10.3e} max {:>10.3e} deg",
+            e.position_mean_mm,
+            e.position_max_mm,
+            e.orientation_mean_deg.unwrap_or(f64::NAN),
+            e.orientation_max_deg.unwrap_or(f64::NAN)
+        );
+    }
+    let k = &w.compensation;
+    println!(
+        "  compensation (general compensate): before position {:.3e} mm, yaw {:.3e} deg;  after position {:.3e} mm, yaw {:.3e} deg;  tilt {:.4} deg",
+        k.before_position_mm, k.before_yaw_deg, k.after_position_mm, k.after_yaw_deg, k.tilt_deg
     );
 }
 
@@ -115,6 +154,7 @@ pub fn run(args: StudyT3r1Args) -> anyhow::Result<()> {
             orientation: args.noise_deg.to_radians(),
             encoder: args.encoder_noise_deg.to_radians(),
         },
+        model: args.model.clone(),
         ..Default::default()
     };
     let h = &args.workspace_half;
@@ -132,6 +172,15 @@ pub fn run(args: StudyT3r1Args) -> anyhow::Result<()> {
         .iter()
         .filter_map(|(name, c)| c.failure().map(|f| format!("{name} run: {f}")))
         .collect();
+    // The model file's identification: both runs share their poses, so a failure for want of
+    // poses is said once.
+    match (report.noise_free.whole_machine_failure(), report.noisy.whole_machine_failure()) {
+        (Some(a), Some(b)) if a == b => failures.push(format!("noise-free and noisy runs: {a}")),
+        (a, b) => {
+            failures.extend(a.map(|f| format!("noise-free run: {f}")));
+            failures.extend(b.map(|f| format!("noisy run: {f}")));
+        }
+    }
     // Fitted or not, a pair that the identification poses do not determine is no calibration.
     failures.extend(report.too_few_poses());
     let verdict = || Err(super::FailedChecks(format!("study t3r1: {}", failures.join("; "))).into());

@@ -10,3 +10,4 @@ pub mod irb120;
 pub mod pm5;
 pub mod t3r1;
 pub mod t3r1_machine;
+pub mod t3r1_whole;

@@ -65,6 +65,7 @@ use crate::measure::Noise;
 use crate::model::Mechanism;
 use crate::se3::{self, Pose};
 use crate::studies::t3r1_machine::{platform_rows, BranchedChain, ChainId, Configuration, ErrorModel, PlatformPose, T3r1};
+use crate::studies::t3r1_whole::{run_whole_machine, SliderPose, WholeMachine, WholeMachineCase};
 use nalgebra::{DMatrix, DVector, Matrix2, Vector2};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -687,6 +688,9 @@ pub struct StudyConfig {
     pub workspace: crate::studies::t3r1_machine::Workspace,
     /// Noise of the noisy run (the weights of its identification are the same values).
     pub noise: StudyNoise,
+    /// The whole machine's model file the same data are also identified with (a path, or the
+    /// built-in `t3r1`; [`crate::studies::t3r1_whole`]).
+    pub model: String,
 }
 
 impl Default for StudyConfig {
@@ -698,6 +702,7 @@ impl Default for StudyConfig {
             errors: Default::default(),
             workspace: Default::default(),
             noise: StudyNoise::default(),
+            model: "t3r1".into(),
         }
     }
 }
@@ -813,6 +818,23 @@ pub struct StudyCase {
     pub compensation: CompensationStats,
     /// Other sources of the lower angles (noise-free case only; empty otherwise).
     pub ablations: Vec<Ablation>,
+    /// The same data identified with the whole machine's model file from the sliders alone
+    /// (`None` when that identification failed: [`StudyCase::whole_machine_error`]).
+    pub whole_machine: Option<WholeMachineCase>,
+    /// Why the model file's identification failed, if it did (e.g. fewer rows than its
+    /// identifiable parameters).
+    pub whole_machine_error: Option<String>,
+}
+
+impl StudyCase {
+    /// Why the model file's identification of this case cannot be trusted, if it cannot.
+    pub fn whole_machine_failure(&self) -> Option<String> {
+        match (&self.whole_machine, &self.whole_machine_error) {
+            (_, Some(e)) => Some(format!("the model file's identification failed: {e}")),
+            (Some(w), None) => w.failure(),
+            (None, None) => None,
+        }
+    }
 }
 
 impl StudyCase {
@@ -954,7 +976,9 @@ fn measurements(
         .collect()
 }
 
+#[allow(clippy::too_many_arguments)]
 fn run_case(
+    whole: &WholeMachine,
     nominal: &T3r1,
     actual: &crate::studies::t3r1_machine::ActualMachine,
     ident: &[SimPose],
@@ -1032,6 +1056,26 @@ fn run_case(
         let dprog = nalgebra::Vector3::new(t_cp.x - s.target.x, t_cp.y - s.target.y, t_cp.z - s.target.z).norm();
         comp.program_change_mm = comp.program_change_mm.max(dprog);
     }
+    let slider_poses = |sims: &[SimPose], data: &[PairMeasurement]| -> Vec<SliderPose> {
+        sims.iter()
+            .zip(data)
+            .map(|(s, m)| SliderPose {
+                sliders: s.truth.sliders,
+                pose: m.pose,
+                target: s.target,
+            })
+            .collect()
+    };
+    let (whole_machine, whole_machine_error) = match run_whole_machine(
+        whole,
+        actual,
+        &slider_poses(ident, id_data),
+        &slider_poses(valid, va_data),
+        noise.map(|_| opts.noise),
+    ) {
+        Ok(w) => (Some(w), None),
+        Err(e) => (None, Some(e.to_string())),
+    };
     let mut ablations = Vec::new();
     if noise.is_none() {
         let mut nominal_closure = id_data.clone();
@@ -1070,6 +1114,8 @@ fn run_case(
         }
     }
     Ok(StudyCase {
+        whole_machine,
+        whole_machine_error,
         ablations,
         noise,
         identified: main.identifiability.identifiable.len(),
@@ -1172,8 +1218,10 @@ pub fn run_study(config: &StudyConfig) -> Result<StudyReport, CalibError> {
         }
         check.eq25_distance_residual_mm = check.eq25_distance_residual_mm.max(((a2 - a1).norm() - nominal.geometry.a).abs());
     }
-    let noise_free = run_case(&nominal, &actual, &ident, &valid, None, config.seed + 1)?;
-    let noisy = run_case(&nominal, &actual, &ident, &valid, Some(config.noise), config.seed + 2)?;
+    let file = crate::io::model_file::ModelFile::load_or_builtin(&config.model).map_err(|e| CalibError::InvalidOption(e.to_string()))?;
+    let whole = WholeMachine::from_file(&file)?;
+    let noise_free = run_case(&whole, &nominal, &actual, &ident, &valid, None, config.seed + 1)?;
+    let noisy = run_case(&whole, &nominal, &actual, &ident, &valid, Some(config.noise), config.seed + 2)?;
     Ok(StudyReport {
         config: config.clone(),
         ranks,

@@ -1,0 +1,219 @@
+//! The §6 study of the 3T1R paper run on the **whole machine's model file** (`t3r1`,
+//! `examples/models/t3r1.toml`, or a user's edit of it) through the general library: the same
+//! simulated actual machine, the same identification and validation poses and the same tracker
+//! noise as the paper's method ([`crate::studies::t3r1`]), identified with
+//! [`crate::identify::identify`] from the four slider readings and the measured poses, validated
+//! with [`crate::validate`] and compensated with [`crate::compensate::compensate`].
+//!
+//! The difference from the paper's method is what the prediction rests on: the pair of chains
+//! predicts a pose from the sensed passive angles (their encoder noise enters the prediction),
+//! the model file's closure predicts it from the sliders alone, as the machine is commanded.
+use crate::error::CalibError;
+use crate::identify::{self, Options};
+use crate::io::model_file::ModelFile;
+use crate::measure::{Measurement, Noise, Observation};
+use crate::model::kind::InputSpec;
+use crate::model::Mechanism;
+use crate::se3::Pose;
+use crate::studies::t3r1::CompensationStats;
+use crate::studies::t3r1_machine::{tilt, ActualMachine, PlatformPose};
+use crate::validate::{self, ErrorStats};
+use serde::Serialize;
+
+/// The model file and its free parameters.
+pub struct WholeMachine {
+    /// The model (nominal geometry).
+    pub model: Box<dyn Mechanism>,
+    /// Free parameters (the file's `[calibration]`).
+    pub free: Vec<usize>,
+    /// The model's inputs (names, units, limits).
+    pub inputs: Vec<InputSpec>,
+    /// For each model input, the study's slider index (`s1` → 0 … `s4` → 3).
+    pub slider_of_input: Vec<usize>,
+}
+
+impl WholeMachine {
+    /// The study's machine from a model file (built-in `t3r1` or a user's edit): its inputs
+    /// must be the four sliders `s1`…`s4` (any order).
+    pub fn from_file(file: &ModelFile) -> Result<Self, CalibError> {
+        let invalid = |e: crate::io::IoError| CalibError::InvalidOption(e.to_string());
+        Self::new(file.build(), file.free_indices().map_err(invalid)?, file.inputs())
+    }
+
+    /// The study's machine as `model` with `free` parameters and `inputs`: its inputs must be
+    /// the four sliders `s1`…`s4` (any order).
+    pub fn new(model: Box<dyn Mechanism>, free: Vec<usize>, inputs: Vec<InputSpec>) -> Result<Self, CalibError> {
+        let names = model.input_names();
+        let slider_of_input: Vec<usize> = names
+            .iter()
+            .filter_map(|n| match n.as_str() {
+                "s1" => Some(0),
+                "s2" => Some(1),
+                "s3" => Some(2),
+                "s4" => Some(3),
+                _ => None,
+            })
+            .collect();
+        let mut sorted = slider_of_input.clone();
+        sorted.sort_unstable();
+        if names.len() != 4 || sorted != [0, 1, 2, 3] {
+            return Err(CalibError::InvalidOption(format!(
+                "the study's machine model must be actuated by the four sliders named s1, s2, s3, s4 (the chains B1..B4), but its inputs are: {}",
+                names.join(", ")
+            )));
+        }
+        Ok(WholeMachine {
+            model,
+            free,
+            inputs,
+            slider_of_input,
+        })
+    }
+
+    /// The model's input vector for the study's sliders (`B1..B4`).
+    pub fn inputs(&self, sliders: &[f64; 4]) -> Vec<f64> {
+        self.slider_of_input.iter().map(|&k| sliders[k]).collect()
+    }
+
+    /// The study's sliders (`B1..B4`) for a model input vector.
+    pub fn sliders(&self, q: &[f64]) -> [f64; 4] {
+        let mut s = [0.0; 4];
+        for (v, &k) in q.iter().zip(&self.slider_of_input) {
+            s[k] = *v;
+        }
+        s
+    }
+}
+
+/// One pose of the study as the model file sees it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SliderPose {
+    /// Slider readings `B1..B4` (mm; exact).
+    pub sliders: [f64; 4],
+    /// The pose: measured (identification, with the tracker's noise) or true (validation).
+    pub pose: Pose,
+    /// The commanded pose the sliders were computed for (nominal inverse).
+    pub target: PlatformPose,
+}
+
+/// The study's case on the whole machine's model file.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct WholeMachineCase {
+    /// Error parameters of the model.
+    pub params: usize,
+    /// Free parameters.
+    pub free: usize,
+    /// Identifiable parameters at the identification poses (the rank).
+    pub rank: usize,
+    /// Identifiable parameters at the identification and validation poses together: what more
+    /// poses identify.
+    pub full_rank: usize,
+    /// Gauss–Newton iterations.
+    pub iterations: usize,
+    /// Whether the fit converged.
+    pub converged: bool,
+    /// `σ̂₀` of the fit (1 when the weights are the noise).
+    pub sigma0: f64,
+    /// Errors of the nominal model on the validation poses (true poses).
+    pub nominal_validation: ErrorStats,
+    /// Errors of the calibrated model on the validation poses.
+    pub validation: ErrorStats,
+    /// Compensation of the validation targets through the general `compensate`, checked on the
+    /// actual machine.
+    pub compensation: CompensationStats,
+}
+
+impl WholeMachineCase {
+    /// Why the fit cannot be trusted, if it cannot.
+    pub fn failure(&self) -> Option<String> {
+        if !self.converged {
+            return Some(format!("the model file's fit did not converge in {} iterations", self.iterations));
+        }
+        (self.rank < self.full_rank).then(|| {
+            format!(
+                "the identification poses determine {} of the {} parameters of the model file that more poses identify: use more identification poses",
+                self.rank, self.full_rank
+            )
+        })
+    }
+}
+
+fn data(machine: &WholeMachine, poses: &[SliderPose]) -> Vec<Measurement> {
+    poses
+        .iter()
+        .map(|p| Measurement {
+            q: machine.inputs(&p.sliders),
+            obs: Observation::Pose(p.pose),
+        })
+        .collect()
+}
+
+/// Identify `machine` from `ident` (weights: `noise`, or the default when noise-free), validate on
+/// `valid` (true poses) and compensate `valid`'s targets, reached on `actual`.
+pub fn run_whole_machine(
+    machine: &WholeMachine,
+    actual: &ActualMachine,
+    ident: &[SliderPose],
+    valid: &[SliderPose],
+    noise: Option<Noise>,
+) -> Result<WholeMachineCase, CalibError> {
+    let id_data = data(machine, ident);
+    let va_data = data(machine, valid);
+    let opts = Options {
+        noise: noise.unwrap_or_default(),
+        free: Some(machine.free.clone()),
+        ..Default::default()
+    };
+    let all: Vec<Vec<f64>> = id_data.iter().chain(&va_data).map(|m| m.q.clone()).collect();
+    let full_rank = identify::identifiability_at(&machine.model, &all, &machine.free, &opts.noise, opts.rank_tolerance)?.rank;
+    let fit = identify::identify(&machine.model, &id_data, &opts)?;
+    let nominal_validation = ErrorStats::of(&validate::pose_errors(&machine.model, &va_data)?);
+    let validation = ErrorStats::of(&validate::pose_errors(&fit.model, &va_data)?);
+    let targets: Vec<Pose> = valid.iter().map(|v| v.target.to_pose()).collect();
+    let commands =
+        crate::compensate::compensate(&fit.model, &machine.inputs, &targets, None, &|_| {}).map_err(|e| CalibError::Kinematics {
+            pose: ident.len() + e.target,
+            source: e.source,
+        })?;
+    let mut comp = CompensationStats {
+        before_position_mm: 0.0,
+        before_yaw_deg: 0.0,
+        after_position_mm: 0.0,
+        after_yaw_deg: 0.0,
+        tilt_deg: 0.0,
+        program_change_mm: 0.0,
+    };
+    for (i, (v, q)) in valid.iter().zip(&commands).enumerate() {
+        let kin = |source| CalibError::Kinematics {
+            pose: ident.len() + i,
+            source,
+        };
+        let (_, reached) = actual.forward(&machine.sliders(q)).map_err(kin)?;
+        let programmed = machine.model.forward(q).map_err(kin)?;
+        let err = |t: &Pose| {
+            let p = PlatformPose::from_pose(t);
+            let dp = nalgebra::Vector3::new(p.x - v.target.x, p.y - v.target.y, p.z - v.target.z).norm();
+            (dp, (p.yaw - v.target.yaw).abs().to_degrees())
+        };
+        let (bp, by) = err(&v.pose);
+        let (cp, cy) = err(&reached);
+        comp.before_position_mm = comp.before_position_mm.max(bp);
+        comp.before_yaw_deg = comp.before_yaw_deg.max(by);
+        comp.after_position_mm = comp.after_position_mm.max(cp);
+        comp.after_yaw_deg = comp.after_yaw_deg.max(cy);
+        comp.tilt_deg = comp.tilt_deg.max(tilt(&reached).to_degrees());
+        comp.program_change_mm = comp.program_change_mm.max(err(&programmed).0);
+    }
+    Ok(WholeMachineCase {
+        params: machine.model.n_params(),
+        free: machine.free.len(),
+        rank: fit.identifiability.rank,
+        full_rank,
+        iterations: fit.iterations.len(),
+        converged: fit.converged,
+        sigma0: fit.sigma0,
+        nominal_validation,
+        validation,
+        compensation: comp,
+    })
+}
