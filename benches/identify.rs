@@ -17,6 +17,7 @@ fn bench(c: &mut Criterion) {
     let noise = Noise {
         position: 0.02,
         orientation: 2e-4,
+        ..Noise::default()
     };
     let data = simulate::measure(&truth, &q, ObservationKind::Pose, Some(&noise), &mut rng).unwrap();
     let mut g = c.benchmark_group("identify_irb120_500_poses");

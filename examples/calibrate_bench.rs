@@ -24,6 +24,7 @@ fn main() {
     let noise = Noise {
         position: 0.02,
         orientation: 0.01f64.to_radians(),
+        ..Noise::default()
     };
     let set = synthesize(&*truth, qs, Instrument::Pose, &noise, &mut rng, &|_| {}).expect("measure");
     let data = DataSet::from_measurements("<simulated>", set.measurements);

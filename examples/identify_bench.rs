@@ -36,6 +36,7 @@ fn main() {
     let noise = Noise {
         position: 0.02,
         orientation: 2e-4,
+        ..Noise::default()
     };
     let data = simulate::measure(&truth, &q, ObservationKind::Pose, Some(&noise), &mut rng).unwrap();
     println!(

@@ -22,6 +22,7 @@ fn main() {
     let noise = Noise {
         position: 0.02,
         orientation: 0.02f64.to_radians(),
+        ..Noise::default()
     };
     // The identifiable parameters, from the nominal model on 40 random configurations.
     let mut rng = ChaCha8Rng::seed_from_u64(0);

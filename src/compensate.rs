@@ -261,6 +261,7 @@ mod tests {
             unit: Unit::Angle,
             limits: Some((lo * d, hi * d)),
             approach_of: None,
+            observed: false,
         };
         let inputs = [inp(-400.0, 400.0), inp(-110.0, 70.0), inp(-400.0, 400.0)];
         let mut q = [350.0 * d, 300.0 * d, -10.0 * d];
@@ -273,6 +274,7 @@ mod tests {
             unit: Unit::Length,
             limits: Some((0.0, 1.0)),
             approach_of: None,
+            observed: false,
         }];
         let mut x = [7.0];
         wrap_near(&lin, &mut x, &[]);

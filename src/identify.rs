@@ -31,6 +31,7 @@ use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use serde::Serialize;
 
+mod joints;
 mod recursive;
 mod reduced;
 mod solve;
@@ -288,6 +289,7 @@ pub(crate) fn spatial_jacobian_near<M: Mechanism + ?Sized>(
 
 /// Linearise `model` at every measurement (in parallel), weighting rows by `noise`.
 pub fn linearize<M: Mechanism + ?Sized>(model: &M, data: &[Measurement], noise: &Noise) -> Result<Linearization, CalibError> {
+    let units = model.observed_joints();
     let blocks: Vec<_> = data
         .par_iter()
         .enumerate()
@@ -299,21 +301,22 @@ pub fn linearize<M: Mechanism + ?Sized>(model: &M, data: &[Measurement], noise: 
                 return Err(CalibError::Kinematics { pose: i, source });
             }
             let w = measure::row_weights(&m.obs, noise);
-            Ok((a, r, w))
+            let joints = joints::joint_rows(model, i, m, &units, noise, true)?;
+            Ok((a, r, w, joints))
         })
         .collect::<Vec<Result<_, CalibError>>>()
         // The first failing pose in data order (not whichever thread failed first): the same
         // inputs give the same message.
         .into_iter()
         .collect::<Result<Vec<_>, CalibError>>()?;
-    let rows: usize = blocks.iter().map(|b| b.1.len()).sum();
+    let rows: usize = blocks.iter().map(|b| b.1.len() + b.3 .0.len()).sum();
     let p = model.n_params();
     let mut jacobian = DMatrix::zeros(rows, p);
     let mut residual = DVector::zeros(rows);
     let mut offsets = Vec::with_capacity(blocks.len());
     let mut angular_rows = Vec::with_capacity(rows);
     let mut row = 0;
-    for (a, r, w) in &blocks {
+    for (a, r, w, (jr, ja)) in &blocks {
         offsets.push(row);
         for k in 0..r.len() {
             for c in 0..p {
@@ -323,6 +326,14 @@ pub fn linearize<M: Mechanism + ?Sized>(model: &M, data: &[Measurement], noise: 
             angular_rows.push(r.len() == 6 && k >= 3);
         }
         row += r.len();
+        if let Some(ja) = ja {
+            jacobian.view_mut((row, 0), (jr.len(), p)).copy_from(ja);
+            for (k, v) in jr.iter().enumerate() {
+                residual[row + k] = *v;
+                angular_rows.push(false);
+            }
+            row += jr.len();
+        }
     }
     Ok(Linearization {
         jacobian,
@@ -334,11 +345,14 @@ pub fn linearize<M: Mechanism + ?Sized>(model: &M, data: &[Measurement], noise: 
 
 /// Re-estimate the position and orientation noise from weighted residuals (one variance
 /// component per row kind), keeping the ratio meaningful when one kind is absent.
-fn reestimate_noise(residual: &DVector<f64>, angular_rows: &[bool], noise: &Noise, dof_ratio: f64) -> Noise {
+fn reestimate_noise(residual: &DVector<f64>, angular_rows: &[bool], joint_rows: &[bool], noise: &Noise, dof_ratio: f64) -> Noise {
     let (mut sp, mut np, mut sa, mut na) = (0.0, 0usize, 0.0, 0usize);
     for (k, &ang) in angular_rows.iter().enumerate() {
         let r2 = residual[k] * residual[k];
-        if ang {
+        if joint_rows.get(k).copied().unwrap_or(false) {
+            // The encoders keep their stated noise.
+            continue;
+        } else if ang {
             sa += r2;
             na += 1;
         } else {
@@ -350,6 +364,7 @@ fn reestimate_noise(residual: &DVector<f64>, angular_rows: &[bool], noise: &Nois
     Noise {
         position: noise.position * scale(sp, np),
         orientation: noise.orientation * scale(sa, na),
+        ..*noise
     }
 }
 
@@ -495,7 +510,7 @@ fn gauss_newton<M: Mechanism + Clone>(
     let mut previous_pred = None;
     for _ in 0..opts.max_iterations {
         if opts.reweight {
-            noise = reestimate_noise(&ev.residual, &ev.angular_rows, &noise, dof_ratio);
+            noise = reestimate_noise(&ev.residual, &ev.angular_rows, &ev.joint_rows, &noise, dof_ratio);
             ev = reduced::evaluate(&model, data, &noise, opts.loss)?;
             system = reduced::factor(&model, data, &noise, &ev, Form::Gram)?;
         }
@@ -600,7 +615,7 @@ fn gauss_newton<M: Mechanism + Clone>(
         }
     }
     if opts.reweight {
-        noise = reestimate_noise(&ev.residual, &ev.angular_rows, &noise, dof_ratio);
+        noise = reestimate_noise(&ev.residual, &ev.angular_rows, &ev.joint_rows, &noise, dof_ratio);
         ev = reduced::evaluate(&model, data, &noise, opts.loss)?;
         system = reduced::factor(&model, data, &noise, &ev, Form::Gram)?;
     }
@@ -647,13 +662,12 @@ pub fn identifiability_at<M: Mechanism + ?Sized>(
         .iter()
         .enumerate()
         .map(|(i, q)| {
-            mechanism
-                .forward(q)
-                .map(|t| Measurement {
-                    q: q.clone(),
-                    obs: Observation::Pose(t),
-                })
-                .map_err(|source| crate::error::CalibError::Kinematics { pose: i, source })
+            let kin = |source| crate::error::CalibError::Kinematics { pose: i, source };
+            Ok(Measurement {
+                joints: mechanism.observed_joint_values(q).map_err(kin)?,
+                q: q.clone(),
+                obs: Observation::Pose(mechanism.forward(q).map_err(kin)?),
+            })
         })
         .collect::<Result<Vec<_>, _>>()?;
     let lin = linearize(mechanism, &data, noise)?;

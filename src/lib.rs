@@ -23,7 +23,7 @@
 //! // A virtual prototype: ±0.5 mm / ±0.1° errors on every geometric parameter.
 //! let truth = perturbed(&nominal, &random_errors(&*nominal, &mut rng, 0.5, 0.1f64.to_radians(), None));
 //! let measure = |qs: Vec<Vec<f64>>| -> Vec<Measurement> {
-//!     qs.into_iter().map(|q| Measurement { obs: Observation::Pose(truth.forward(&q).unwrap()), q }).collect()
+//!     qs.into_iter().map(|q| Measurement { joints: Vec::new(), obs: Observation::Pose(truth.forward(&q).unwrap()), q }).collect()
 //! };
 //! let ident = measure(random_configurations(&*nominal, &file.inputs(), 40, &mut rng).unwrap());
 //! let valid = measure(random_configurations(&*nominal, &file.inputs(), 10, &mut rng).unwrap());

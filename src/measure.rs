@@ -44,6 +44,10 @@ pub struct Measurement {
     pub q: Vec<f64>,
     /// What was observed.
     pub obs: Observation,
+    /// Readings of the mechanism's observed joints ([`crate::model::Mechanism::observed_joints`],
+    /// rad / mm, in that order): compared with the model like the tracker's observation. Empty
+    /// when the mechanism has none or they were not read.
+    pub joints: Vec<f64>,
 }
 
 /// Standard deviations of the measurement noise, used as residual weights.
@@ -53,14 +57,32 @@ pub struct Noise {
     pub position: f64,
     /// Orientation noise (rad, per axis).
     pub orientation: f64,
+    /// Noise of an observed revolute joint's reading (rad; encoders of passive joints,
+    /// [`crate::model::Mechanism::observed_joints`]).
+    #[serde(default = "default_joint_angle")]
+    pub joint_angle: f64,
+    /// Noise of an observed prismatic joint's reading (mm).
+    #[serde(default = "default_joint_length")]
+    pub joint_length: f64,
+}
+
+fn default_joint_angle() -> f64 {
+    0.01_f64.to_radians()
+}
+
+fn default_joint_length() -> f64 {
+    0.01
 }
 
 impl Default for Noise {
-    /// 20 µm and 0.02°, the noise of the 5-DOF paper's simulation study (§5.1).
+    /// 20 µm and 0.02°, the noise of the 5-DOF paper's simulation study (§5.1); observed joints
+    /// 0.01° and 0.01 mm (the 3T1R study's encoders).
     fn default() -> Self {
         Noise {
             position: 0.020,
             orientation: 0.02_f64.to_radians(),
+            joint_angle: default_joint_angle(),
+            joint_length: default_joint_length(),
         }
     }
 }
@@ -101,6 +123,18 @@ pub fn residual_jacobian(obs: &Observation, predicted: &Pose, jac: &Matrix6xX<f6
             out
         }
     }
+}
+
+/// Weights (1/σ) of observed-joint readings of these units ([`Noise::joint_angle`] for angles,
+/// [`Noise::joint_length`] otherwise).
+pub fn joint_weights(units: &[(String, crate::params::Unit)], noise: &Noise) -> Vec<f64> {
+    units
+        .iter()
+        .map(|(_, u)| match u {
+            crate::params::Unit::Angle => 1.0 / noise.joint_angle,
+            _ => 1.0 / noise.joint_length,
+        })
+        .collect()
 }
 
 /// Weights (1/σ) of the residual rows of an observation.

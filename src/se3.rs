@@ -166,6 +166,11 @@ pub fn exp_joint(s: &Twist, q: f64) -> Pose {
     Isometry3::from_parts(Translation3::from(p), r)
 }
 
+/// An angle difference wrapped to `[−π, π)` (rad).
+pub fn wrap_angle(a: f64) -> f64 {
+    (a + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI) - std::f64::consts::PI
+}
+
 /// The yaw `atan2(R₁₀, R₀₀)` of `b` minus that of `a` (rad, in (−π, π]): the rotation about the
 /// base z-axis a 3T1R machine commands (its tilts are parasitic).
 pub fn yaw_difference(a: &Pose, b: &Pose) -> f64 {

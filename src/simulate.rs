@@ -80,9 +80,47 @@ pub fn measure<M: Mechanism + ?Sized, R: Rng>(
             }
             ObservationKind::Position => Observation::Position(t.translation.vector + dp),
         };
-        out.push(Measurement { q: q.clone(), obs });
+        let exact = Noise {
+            joint_angle: 0.0,
+            joint_length: 0.0,
+            ..Noise::default()
+        };
+        let joints = observed_readings(truth, i, q, noise.unwrap_or(&exact), rng)?;
+        out.push(Measurement { joints, q: q.clone(), obs });
     }
     Ok(out)
+}
+
+/// The readings of `truth`'s observed joints at `q` (pose `k`) with Gaussian noise of
+/// [`Noise::joint_angle`] / [`Noise::joint_length`] (0: none); nothing drawn without observed
+/// joints.
+pub fn observed_readings<M: Mechanism + ?Sized, R: Rng>(
+    truth: &M,
+    k: usize,
+    q: &[f64],
+    noise: &Noise,
+    rng: &mut R,
+) -> Result<Vec<f64>, CalibError> {
+    let units = truth.observed_joints();
+    if units.is_empty() {
+        return Ok(Vec::new());
+    }
+    let mut v = truth
+        .observed_joint_values(q)
+        .map_err(|source| CalibError::Kinematics { pose: k, source })?;
+    for (x, (_, u)) in v.iter_mut().zip(&units) {
+        let s = if *u == crate::params::Unit::Angle {
+            noise.joint_angle
+        } else {
+            noise.joint_length
+        };
+        if s > 0.0 {
+            *x += Normal::new(0.0, s)
+                .map_err(|e| CalibError::InvalidOption(format!("encoder noise σ {s}: {e}")))?
+                .sample(rng);
+        }
+    }
+    Ok(v)
 }
 
 /// A random serial chain with `revolute` + `prismatic` joints in random order, random joint axes
@@ -276,7 +314,8 @@ pub fn synthesize<M: Mechanism + ?Sized, R: Rng>(
                 Observation::Pose(f)
             }
         };
-        measurements.push(Measurement { q, obs });
+        let joints = observed_readings(truth, k, &q, noise, rng)?;
+        measurements.push(Measurement { joints, q, obs });
         progress(k);
     }
     Ok(SyntheticSet {

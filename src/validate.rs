@@ -237,6 +237,7 @@ mod tests {
                 let t = m.forward(&q).unwrap();
                 let off = Vector3::new(0.01 * ((i * 7 % 5) as f64 - 2.0), 0.01, -0.01);
                 Measurement {
+                    joints: Vec::new(),
                     q,
                     obs: Observation::Position(t.translation.vector + off),
                 }

@@ -251,7 +251,7 @@ impl Data {
     /// Read a kinecal data file (CSV) for `model` (its input columns, in the file's units).
     #[staticmethod]
     fn read(path: &str, model: &Model) -> PyResult<Data> {
-        read_data(Path::new(path), &model.file.inputs(), InputColumns::Required)
+        read_data(Path::new(path), &model.file.data_columns(), InputColumns::Required)
             .map(|set| Data { set })
             .map_err(err)
     }
@@ -301,7 +301,11 @@ impl Data {
                     Observation::Pose(matrix_pose(&m, &format!("rotations[{i}]"))?)
                 }
             };
-            measurements.push(Measurement { q, obs });
+            measurements.push(Measurement {
+                joints: Vec::new(),
+                q,
+                obs,
+            });
         }
         let mut set = DataSet::from_measurements("<arrays>", measurements);
         if let Some(ids) = ids {
@@ -421,6 +425,7 @@ fn calibrate(
     let noise = Noise {
         position: noise_mm.unwrap_or(base.position),
         orientation: noise_deg.map_or(base.orientation, f64::to_radians),
+        ..base
     };
     if !(noise.position > 0.0 && noise.orientation > 0.0 && noise.position.is_finite() && noise.orientation.is_finite()) {
         return Err(err("noise_mm / noise_deg: must be finite and > 0"));
@@ -555,6 +560,7 @@ fn simulate(
     let noise = Noise {
         position: noise_mm,
         orientation: noise_deg.to_radians(),
+        ..Noise::default()
     };
     let set = synthesize(&*truth, qs, instrument, &noise, &mut rng, &|_| {}).map_err(err)?;
     let mut data = DataSet::from_measurements("<simulated>", set.measurements);
@@ -602,6 +608,7 @@ fn plan<'py>(
         noise: Noise {
             position: noise_mm,
             orientation: noise_deg.to_radians(),
+            ..Noise::default()
         },
         method: method.parse().map_err(err)?,
         select: SelectOptions {

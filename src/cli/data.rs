@@ -149,7 +149,7 @@ pub fn run(args: DataArgs) -> anyhow::Result<()> {
     match args.command {
         DataCommand::Check { model, data, json } => {
             let file = ModelFile::load_or_builtin(&model)?;
-            summary(&read_data(&data, &file.inputs(), InputColumns::Required)?, json)
+            summary(&read_data(&data, &file.data_columns(), InputColumns::Required)?, json)
         }
         DataCommand::Split {
             model,
@@ -165,7 +165,7 @@ pub fn run(args: DataArgs) -> anyhow::Result<()> {
             outputs.input(std::path::Path::new(&model)).input(&data);
             outputs.output(&out)?.output(&rest)?;
             let file = ModelFile::load_or_builtin(&model)?;
-            let inputs = file.inputs();
+            let inputs = file.data_columns();
             let d = read_data(&data, &inputs, InputColumns::Required)?;
             let (a, b) = split(&d, rule);
             for (part, path) in [(&a, &out), (&b, &rest)] {
@@ -212,7 +212,7 @@ pub fn run(args: DataArgs) -> anyhow::Result<()> {
             outputs.output(&out)?;
             let file = ModelFile::load_or_builtin(&model)?;
             let (d, reflectors) = match (inputs, measurements, joints) {
-                (Some(i), Some(m), None) => (join_files(&i, &m, &file.inputs())?, None),
+                (Some(i), Some(m), None) => (join_files(&i, &m, &file.data_columns())?, None),
                 (None, None, Some(joints)) => {
                     let files = ExportFiles {
                         joints,
@@ -230,7 +230,7 @@ pub fn run(args: DataArgs) -> anyhow::Result<()> {
             };
             outputs.stage(
                 &out,
-                data_text(&out, &file.inputs(), &d.ids, &d.measurements, reflectors.as_deref())?.as_bytes(),
+                data_text(&out, &file.data_columns(), &d.ids, &d.measurements, reflectors.as_deref())?.as_bytes(),
             )?;
             outputs.commit()?;
             summary(&d, json)?;

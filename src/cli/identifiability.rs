@@ -43,13 +43,15 @@ pub fn run(a: IdentifiabilityArgs) -> anyhow::Result<()> {
     let inputs = file.inputs();
     let free = file.free_indices()?;
     let data: Vec<Measurement> = match &a.data {
-        Some(p) => read_data(p, &inputs, InputColumns::Required)?.measurements,
+        Some(p) => read_data(p, &file.data_columns(), InputColumns::Required)?.measurements,
         None => {
             let mut rng = ChaCha8Rng::seed_from_u64(a.seed);
             let configurations = random_configurations(&*model, &inputs, a.poses, &mut rng)?;
             let exact = Noise {
                 position: 0.0,
                 orientation: 0.0,
+                joint_angle: 0.0,
+                joint_length: 0.0,
             };
             let instrument = match a.measure {
                 MeasureKind::Position => Instrument::Position,

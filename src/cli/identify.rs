@@ -67,6 +67,13 @@ pub struct IdentifyArgs {
     /// Orientation noise σ per axis (degrees) used as weight; default: the model file's [noise], else 0.02.
     #[arg(long)]
     pub noise_deg: Option<f64>,
+    /// Noise σ of the observed joints' readings (degrees; passive-joint encoders, `role =
+    /// "observed"`) used as weight; default 0.01.
+    #[arg(long)]
+    pub encoder_noise_deg: Option<f64>,
+    /// Noise σ of the observed prismatic joints' readings (mm) used as weight; default 0.01.
+    #[arg(long)]
+    pub encoder_noise_mm: Option<f64>,
     /// Re-estimate the position / orientation noise from the residuals (real data).
     #[arg(long)]
     pub reweight: bool,
@@ -102,15 +109,33 @@ pub struct IdentifyArgs {
 }
 
 /// The noise weights: command line, else model file, else the default.
+#[allow(dead_code)]
 pub fn resolve_noise(file: &ModelFile, mm: Option<f64>, deg: Option<f64>) -> anyhow::Result<Noise> {
+    resolve_noise_with_encoders(file, mm, deg, None, None)
+}
+
+/// [`resolve_noise`] with the observed joints' encoder noise (degrees, mm).
+pub fn resolve_noise_with_encoders(
+    file: &ModelFile,
+    mm: Option<f64>,
+    deg: Option<f64>,
+    encoder_deg: Option<f64>,
+    encoder_mm: Option<f64>,
+) -> anyhow::Result<Noise> {
     let base = file.noise.unwrap_or_else(default_noise);
     let n = Noise {
         position: mm.unwrap_or(base.position),
         orientation: deg.map(f64::to_radians).unwrap_or(base.orientation),
+        joint_angle: encoder_deg.map(f64::to_radians).unwrap_or(base.joint_angle),
+        joint_length: encoder_mm.unwrap_or(base.joint_length),
     };
     anyhow::ensure!(
         n.position > 0.0 && n.orientation > 0.0 && n.position.is_finite() && n.orientation.is_finite(),
         "--noise-mm / --noise-deg: must be finite and > 0"
+    );
+    anyhow::ensure!(
+        n.joint_angle > 0.0 && n.joint_length > 0.0 && n.joint_angle.is_finite() && n.joint_length.is_finite(),
+        "--encoder-noise-deg / --encoder-noise-mm: must be finite and > 0"
     );
     Ok(n)
 }
@@ -124,7 +149,7 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
     }
     outputs.output(&a.out)?.output_opt(a.report.as_deref())?;
     let file = ModelFile::load_or_builtin(&a.model)?;
-    let inputs = file.inputs();
+    let inputs = file.data_columns();
     let data = read_data(&a.data, &inputs, InputColumns::Required)?;
     let validation = match &a.validation {
         Some(p) => Some(read_data(p, &inputs, InputColumns::Required)?),
@@ -137,7 +162,7 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
             MethodArg::Linear => Method::Linear,
             MethodArg::Recursive => Method::Recursive,
         },
-        noise: resolve_noise(&file, a.noise_mm, a.noise_deg)?,
+        noise: resolve_noise_with_encoders(&file, a.noise_mm, a.noise_deg, a.encoder_noise_deg, a.encoder_noise_mm)?,
         reweight: a.reweight,
         frames: match a.frames {
             FramesArg::Estimate => FrameMode::Estimate,

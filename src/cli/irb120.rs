@@ -150,6 +150,7 @@ pub fn run(args: Irb120Args) -> anyhow::Result<()> {
         noise: Noise {
             position: args.sigma_position,
             orientation: args.sigma_orientation.to_radians(),
+            ..Noise::default()
         },
         reweight: false,
     };

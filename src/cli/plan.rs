@@ -356,6 +356,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
     let noise = Noise {
         position: args.noise_position_mm,
         orientation: args.noise_orientation_deg.to_radians(),
+        ..Noise::default()
     };
     anyhow::ensure!(
         noise.position > 0.0 && noise.orientation > 0.0 && noise.position.is_finite() && noise.orientation.is_finite(),

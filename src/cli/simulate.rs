@@ -55,6 +55,12 @@ pub struct SimulateArgs {
     /// Orientation noise, standard deviation per axis (degrees); 0 = noise-free.
     #[arg(long, default_value_t = 0.0)]
     pub noise_deg: f64,
+    /// Noise of the observed revolute joints' readings (degrees; `role = "observed"`); 0 = exact.
+    #[arg(long, default_value_t = 0.0)]
+    pub encoder_noise_deg: f64,
+    /// Noise of the observed prismatic joints' readings (mm); 0 = exact.
+    #[arg(long, default_value_t = 0.0)]
+    pub encoder_noise_mm: f64,
     /// What is measured.
     #[arg(long, value_enum, default_value_t = MeasureKind::Pose)]
     pub measure: MeasureKind,
@@ -90,6 +96,8 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
         ("--error-deg", a.error_deg),
         ("--noise-mm", a.noise_mm),
         ("--noise-deg", a.noise_deg),
+        ("--encoder-noise-deg", a.encoder_noise_deg),
+        ("--encoder-noise-mm", a.encoder_noise_mm),
     ] {
         anyhow::ensure!(v.is_finite() && v >= 0.0, "{name}: must be a finite value ≥ 0, got {v}");
     }
@@ -109,6 +117,8 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
     let noise = Noise {
         position: a.noise_mm,
         orientation: a.noise_deg.to_radians(),
+        joint_angle: a.encoder_noise_deg.to_radians(),
+        joint_length: a.encoder_noise_mm,
     };
     let mut truth_file = file.with_geometry_of(&*truth).map_err(|e| anyhow::anyhow!(e))?;
     truth_file.description = Some(format!(
@@ -165,7 +175,7 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
         })?;
         pb.finish_and_clear();
         let ids: Vec<i64> = (0..n as i64).map(|i| first_id + i).collect();
-        let data = data_text(&path, &inputs, &ids, &set.measurements, set.reflectors.as_deref())?;
+        let data = data_text(&path, &file.data_columns(), &ids, &set.measurements, set.reflectors.as_deref())?;
         outputs.stage(&path, data.as_bytes())?;
         written.push(Written { path, poses: n });
     }

@@ -117,8 +117,13 @@ fn print_whole_machine(c: &StudyCase) {
         );
         return;
     };
+    let read = if w.observed.is_empty() {
+        String::new()
+    } else {
+        format!(", encoders {} read as observations", w.observed.join(", "))
+    };
     println!(
-        "the whole machine's model file, same poses and tracker noise, predicted from the sliders alone (general identify, {} of {} free parameters identifiable):",
+        "the whole machine's model file, same poses, tracker and encoder noise, predicted from the sliders alone{read} (general identify, {} of {} free parameters identifiable):",
         w.rank, w.free
     );
     println!(

@@ -22,7 +22,7 @@ pub struct ValidateArgs {
 pub fn run(a: ValidateArgs) -> anyhow::Result<()> {
     let file = ModelFile::load_or_builtin(&a.model)?;
     let model = file.build();
-    let data = read_data(&a.data, &file.inputs(), InputColumns::Required)?;
+    let data = read_data(&a.data, &file.data_columns(), InputColumns::Required)?;
     if let Some(note) = data.derived_note() {
         eprintln!("note: {note}");
     }

@@ -275,6 +275,7 @@ pub fn identifiable_columns<M: Mechanism + ?Sized>(
         .step_by(step)
         .take(sample.max(1))
         .map(|c| measure::Measurement {
+            joints: Vec::new(),
             q: c.q.clone(),
             obs: match kind {
                 ObservationKind::Pose => Observation::Pose(c.target),

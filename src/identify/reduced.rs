@@ -35,6 +35,8 @@ pub(crate) struct Evaluated {
     pub offsets: Vec<usize>,
     /// For each row: true if it is an orientation (rad) row.
     pub angular_rows: Vec<bool>,
+    /// For each row: true if it is an observed joint's row.
+    pub joint_rows: Vec<bool>,
     /// Robust cost (`½|r|²` for least squares).
     pub cost: f64,
     /// Loss weight per pose (1: full weight).
@@ -46,6 +48,7 @@ pub(crate) struct Evaluated {
 
 /// Weighted residuals of `model` at every measurement, the loss weights and the cost.
 pub(crate) fn evaluate<M: Mechanism + ?Sized>(model: &M, data: &[Measurement], noise: &Noise, loss: Loss) -> Result<Evaluated, CalibError> {
+    let units = model.observed_joints();
     let blocks = data
         .par_iter()
         .enumerate()
@@ -60,23 +63,27 @@ pub(crate) fn evaluate<M: Mechanism + ?Sized>(model: &M, data: &[Measurement], n
             for (k, v) in r.iter_mut().enumerate() {
                 *v *= measure::row_weight(&m.obs, k, noise);
             }
-            Ok((pose, r))
+            let nobs = r.len();
+            r.extend(super::joints::joint_rows(model, i, m, &units, noise, false)?.0);
+            Ok((pose, (r, nobs)))
         })
         .collect::<Vec<Result<_, CalibError>>>()
         // The first failing pose in data order, whichever thread failed first.
         .into_iter()
         .collect::<Result<Vec<_>, CalibError>>()?;
-    let (poses, blocks): (Vec<crate::se3::Pose>, Vec<Vec<f64>>) = blocks.into_iter().unzip();
-    let rows: usize = blocks.iter().map(Vec::len).sum();
+    let (poses, blocks): (Vec<crate::se3::Pose>, Vec<(Vec<f64>, usize)>) = blocks.into_iter().unzip();
+    let rows: usize = blocks.iter().map(|b| b.0.len()).sum();
     let mut residual = DVector::zeros(rows);
     let mut offsets = Vec::with_capacity(blocks.len());
     let mut angular_rows = Vec::with_capacity(rows);
+    let mut joint_rows = Vec::with_capacity(rows);
     let mut row = 0;
-    for r in &blocks {
+    for (r, nobs) in &blocks {
         offsets.push(row);
         for (k, v) in r.iter().enumerate() {
             residual[row + k] = *v;
-            angular_rows.push(r.len() == 6 && k >= 3);
+            angular_rows.push(*nobs == 6 && (3..6).contains(&k));
+            joint_rows.push(k >= *nobs);
         }
         row += r.len();
     }
@@ -91,6 +98,7 @@ pub(crate) fn evaluate<M: Mechanism + ?Sized>(model: &M, data: &[Measurement], n
         residual,
         offsets,
         angular_rows,
+        joint_rows,
         cost,
         pose_weights,
         poses,
@@ -237,6 +245,7 @@ pub(crate) fn factor<M: Mechanism + ?Sized>(
     let n = data.len();
     let p = model.n_params();
     let rows = ev.residual.len();
+    let units = model.observed_joints();
     let row_of = |i: usize| if i < n { ev.offsets[i] } else { rows };
     // The rows [A_i | r_i] of poses b..be.
     let block = |b: usize, be: usize| -> Result<DMatrix<f64>, CalibError> {
@@ -279,6 +288,16 @@ pub(crate) fn factor<M: Mechanism + ?Sized>(
                         }
                         m[(r0 + k, p)] = ev.residual[ev.offsets[i] + k];
                     }
+                }
+            }
+            // The observed joints' rows, after the observation's.
+            if let (_, Some(j)) = super::joints::joint_rows(model, i, d, &units, noise, true)? {
+                let j0 = d.obs.rows();
+                for k in 0..j.nrows() {
+                    for c in 0..p {
+                        m[(r0 + j0 + k, c)] = j[(k, c)] * lw;
+                    }
+                    m[(r0 + j0 + k, p)] = ev.residual[ev.offsets[i] + j0 + k];
                 }
             }
         }

@@ -145,6 +145,7 @@ impl DataSet {
                 .iter()
                 .zip(&self.reflectors)
                 .map(|(m, r)| Measurement {
+                    joints: Vec::new(),
                     q: m.q.clone(),
                     obs: Observation::Points((0..3).map(|k| (offsets[k], r[k])).collect()),
                 })
@@ -206,7 +207,8 @@ pub fn join_files(inputs_path: &Path, measurements_path: &Path, inputs: &[InputS
             .iter()
             .any(|c| matches!(classify(&a.path, c, inputs), Ok((Slot::Input(j), _)) if j == k))
         {
-            if inp.approach_of.is_some() {
+            // (Observed joints' readings are optional: checked when the tables are merged.)
+            if inp.approach_of.is_some() || inp.observed {
                 continue;
             }
             return Err(IoError::MissingColumn {
@@ -358,8 +360,17 @@ fn inputs_from_table(path: &Path, table: &Table, inputs: &[InputSpec]) -> Result
 }
 
 /// [`read_data`] on a table already read.
-pub fn data_from_table(table: &Table, inputs: &[InputSpec], input_columns: InputColumns) -> Result<DataSet, IoError> {
+pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: InputColumns) -> Result<DataSet, IoError> {
     let path = &table.path;
+    // The inputs, then the observed joints' readings (optional: all of them or none).
+    let n_q = columns.iter().take_while(|c| !c.observed).count();
+    let (inputs, observed) = columns.split_at(n_q);
+    if observed.iter().any(|c| !c.observed) {
+        return Err(IoError::Invalid {
+            path: path.clone(),
+            message: "internal: observed-joint columns must follow the inputs".into(),
+        });
+    }
     let at_header = |message: String| IoError::AtLine {
         path: path.clone(),
         line: 1,
@@ -370,10 +381,28 @@ pub fn data_from_table(table: &Table, inputs: &[InputSpec], input_columns: Input
         if table.columns[..k].contains(col) {
             return Err(at_header(format!("column '{col}' appears twice")));
         }
-        slots.push(classify(path, col, inputs)?);
+        slots.push(classify(path, col, columns)?);
     }
+    let present_joints: Vec<usize> = slots
+        .iter()
+        .filter_map(|(s, _)| match s {
+            Slot::Input(k) if *k >= n_q => Some(*k - n_q),
+            _ => None,
+        })
+        .collect();
+    if !present_joints.is_empty() && present_joints.len() < observed.len() {
+        let missing: Vec<String> = (0..observed.len())
+            .filter(|k| !present_joints.contains(k))
+            .map(|k| header_of(&observed[k]))
+            .collect();
+        return Err(at_header(format!(
+            "observed-joint columns missing: {} (give every observed joint's reading, or none)",
+            missing.join(", ")
+        )));
+    }
+    let has_joints = !present_joints.is_empty();
     let has = |pred: &dyn Fn(&Slot) -> bool| slots.iter().filter(|(s, _)| pred(s)).count();
-    let n_inputs = has(&|s| matches!(s, Slot::Input(_)));
+    let n_inputs = has(&|s| matches!(s, Slot::Input(k) if *k < n_q));
     let missing = |column: String| IoError::MissingColumn {
         path: path.clone(),
         column,
@@ -454,8 +483,9 @@ pub fn data_from_table(table: &Table, inputs: &[InputSpec], input_columns: Input
             .map(|row| {
                 let mut q = vec![0.0; inputs.len()];
                 for ((slot, f), v) in slots.iter().zip(row) {
-                    if let Slot::Input(k) = slot {
-                        q[*k] = v * f;
+                    match slot {
+                        Slot::Input(k) if *k < n_q => q[*k] = v * f,
+                        _ => {}
                     }
                 }
                 q
@@ -504,6 +534,7 @@ pub fn data_from_table(table: &Table, inputs: &[InputSpec], input_columns: Input
         }
         kept_lines.push(line);
         let mut q = vec![0.0; if has_inputs { inputs.len() } else { 0 }];
+        let mut joints = vec![0.0; if has_joints { observed.len() } else { 0 }];
         let (mut p, mut quat, mut rpy) = (Vector3::zeros(), [0.0; 4], [0.0; 3]);
         let mut refl = [Vector3::zeros(); 3];
         let mut id = r as i64;
@@ -529,6 +560,7 @@ pub fn data_from_table(table: &Table, inputs: &[InputSpec], input_columns: Input
                     }
                     id = v as i64;
                 }
+                Slot::Input(k) if k >= n_q => joints[k - n_q] = v,
                 Slot::Input(k) => q[k] = v,
                 Slot::Pos(i) => p[i] = v,
                 Slot::Quat(i) => quat[i] = v,
@@ -581,7 +613,7 @@ pub fn data_from_table(table: &Table, inputs: &[InputSpec], input_columns: Input
         if format == MeasurementFormat::Reflectors {
             reflectors.push(refl);
         }
-        measurements.push(Measurement { q, obs });
+        measurements.push(Measurement { joints, q, obs });
         ids.push(id);
     }
     if measurements.is_empty() {

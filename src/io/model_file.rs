@@ -381,6 +381,12 @@ impl ModelFile {
         self.mechanism.inputs()
     }
 
+    /// The columns of a measurement data file: inputs, then observed joints
+    /// ([`MechanismSpec::data_columns`]).
+    pub fn data_columns(&self) -> Vec<InputSpec> {
+        self.mechanism.data_columns()
+    }
+
     /// Indices of the free parameters in priority order.
     pub fn free_indices(&self) -> Result<Vec<usize>, IoError> {
         select_params(&self.build().params(), &self.free, &self.fixed).map_err(|pat| IoError::Invalid {

@@ -176,6 +176,19 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Framed<M> {
     fn geometry(&self) -> Option<Vec<f64>> {
         self.inner.geometry()
     }
+    fn observed_joints(&self) -> Vec<(String, crate::params::Unit)> {
+        self.inner.observed_joints()
+    }
+    fn observed_joint_values(&self, q: &[f64]) -> Result<Vec<f64>, KinError> {
+        self.inner.observed_joint_values(q)
+    }
+    /// The inner mechanism's rows, the frames' columns zero (joint values do not depend on them).
+    fn observed_joints_with_jacobian(&self, q: &[f64]) -> Result<(Vec<f64>, nalgebra::DMatrix<f64>), KinError> {
+        let (v, j) = self.inner.observed_joints_with_jacobian(q)?;
+        let mut out = nalgebra::DMatrix::zeros(j.nrows(), FRAME_PARAMS + j.ncols());
+        out.view_mut((0, FRAME_PARAMS), j.shape()).copy_from(&j);
+        Ok((v, out))
+    }
     fn frames(&self) -> Option<(Pose, Pose)> {
         Some((self.measurement, self.tool))
     }

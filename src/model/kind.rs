@@ -24,6 +24,10 @@ pub struct InputSpec {
     /// it belongs to. A data file without the column gets it from its row order
     /// ([`crate::io::data_file`]).
     pub approach_of: Option<usize>,
+    /// An observed joint's reading, not an input ([`Mechanism::observed_joints`]): a data
+    /// column compared with the model. Listed after the inputs by
+    /// [`MechanismSpec::data_columns`]; never among [`MechanismSpec::inputs`].
+    pub observed: bool,
 }
 
 /// The kind-specific part of a model file (values in mm and rad).
@@ -56,6 +60,7 @@ fn closed_loop_inputs<C: ConstraintSystem>(m: &ClosedLoop<C>) -> Vec<InputSpec> 
             unit: Unit::Length,
             limits: Some(st),
             approach_of: None,
+            observed: false,
         })
         .collect()
 }
@@ -94,6 +99,7 @@ fn chain_inputs(c: &SerialChain) -> Vec<InputSpec> {
             },
             limits: j.limits,
             approach_of: None,
+            observed: false,
         })
         .collect()
 }
@@ -132,6 +138,7 @@ impl MechanismSpec {
                         unit: Unit::Dimensionless,
                         limits: Some((-1.0, 1.0)),
                         approach_of: Some(j),
+                        observed: false,
                     });
                 }
                 out
@@ -152,10 +159,27 @@ impl MechanismSpec {
                         },
                         limits: joint.limits,
                         approach_of: None,
+                        observed: false,
                     }
                 })
                 .collect(),
         }
+    }
+
+    /// The columns of a measurement data file: the inputs, then the observed joints' readings
+    /// ([`InputSpec::observed`]; optional in a file: all of them or none).
+    pub fn data_columns(&self) -> Vec<InputSpec> {
+        let mut out = self.inputs();
+        if let MechanismSpec::Limbs(m) = self {
+            out.extend(m.observed_joints().into_iter().map(|(name, unit)| InputSpec {
+                name,
+                unit,
+                limits: None,
+                approach_of: None,
+                observed: true,
+            }));
+        }
+        out
     }
 
     /// The same kind with the geometry of `model` (e.g. a calibrated copy of [`Self::build`]'s

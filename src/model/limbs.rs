@@ -41,6 +41,7 @@ use serde::{Deserialize, Serialize};
 mod closure;
 mod elimination;
 mod kinematics;
+mod observed;
 
 /// What a joint's value is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -52,6 +53,12 @@ pub enum JointRole {
     Sensed,
     /// Passive, not measured: solved from the closure.
     Passive,
+    /// Passive, solved from the closure, with a sensor whose reading is an **observation**: a
+    /// data column compared with the model's value and weighted by the encoder noise (maximum
+    /// likelihood), not an input. For a machine whose actuators already determine it (the 3T1R
+    /// machine's upper and platform angles), where a `Sensed` reading would overdetermine the
+    /// closure.
+    Observed,
 }
 
 /// How a limb closes on the platform.
@@ -254,6 +261,8 @@ pub struct LimbMechanism {
     inputs: Vec<(usize, usize)>,
     /// Per passive unknown: (limb, joint).
     passive: Vec<(usize, usize)>,
+    /// The observed joints ([`JointRole::Observed`]): indices into `passive`.
+    observed: Vec<usize>,
     /// Per limb and joint: the input or passive unknown it is.
     slots: Vec<Vec<Slot>>,
     /// The limbs grouped for the elimination of the closure's Newton systems.
@@ -319,6 +328,7 @@ impl LimbMechanism {
         let mut inputs = Vec::new();
         let mut sensed = Vec::new();
         let mut passive = Vec::new();
+        let mut observed = Vec::new();
         let mut names = std::collections::HashSet::new();
         if limbs.is_empty() {
             return Err("a parallel mechanism needs at least one limb".into());
@@ -345,6 +355,10 @@ impl LimbMechanism {
                     JointRole::Actuated => inputs.push((i, j)),
                     JointRole::Sensed => sensed.push((i, j)),
                     JointRole::Passive => passive.push((i, j)),
+                    JointRole::Observed => {
+                        observed.push(passive.len());
+                        passive.push((i, j));
+                    }
                 }
             }
         }
@@ -386,6 +400,7 @@ impl LimbMechanism {
             limbs,
             inputs,
             passive,
+            observed,
         };
         // Each limb as close to the home pose as it gets from its home values (least squares, per
         // limb, to name the one that cannot close) ...
@@ -652,34 +667,19 @@ impl Mechanism for LimbMechanism {
     }
 
     fn sample_configurations(&self, n: usize, seed: u64) -> Option<Result<Vec<Vec<f64>>, KinError>> {
-        use rand::{RngExt, SeedableRng};
-        let ws = self.workspace.as_ref()?;
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-        let mut out = Vec::with_capacity(n);
-        let mut tries = 0;
-        while out.len() < n {
-            tries += 1;
-            if tries > 50 * n.max(1) {
-                return Some(Err(KinError::Unreachable(format!(
-                    "'{}': only {} of {n} configurations drawn in its workspace could be reached (check [mechanism.workspace] against the limbs and joint limits)",
-                    self.name,
-                    out.len()
-                ))));
-            }
-            let mut draw = |lo: f64, hi: f64| if hi > lo { rng.random_range(lo..hi) } else { lo };
-            let p = Vector3::new(
-                draw(ws.position_min.x, ws.position_max.x),
-                draw(ws.position_min.y, ws.position_max.y),
-                draw(ws.position_min.z, ws.position_max.z),
-            );
-            let a: Vec<f64> = (0..3).map(|k| draw(ws.rpy_min[k], ws.rpy_max[k])).collect();
-            let rot = nalgebra::UnitQuaternion::from_euler_angles(a[0], a[1], a[2]) * self.home.rotation;
-            let target = Pose::from_parts(nalgebra::Translation3::from(p), rot);
-            if let Ok(q) = self.inverse(&target, None) {
-                out.push(q);
-            }
-        }
-        Some(Ok(out))
+        self.sample_in_workspace(n, seed)
+    }
+
+    fn observed_joints(&self) -> Vec<(String, Unit)> {
+        self.observed_names()
+    }
+
+    fn observed_joint_values(&self, q: &[f64]) -> Result<Vec<f64>, KinError> {
+        self.observed_values(q)
+    }
+
+    fn observed_joints_with_jacobian(&self, q: &[f64]) -> Result<(Vec<f64>, DMatrix<f64>), KinError> {
+        self.observed_with_jacobian(q)
     }
 }
 

@@ -13,9 +13,9 @@
 //! Because every model is re-linearised at its current parameters, identification iterates to
 //! convergence on any mechanism that implements this trait.
 use crate::error::KinError;
-use crate::params::Param;
+use crate::params::{Param, Unit};
 use crate::se3::Pose;
-use nalgebra::{DVector, Matrix6xX};
+use nalgebra::{DMatrix, DVector, Matrix6xX};
 
 pub mod builtin;
 pub mod chain;
@@ -124,6 +124,24 @@ pub trait Mechanism: Send + Sync {
         let _ = (n, seed);
         None
     }
+    /// The passive joints whose sensors are read as **observations** (their readings are compared
+    /// with the model, weighted by the encoder noise, like the tracker's): name and unit
+    /// ([`Unit::Angle`] in rad, [`Unit::Length`] in mm), in the order of
+    /// [`crate::measure::Measurement::joints`]. Empty (default) for mechanisms without them.
+    fn observed_joints(&self) -> Vec<(String, Unit)> {
+        Vec::new()
+    }
+    /// The values of the observed joints at inputs `q` (see [`Mechanism::observed_joints`]).
+    fn observed_joint_values(&self, q: &[f64]) -> Result<Vec<f64>, KinError> {
+        let _ = q;
+        Ok(Vec::new())
+    }
+    /// The values of the observed joints at inputs `q` and their derivative with respect to the
+    /// error parameters (one row per observed joint, p columns).
+    fn observed_joints_with_jacobian(&self, q: &[f64]) -> Result<(Vec<f64>, DMatrix<f64>), KinError> {
+        let _ = q;
+        Ok((Vec::new(), DMatrix::zeros(0, self.n_params())))
+    }
 }
 
 impl Clone for Box<dyn Mechanism> {
@@ -177,6 +195,15 @@ impl Mechanism for Box<dyn Mechanism> {
     }
     fn sample_configurations(&self, n: usize, seed: u64) -> Option<Result<Vec<Vec<f64>>, KinError>> {
         (**self).sample_configurations(n, seed)
+    }
+    fn observed_joints(&self) -> Vec<(String, Unit)> {
+        (**self).observed_joints()
+    }
+    fn observed_joint_values(&self, q: &[f64]) -> Result<Vec<f64>, KinError> {
+        (**self).observed_joint_values(q)
+    }
+    fn observed_joints_with_jacobian(&self, q: &[f64]) -> Result<(Vec<f64>, DMatrix<f64>), KinError> {
+        (**self).observed_joints_with_jacobian(q)
     }
 }
 

@@ -299,7 +299,7 @@ impl CalibrationReport {
                 })
                 .collect(),
         };
-        let Noise { position, orientation } = result.noise;
+        let Noise { position, orientation, .. } = result.noise;
         let mut report = CalibrationReport {
             verdict: Verdict {
                 status: Status::Calibrated,

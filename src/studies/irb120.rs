@@ -170,6 +170,7 @@ pub fn measurements(data: &TrackerData, what: ToolMeasurement, keep: impl Fn(i64
             ToolMeasurement::Reflector(k) => return Err(CalibError::InvalidOption(format!("reflector {k} does not exist (1, 2 or 3)"))),
         };
         out.push(Measurement {
+            joints: Vec::new(),
             q: data.joints[i].clone(),
             obs,
         });
@@ -189,6 +190,7 @@ pub fn reflector_measurements(data: &TrackerData, keep: impl Fn(i64) -> bool) ->
     Ok((0..data.len())
         .filter(|&i| keep(data.idx[i]))
         .map(|i| Measurement {
+            joints: Vec::new(),
             q: data.joints[i].clone(),
             obs: Observation::Points((0..3).map(|k| (offsets[k], data.tool[i][k])).collect()),
         })
@@ -294,6 +296,7 @@ impl Default for CalibrateOptions {
             noise: Noise {
                 position: 0.05,
                 orientation: 0.01_f64.to_radians(),
+                ..Noise::default()
             },
             reweight: true,
         }

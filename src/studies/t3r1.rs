@@ -65,7 +65,8 @@ use crate::measure::Noise;
 use crate::model::Mechanism;
 use crate::se3::{self, Pose};
 use crate::studies::t3r1_machine::{platform_rows, BranchedChain, ChainId, Configuration, ErrorModel, PlatformPose, T3r1};
-use crate::studies::t3r1_whole::{run_whole_machine, SliderPose, WholeMachine, WholeMachineCase};
+pub use crate::studies::t3r1_whole::CompensationStats;
+use crate::studies::t3r1_whole::{run_whole_machine, EncoderReadings, SliderPose, WholeMachine, WholeMachineCase};
 use nalgebra::{DMatrix, DVector, Matrix2, Vector2};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -552,6 +553,7 @@ fn model_ranks(pair: &ChainPair, data: &[PairMeasurement], tol: f64, model: Erro
     let noise = Noise {
         position: 1.0,
         orientation: 1.0,
+        ..Noise::default()
     };
     let closure = linearize_pair_of(pair, data, &noise, LowerAngles::Closure, model)?;
     let measured = linearize_pair_of(pair, data, &noise, LowerAngles::Measured, model)?;
@@ -754,23 +756,6 @@ pub fn pair_errors(pair: &ChainPair, data: &[PairMeasurement]) -> Result<PairErr
     Ok(PairErrorStats::from(&errs))
 }
 
-/// Compensation results on the validation targets (§7).
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct CompensationStats {
-    /// Largest position error of the actual machine at the nominal slider commands (mm).
-    pub before_position_mm: f64,
-    /// Largest yaw error at the nominal commands (deg).
-    pub before_yaw_deg: f64,
-    /// Largest position error at the compensated commands (mm).
-    pub after_position_mm: f64,
-    /// Largest yaw error at the compensated commands (deg).
-    pub after_yaw_deg: f64,
-    /// Platform tilt of the actual machine (largest, deg): a 3T1R machine cannot remove it.
-    pub tilt_deg: f64,
-    /// Largest position change `|T_cp − T_co|` of the programmed pose (mm).
-    pub program_change_mm: f64,
-}
-
 /// The idle-pair cross-validation.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CrossValidation {
@@ -926,6 +911,7 @@ fn full_rank(pair: &ChainPair, data: &[PairMeasurement], tol: f64) -> Result<Ful
     let noise = Noise {
         position: 1.0,
         orientation: 1.0,
+        ..Noise::default()
     };
     let lin = linearize_pair(pair, data, &noise, LowerAngles::Closure)?;
     let all60: Vec<usize> = (0..60).collect();
@@ -993,6 +979,7 @@ fn run_case(
             .map(|n| Noise {
                 position: n.position,
                 orientation: n.orientation,
+                ..Noise::default()
             })
             .unwrap_or_default(),
         ..Default::default()
@@ -1056,22 +1043,40 @@ fn run_case(
         let dprog = nalgebra::Vector3::new(t_cp.x - s.target.x, t_cp.y - s.target.y, t_cp.z - s.target.z).norm();
         comp.program_change_mm = comp.program_change_mm.max(dprog);
     }
-    let slider_poses = |sims: &[SimPose], data: &[PairMeasurement]| -> Vec<SliderPose> {
-        sims.iter()
-            .zip(data)
-            .map(|(s, m)| SliderPose {
-                sliders: s.truth.sliders,
-                pose: m.pose,
-                target: s.target,
-            })
-            .collect()
-    };
+    // The same tracker and encoder readings (the main and the idle pair's data share them).
+    let idle_id = &results[1].2;
+    let ident_poses: Vec<SliderPose> = ident
+        .iter()
+        .zip(id_data.iter().zip(idle_id))
+        .map(|(s, (m, mi))| SliderPose {
+            sliders: s.truth.sliders,
+            pose: m.pose,
+            target: s.target,
+            encoders: Some(EncoderReadings {
+                upper: [m.reading.upper[0], mi.reading.upper[0], m.reading.upper[1], mi.reading.upper[1]],
+                platform: m.reading.platform,
+            }),
+        })
+        .collect();
+    let valid_poses: Vec<SliderPose> = valid
+        .iter()
+        .zip(va_data)
+        .map(|(s, m)| SliderPose {
+            sliders: s.truth.sliders,
+            pose: m.pose,
+            target: s.target,
+            encoders: None,
+        })
+        .collect();
     let (whole_machine, whole_machine_error) = match run_whole_machine(
         whole,
         actual,
-        &slider_poses(ident, id_data),
-        &slider_poses(valid, va_data),
-        noise.map(|_| opts.noise),
+        &ident_poses,
+        &valid_poses,
+        noise.map(|n| Noise {
+            joint_angle: n.encoder,
+            ..opts.noise
+        }),
     ) {
         Ok(w) => (Some(w), None),
         Err(e) => (None, Some(e.to_string())),

@@ -15,10 +15,26 @@ use crate::measure::{Measurement, Noise, Observation};
 use crate::model::kind::InputSpec;
 use crate::model::Mechanism;
 use crate::se3::Pose;
-use crate::studies::t3r1::CompensationStats;
 use crate::studies::t3r1_machine::{tilt, ActualMachine, PlatformPose};
 use crate::validate::{self, ErrorStats};
 use serde::Serialize;
+
+/// Compensation results on the validation targets (§7).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CompensationStats {
+    /// Largest position error of the actual machine at the nominal slider commands (mm).
+    pub before_position_mm: f64,
+    /// Largest yaw error at the nominal commands (deg).
+    pub before_yaw_deg: f64,
+    /// Largest position error at the compensated commands (mm).
+    pub after_position_mm: f64,
+    /// Largest yaw error at the compensated commands (deg).
+    pub after_yaw_deg: f64,
+    /// Platform tilt of the actual machine (largest, deg): a 3T1R machine cannot remove it.
+    pub tilt_deg: f64,
+    /// Largest position change `|T_cp − T_co|` of the programmed pose (mm).
+    pub program_change_mm: f64,
+}
 
 /// The model file and its free parameters.
 pub struct WholeMachine {
@@ -30,6 +46,26 @@ pub struct WholeMachine {
     pub inputs: Vec<InputSpec>,
     /// For each model input, the study's slider index (`s1` → 0 … `s4` → 3).
     pub slider_of_input: Vec<usize>,
+    /// For each observed joint of the model, the study's encoder it reads.
+    pub encoder_of_observed: Vec<Encoder>,
+}
+
+/// An encoder of the study's machine.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Encoder {
+    /// The upper-parallelogram angle of chain `B1..B4` (`u1`…`u4`).
+    Upper(usize),
+    /// The platform revolute of chain `B1` or `B3` (`r1`, `r3`).
+    Platform(usize),
+}
+
+/// The encoder readings of one pose (rad): upper angles `B1..B4`, platform revolutes `B1`, `B3`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EncoderReadings {
+    /// Upper-parallelogram angles of `B1..B4`.
+    pub upper: [f64; 4],
+    /// Platform revolutes of `B1`, `B3`.
+    pub platform: [f64; 2],
 }
 
 impl WholeMachine {
@@ -62,17 +98,44 @@ impl WholeMachine {
                 names.join(", ")
             )));
         }
+        let encoder_of_observed = model
+            .observed_joints()
+            .into_iter()
+            .map(|(n, _)| match n.as_str() {
+                "u1" => Ok(Encoder::Upper(0)),
+                "u2" => Ok(Encoder::Upper(1)),
+                "u3" => Ok(Encoder::Upper(2)),
+                "u4" => Ok(Encoder::Upper(3)),
+                "r1" => Ok(Encoder::Platform(0)),
+                "r3" => Ok(Encoder::Platform(1)),
+                other => Err(CalibError::InvalidOption(format!(
+                    "the study's machine model observes joint '{other}', which the study has no encoder for (its encoders: u1..u4, r1, r3)"
+                ))),
+            })
+            .collect::<Result<Vec<_>, _>>()?;
         Ok(WholeMachine {
             model,
             free,
             inputs,
             slider_of_input,
+            encoder_of_observed,
         })
     }
 
     /// The model's input vector for the study's sliders (`B1..B4`).
     pub fn inputs(&self, sliders: &[f64; 4]) -> Vec<f64> {
         self.slider_of_input.iter().map(|&k| sliders[k]).collect()
+    }
+
+    /// The model's observed-joint readings from the study's encoders.
+    pub fn readings(&self, r: &EncoderReadings) -> Vec<f64> {
+        self.encoder_of_observed
+            .iter()
+            .map(|e| match *e {
+                Encoder::Upper(k) => r.upper[k],
+                Encoder::Platform(k) => r.platform[k],
+            })
+            .collect()
     }
 
     /// The study's sliders (`B1..B4`) for a model input vector.
@@ -94,6 +157,8 @@ pub struct SliderPose {
     pub pose: Pose,
     /// The commanded pose the sliders were computed for (nominal inverse).
     pub target: PlatformPose,
+    /// The encoders' readings, when they are data (identification poses).
+    pub encoders: Option<EncoderReadings>,
 }
 
 /// The study's case on the whole machine's model file.
@@ -103,6 +168,8 @@ pub struct WholeMachineCase {
     pub params: usize,
     /// Free parameters.
     pub free: usize,
+    /// The observed joints whose encoder readings were data (their noise the weight).
+    pub observed: Vec<String>,
     /// Identifiable parameters at the identification poses (the rank).
     pub rank: usize,
     /// Identifiable parameters at the identification and validation poses together: what more
@@ -142,6 +209,7 @@ fn data(machine: &WholeMachine, poses: &[SliderPose]) -> Vec<Measurement> {
     poses
         .iter()
         .map(|p| Measurement {
+            joints: p.encoders.map(|e| machine.readings(&e)).unwrap_or_default(),
             q: machine.inputs(&p.sliders),
             obs: Observation::Pose(p.pose),
         })
@@ -207,6 +275,7 @@ pub fn run_whole_machine(
     Ok(WholeMachineCase {
         params: machine.model.n_params(),
         free: machine.free.len(),
+        observed: machine.model.observed_joints().into_iter().map(|(n, _)| n).collect(),
         rank: fit.identifiability.rank,
         full_rank,
         iterations: fit.iterations.len(),

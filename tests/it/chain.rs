@@ -79,7 +79,11 @@ fn rank_of(chain: &kinecal::model::chain::SerialChain, position_only: bool, seed
             } else {
                 Observation::Pose(t)
             };
-            Measurement { q, obs }
+            Measurement {
+                joints: Vec::new(),
+                q,
+                obs,
+            }
         })
         .collect();
     let lin = linearize(chain, &data, &Noise::default()).unwrap();

@@ -242,6 +242,7 @@ proptest! {
 fn measure(model: &dyn Mechanism, qs: &[Vec<f64>]) -> Vec<Measurement> {
     qs.iter()
         .map(|q| Measurement {
+            joints: Vec::new(),
             q: q.clone(),
             obs: Observation::Pose(model.forward(q).unwrap()),
         })
@@ -320,6 +321,7 @@ fn model_files_round_trip_and_frames_do_not_change_the_result() {
             d.iter()
                 .map(|m| match &m.obs {
                     Observation::Pose(t) => Measurement {
+                        joints: Vec::new(),
                         q: m.q.clone(),
                         obs: Observation::Pose(motion * t),
                     },

@@ -99,6 +99,7 @@ fn blocks_are_the_weighted_scaled_identification_jacobian() {
     let data: Vec<Measurement> = cands[..5]
         .iter()
         .map(|c| Measurement {
+            joints: Vec::new(),
             q: c.q.clone(),
             obs: Observation::Pose(c.target),
         })
@@ -494,6 +495,7 @@ fn synthesized_measurements_are_the_prototype_plus_the_stated_noise() {
         &Noise {
             position: 0.0,
             orientation: 0.0,
+            ..Noise::default()
         },
         &mut rng,
         &|_| {},
@@ -506,6 +508,7 @@ fn synthesized_measurements_are_the_prototype_plus_the_stated_noise() {
     let noise = Noise {
         position: 0.1,
         orientation: 0.001,
+        ..Noise::default()
     };
     let noisy = synthesize(
         &chain,

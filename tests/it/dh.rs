@@ -269,6 +269,7 @@ fn a_dh_model_has_the_parameters_and_identifiability_of_the_chain() {
         .map(|q| {
             let t = chain.forward(&q).unwrap();
             Measurement {
+                joints: Vec::new(),
                 q,
                 obs: Observation::Pose(t),
             }

@@ -97,6 +97,7 @@ fn noisy_calibration_reports_consistent_uncertainty() {
     let noise = Noise {
         position: 0.02,
         orientation: 2e-4,
+        ..Noise::default()
     };
     let data = simulate::measure(&truth, &q, ObservationKind::Pose, Some(&noise), &mut rng).unwrap();
     let res = identify(
@@ -143,6 +144,7 @@ fn reduced_gauss_newton_is_the_full_problem() {
     let noise = Noise {
         position: 0.02,
         orientation: 2e-4,
+        ..Noise::default()
     };
     let data = simulate::measure(&truth, &qs, ObservationKind::Pose, Some(&noise), &mut rng).unwrap();
     let opts = Options {
@@ -216,6 +218,7 @@ fn a_start_that_reaches_a_known_solution_stops_there_and_one_that_does_not_runs_
     let noise = Noise {
         position: 0.01,
         orientation: 1e-4,
+        ..Noise::default()
     };
     let data = simulate::measure(&truth, &q, ObservationKind::Pose, Some(&noise), &mut rng).unwrap();
     let opts = Options {

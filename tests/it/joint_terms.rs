@@ -47,6 +47,7 @@ fn data(file: &ModelFile, truth: &dyn Mechanism, n: usize, seed: u64) -> DataSet
     let noise = Noise {
         position: NOISE_MM,
         orientation: NOISE_RAD,
+        ..Noise::default()
     };
     let m = measure(truth, &qs, ObservationKind::Pose, Some(&noise), &mut rng).unwrap();
     DataSet::from_measurements("sim.csv", m)
@@ -60,6 +61,7 @@ fn for_file(d: &DataSet, file: &ModelFile) -> DataSet {
         .measurements
         .iter()
         .map(|m| Measurement {
+            joints: Vec::new(),
             q: m.q[..n].to_vec(),
             obs: m.obs.clone(),
         })
@@ -72,6 +74,7 @@ fn fit(file: &ModelFile, ident: &DataSet, valid: &DataSet) -> Calibration {
         noise: Noise {
             position: NOISE_MM,
             orientation: NOISE_RAD,
+            ..Noise::default()
         },
         ..CalibrationOptions::default()
     };

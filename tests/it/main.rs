@@ -13,6 +13,7 @@ mod irb120;
 mod joint_terms;
 mod limbs;
 mod model_file;
+mod observed;
 mod parallel_workflow;
 mod plan_pm5;
 mod quickstart;

@@ -48,6 +48,7 @@ fn data_set(name: &str, truth: &dyn Mechanism, qs: &[Vec<f64>], kind: Kind, nois
     let n = noise.unwrap_or(Noise {
         position: 1.0,
         orientation: 1.0,
+        ..Noise::default()
     });
     let measurements: Vec<Measurement> = qs
         .iter()
@@ -60,7 +61,11 @@ fn data_set(name: &str, truth: &dyn Mechanism, qs: &[Vec<f64>], kind: Kind, nois
                 }
                 Kind::Position => Observation::Position(t.translation.vector + draw(n.position)),
             };
-            Measurement { q: q.clone(), obs }
+            Measurement {
+                joints: Vec::new(),
+                q: q.clone(),
+                obs,
+            }
         })
         .collect();
     DataSet {

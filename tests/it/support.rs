@@ -36,17 +36,17 @@ pub fn steps<M: Mechanism + ?Sized>(m: &M) -> Vec<f64> {
 
 /// Targets where the nominal model puts the validation commands (no input columns).
 pub fn nominal_targets(d: &Path, model: &ModelFile) -> Vec<se3::Pose> {
-    let inputs = model.inputs();
     let nominal = model.build();
-    let val = read_data(&d.join("valid.csv"), &inputs, InputColumns::Required).unwrap();
+    let val = read_data(&d.join("valid.csv"), &model.data_columns(), InputColumns::Required).unwrap();
     let targets: Vec<se3::Pose> = val.measurements.iter().map(|m| nominal.forward(&m.q).unwrap()).collect();
     let rows: Vec<Measurement> = targets
         .iter()
         .map(|t| Measurement {
+            joints: Vec::new(),
             q: vec![],
             obs: Observation::Pose(*t),
         })
         .collect();
-    write_data(&d.join("targets.csv"), &inputs, &val.ids, &rows, None).unwrap();
+    write_data(&d.join("targets.csv"), &model.inputs(), &val.ids, &rows, None).unwrap();
     targets
 }

@@ -446,6 +446,7 @@ fn calibrated_irb120_through_urdf_and_back() {
     let noise = Noise {
         position: 0.05,
         orientation: 0.03f64.to_radians(),
+        ..Noise::default()
     };
     let mut data_set = |name: &str, n: usize, seed: u64| {
         let qs = configurations(&file, n, seed);
@@ -462,7 +463,11 @@ fn calibrated_irb120_through_urdf_and_back() {
                     (t.translation.vector + draw(&np)).into(),
                     se3::so3_exp(&draw(&nw)) * t.rotation,
                 ));
-                Measurement { q, obs }
+                Measurement {
+                    joints: Vec::new(),
+                    q,
+                    obs,
+                }
             })
             .collect();
         DataSet {

@@ -113,6 +113,7 @@ fn simulate_identify_validate_compensate_recovers_the_truth() {
         .measurements
         .iter()
         .map(|m| Measurement {
+            joints: Vec::new(),
             q: m.q.clone(),
             obs: Observation::Pose(nominal.forward(&m.q).unwrap()),
         })
@@ -142,6 +143,7 @@ fn simulate_identify_validate_compensate_recovers_the_truth() {
     let bare: Vec<Measurement> = targets
         .iter()
         .map(|t| Measurement {
+            joints: Vec::new(),
             q: vec![],
             obs: t.obs.clone(),
         })

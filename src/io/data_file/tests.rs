@@ -9,12 +9,14 @@ fn inputs() -> Vec<InputSpec> {
             unit: Unit::Angle,
             limits: None,
             approach_of: None,
+            observed: false,
         },
         InputSpec {
             name: "d2".into(),
             unit: Unit::Length,
             limits: None,
             approach_of: None,
+            observed: false,
         },
     ]
 }
@@ -101,6 +103,7 @@ fn write_then_read_round_trips() {
     let path = dir.join("w.csv");
     let t = crate::se3::pose_from_parts(Vector3::new(1.5, -2.0, 3.25), Vector3::new(0.1, -0.2, 0.3));
     let m = vec![Measurement {
+        joints: Vec::new(),
         q: vec![0.25, 12.5],
         obs: Observation::Pose(t),
     }];
@@ -110,5 +113,50 @@ fn write_then_read_round_trips() {
     assert!((d.measurements[0].q[0] - 0.25).abs() < 1e-15);
     let Observation::Pose(b) = &d.measurements[0].obs else { panic!() };
     assert!((b.to_homogeneous() - t.to_homogeneous()).abs().max() < 1e-14);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Observed joints' readings (`role = "observed"`): optional columns after the inputs, all of
+/// them or none, written back as they were read.
+#[test]
+fn observed_joint_columns_are_optional_all_or_none_and_round_trip() {
+    let mut cols = inputs();
+    for (name, unit) in [("u1", Unit::Angle), ("x2", Unit::Length)] {
+        cols.push(InputSpec {
+            name: name.into(),
+            unit,
+            limits: None,
+            approach_of: None,
+            observed: true,
+        });
+    }
+    let read = |text: &str| {
+        let t = parse_table(Path::new("d.csv"), text).map_err(|e| e.to_string())?;
+        data_from_table(&t, &cols, InputColumns::Required).map_err(|e| e.to_string())
+    };
+    let d = read("q1_deg,d2_mm,u1_deg,x2_m,x_mm,y_mm,z_mm\n90,5,45,0.002,1,2,3\n").unwrap();
+    let m = &d.measurements[0];
+    assert_eq!(m.q.len(), 2);
+    assert!((m.joints[0] - std::f64::consts::FRAC_PI_4).abs() < 1e-15 && (m.joints[1] - 2.0).abs() < 1e-12);
+    // Without them: no readings.
+    let d = read("q1_deg,d2_mm,x_mm,y_mm,z_mm\n90,5,1,2,3\n").unwrap();
+    assert!(d.measurements[0].joints.is_empty());
+    // Some of them: an error naming the missing ones.
+    let e = read("q1_deg,d2_mm,u1_deg,x_mm,y_mm,z_mm\n90,5,45,1,2,3\n").unwrap_err();
+    assert_eq!(
+        e,
+        "d.csv:1: observed-joint columns missing: x2_mm (give every observed joint's reading, or none)"
+    );
+    // Written back with the readings, read again the same.
+    let dir = std::env::temp_dir().join(format!("kinecal-observed-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("o.csv");
+    let d = read("q1_deg,d2_mm,u1_deg,x2_m,x_mm,y_mm,z_mm\n90,5,45,0.002,1,2,3\n").unwrap();
+    write_data(&path, &cols, &d.ids, &d.measurements, None).unwrap();
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert!(text.starts_with("id,q1_deg,d2_mm,u1_deg,x2_mm,x_mm,y_mm,z_mm\n"), "{text}");
+    let back = read_data(&path, &cols, InputColumns::Required).unwrap();
+    assert!((back.measurements[0].joints[0] - d.measurements[0].joints[0]).abs() < 1e-15);
+    assert!((back.measurements[0].joints[1] - 2.0).abs() < 1e-12);
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -48,9 +48,16 @@ pub fn data_text(
     reflectors: Option<&[[Vector3<f64>; 3]]>,
 ) -> Result<String, IoError> {
     let mut header = vec!["id".to_string()];
+    // `inputs` may end with observed joints' columns (a model's data columns): written when
+    // the measurements hold their readings.
+    let (inputs, observed) = inputs.split_at(inputs.iter().take_while(|c| !c.observed).count());
     let with_inputs = measurements.first().is_some_and(|m| !m.q.is_empty());
     if with_inputs {
         header.extend(input_headers(inputs));
+    }
+    let with_joints = !observed.is_empty() && measurements.first().is_some_and(|m| m.joints.len() == observed.len());
+    if with_joints {
+        header.extend(input_headers(observed));
     }
     let pose = matches!(measurements.first().map(|m| &m.obs), Some(Observation::Pose(_)));
     if reflectors.is_some() {
@@ -70,6 +77,19 @@ pub fn data_text(
         let mut row = vec![ids.get(k).copied().unwrap_or(k as i64) as f64];
         if with_inputs {
             row.extend(input_values_for_file(inputs, &m.q));
+        }
+        if with_joints {
+            if m.joints.len() != observed.len() {
+                return Err(IoError::Invalid {
+                    path: path.to_path_buf(),
+                    message: format!(
+                        "pose {k}: {} observed-joint readings, the first pose has {}",
+                        m.joints.len(),
+                        observed.len()
+                    ),
+                });
+            }
+            row.extend(input_values_for_file(observed, &m.joints));
         }
         match (reflectors, &m.obs) {
             (Some(r), _) => row.extend(r[k].iter().flat_map(|v| [v.x, v.y, v.z])),

@@ -34,7 +34,9 @@
 //! type = "revolute"        # or "prismatic"; a universal joint is two revolute joints, a spherical joint three;
 //!                          #   "parallelogram": two pivots about `axis`, the distal bar keeping its orientation,
 //!                          #   with bar = { position = [...] } (the distal pivot in the proximal one's frame)
-//! role = "actuated"        # "actuated", "sensed" (a passive joint with a sensor: a data column) or "passive"
+//! role = "actuated"        # "actuated", "sensed" (a passive joint with a sensor whose reading is an input: a data column),
+//!                           # "observed" (a passive joint solved by the closure whose sensor reading is compared with the
+//!                           # model: a data column weighted by the encoder noise) or "passive"
 //! axis = [0.0, 1.0, 0.0]
 //! position = [...]         # the joint frame in the previous one (the first: in the base frame)
 //! rpy = [...]
@@ -370,10 +372,11 @@ impl Ctx<'_> {
                 "actuated" => JointRole::Actuated,
                 "sensed" => JointRole::Sensed,
                 "passive" => JointRole::Passive,
+                "observed" => JointRole::Observed,
                 other => {
                     return Err(self.at(
                         &rj.role.span(),
-                        format!("{jw}.role: unknown role '{other}' (use \"actuated\", \"sensed\" or \"passive\")"),
+                        format!("{jw}.role: unknown role '{other}' (use \"actuated\", \"sensed\", \"observed\" or \"passive\")"),
                     ))
                 }
             };
@@ -517,6 +520,7 @@ pub(super) fn write_limbs(m: &LimbMechanism, units: &Units, out: &mut String) ->
                 JointRole::Actuated => "actuated",
                 JointRole::Sensed => "sensed",
                 JointRole::Passive => "passive",
+                JointRole::Observed => "observed",
             };
             let kind = match g.kind {
                 GroupKind::Revolute => "revolute",

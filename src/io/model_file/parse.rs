@@ -441,6 +441,7 @@ impl Ctx<'_> {
                 Some(Noise {
                     position: r.position * units.length.to_mm(),
                     orientation: r.orientation * units.angle.to_rad(),
+                    ..Noise::default()
                 })
             }
             None => None,

@@ -362,6 +362,41 @@ impl LimbMechanism {
 
 /// Set each parallelogram's distal joint of a limb (`slots`: its joints' [`Slot`]s) to minus its
 /// proximal one.
+impl LimbMechanism {
+    /// [`Mechanism::sample_configurations`]: poses drawn in the workspace box, solved by the
+    /// inverse kinematics (`None` without a workspace).
+    pub(super) fn sample_in_workspace(&self, n: usize, seed: u64) -> Option<Result<Vec<Vec<f64>>, KinError>> {
+        use rand::{RngExt, SeedableRng};
+        let ws = self.workspace.as_ref()?;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let mut out = Vec::with_capacity(n);
+        let mut tries = 0;
+        while out.len() < n {
+            tries += 1;
+            if tries > 50 * n.max(1) {
+                return Some(Err(KinError::Unreachable(format!(
+                    "'{}': only {} of {n} configurations drawn in its workspace could be reached (check [mechanism.workspace] against the limbs and joint limits)",
+                    self.name,
+                    out.len()
+                ))));
+            }
+            let mut draw = |lo: f64, hi: f64| if hi > lo { rng.random_range(lo..hi) } else { lo };
+            let p = Vector3::new(
+                draw(ws.position_min.x, ws.position_max.x),
+                draw(ws.position_min.y, ws.position_max.y),
+                draw(ws.position_min.z, ws.position_max.z),
+            );
+            let a: Vec<f64> = (0..3).map(|k| draw(ws.rpy_min[k], ws.rpy_max[k])).collect();
+            let rot = nalgebra::UnitQuaternion::from_euler_angles(a[0], a[1], a[2]) * self.home.rotation;
+            let target = Pose::from_parts(nalgebra::Translation3::from(p), rot);
+            if let Ok(q) = self.inverse(&target, None) {
+                out.push(q);
+            }
+        }
+        Some(Ok(out))
+    }
+}
+
 fn couple_limb(slots: &[Slot], q: &mut [f64]) {
     for (j, s) in slots.iter().enumerate() {
         if let Slot::Follows(m) = s {

@@ -1,0 +1,118 @@
+//! Observed joints (`role = "observed"`): passive joints the closure solves whose sensor readings
+//! are observations, weighted by the encoder noise. On the 3T1R machine with its upper and
+//! platform angles read, as the 3T1R paper's machine has them.
+use kinecal::identify::{identify, Options};
+use kinecal::io::model_file::ModelFile;
+use kinecal::measure::{Measurement, Noise, Observation};
+use kinecal::params::Unit;
+use kinecal::Mechanism;
+use nalgebra::DVector;
+use std::path::Path;
+
+/// The 3T1R machine file: the upper angles of all four chains and the platform revolute of
+/// chain B1 observed.
+fn t3r1_observed() -> ModelFile {
+    ModelFile::load_str(Path::new("t3r1.toml"), include_str!("../../examples/models/t3r1.toml")).unwrap()
+}
+
+fn configurations(m: &dyn Mechanism, n: usize, seed: u64) -> Vec<Vec<f64>> {
+    m.sample_configurations(n, seed).unwrap().unwrap()
+}
+
+#[test]
+fn observed_joints_are_named_and_their_jacobian_is_the_finite_differences() {
+    let file = t3r1_observed();
+    let m = file.build();
+    let names: Vec<String> = m
+        .observed_joints()
+        .into_iter()
+        .map(|(n, u)| {
+            assert_eq!(u, Unit::Angle);
+            n
+        })
+        .collect();
+    assert_eq!(names, ["u1", "r1", "u3", "u2", "u4"]);
+    // Still actuated by the four sliders alone.
+    assert_eq!(m.input_names(), ["s1", "s3", "s2", "s4"]);
+    let p = m.n_params();
+    let h = 1e-6;
+    for q in configurations(&m, 3, 4) {
+        let (v, j) = m.observed_joints_with_jacobian(&q).unwrap();
+        assert_eq!(v, m.observed_joint_values(&q).unwrap());
+        assert_eq!(j.shape(), (5, p));
+        let mut worst: f64 = 0.0;
+        for c in 0..p {
+            let mut d = DVector::zeros(p);
+            d[c] = h;
+            let mut a = m.clone();
+            a.retract(&d);
+            let mut b = m.clone();
+            b.retract(&(-d));
+            let (va, vb) = (a.observed_joint_values(&q).unwrap(), b.observed_joint_values(&q).unwrap());
+            for k in 0..5 {
+                let fd = (va[k] - vb[k]) / (2.0 * h);
+                worst = worst.max((fd - j[(k, c)]).abs());
+            }
+        }
+        assert!(worst < 1e-7 * j.amax().max(1.0), "worst {worst:e}, largest {:e}", j.amax());
+    }
+}
+
+/// Noise-free data of a perturbed machine with the readings of its observed joints: the fit
+/// recovers it to round-off, and the readings identify more than the poses alone.
+#[test]
+fn observed_readings_enter_the_identification() {
+    let file = t3r1_observed();
+    let nominal = file.build();
+    let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(7);
+    let free = file.free_indices().unwrap();
+    let errors = kinecal::simulate::random_errors(&nominal, &mut rng, 0.3, 0.001, Some(&free));
+    let truth = kinecal::simulate::perturbed(&nominal, &errors);
+    let qs = configurations(&nominal, 30, 8);
+    let data: Vec<Measurement> = qs
+        .iter()
+        .map(|q| Measurement {
+            q: q.clone(),
+            obs: Observation::Pose(truth.forward(q).unwrap()),
+            joints: truth.observed_joint_values(q).unwrap(),
+        })
+        .collect();
+    let opts = Options {
+        free: Some(free),
+        ..Default::default()
+    };
+    let with = identify(&nominal, &data, &opts).unwrap();
+    let poses_only: Vec<Measurement> = data
+        .iter()
+        .map(|m| Measurement {
+            joints: Vec::new(),
+            ..m.clone()
+        })
+        .collect();
+    let without = identify(&nominal, &poses_only, &opts).unwrap();
+    eprintln!(
+        "3T1R machine, 30 poses: rank {} with the five observed angles, {} from the poses alone",
+        with.identifiability.rank, without.identifiability.rank
+    );
+    assert_eq!((with.identifiability.rank, without.identifiability.rank), (43, 38));
+    assert!(with.converged);
+    let check = configurations(&nominal, 20, 9);
+    for q in &check {
+        let e = kinecal::se3::pose_error(&truth.forward(q).unwrap(), &with.model.forward(q).unwrap());
+        assert!(kinecal::se3::lin(&e).norm() < 1e-8, "{e}");
+        let (a, b) = (
+            truth.observed_joint_values(q).unwrap(),
+            with.model.observed_joint_values(q).unwrap(),
+        );
+        assert!(a.iter().zip(&b).all(|(x, y)| (x - y).abs() < 1e-10), "{a:?} {b:?}");
+    }
+    // A reading count that does not match the model's observed joints is a clear error.
+    let mut bad = data.clone();
+    bad[3].joints.pop();
+    let err = identify(&nominal, &bad, &opts).err().unwrap().to_string();
+    assert!(
+        err.contains("pose 3: 4 observed-joint readings for the model's 5 observed joints (u1, r1, u3, u2, u4)"),
+        "{err}"
+    );
+    let _ = Noise::default();
+}
