@@ -7,6 +7,12 @@
 //!   first, then sensed passive joints for mechanisms that have them): `<name>_deg` or
 //!   `<name>_rad` for angular inputs, `<name>_mm` or `<name>_m` for linear ones (`q1_deg`,
 //!   `d3_mm`);
+//! * **observed joints' readings** (one per
+//!   [`Mechanism::observed_joints`](crate::Mechanism::observed_joints), named and suffixed like
+//!   inputs, `u1_deg`): optional, all of them or none; read into
+//!   [`Measurement::joints`](crate::measure::Measurement::joints). Pass a model's
+//!   [`data_columns`](crate::io::model_file::ModelFile::data_columns) (inputs, then observed
+//!   joints) to read them;
 //! * **the measurement**, one of
 //!   - a pose: position `x_mm, y_mm, z_mm` (or `_m`) and a unit quaternion `qw, qx, qy, qz`
 //!     (normalised on reading; a norm off by more than 1e-3 is an error), or roll/pitch/yaw
