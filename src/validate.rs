@@ -204,6 +204,59 @@ pub fn outliers_at(reached: &[Pose], data: &[Measurement], threshold: f64) -> Ve
     out
 }
 
+/// Errors of one observed joint's readings against the model ([`Mechanism::observed_joints`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct JointErrors {
+    /// The joint.
+    pub name: String,
+    /// Unit of the figures: `"deg"` or `"mm"`.
+    pub unit: String,
+    /// RMS of reading − model over the poses with readings.
+    pub rms: f64,
+    /// Largest |reading − model|.
+    pub max: f64,
+}
+
+/// Per observed joint, how far its readings in `data` are from `model`'s values (degrees for
+/// revolute, mm for prismatic joints); empty when the model has no observed joints or the data no
+/// readings.
+pub fn observed_joint_errors<M: Mechanism + ?Sized>(model: &M, data: &[Measurement]) -> Result<Vec<JointErrors>, CalibError> {
+    let units = model.observed_joints();
+    let with: Vec<(usize, &Measurement)> = data
+        .iter()
+        .enumerate()
+        .filter(|(_, m)| m.joints.len() == units.len() && !units.is_empty())
+        .collect();
+    if with.is_empty() {
+        return Ok(Vec::new());
+    }
+    let mut sums = vec![(0.0f64, 0.0f64); units.len()];
+    for (i, m) in &with {
+        let v = model
+            .observed_joint_values(&m.q)
+            .map_err(|source| CalibError::Kinematics { pose: *i, source })?;
+        for (k, (r, x)) in m.joints.iter().zip(&v).enumerate() {
+            let d = if units[k].1 == crate::params::Unit::Angle {
+                crate::se3::wrap_angle(r - x).to_degrees()
+            } else {
+                r - x
+            };
+            sums[k].0 += d * d;
+            sums[k].1 = sums[k].1.max(d.abs());
+        }
+    }
+    Ok(units
+        .iter()
+        .zip(sums)
+        .map(|((name, unit), (s2, max))| JointErrors {
+            name: name.clone(),
+            unit: if *unit == crate::params::Unit::Angle { "deg" } else { "mm" }.into(),
+            rms: (s2 / with.len() as f64).sqrt(),
+            max,
+        })
+        .collect())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -260,6 +260,18 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         println!("validation set before:     {}", v.before_stats);
         println!("validation set after:      {}", v.after_stats);
     }
+    for (set, s) in std::iter::once(("identification", &report.identification)).chain(report.validation.as_ref().map(|v| ("validation", v)))
+    {
+        if !s.joints_after.is_empty() {
+            let per: Vec<String> = s
+                .joints_before
+                .iter()
+                .zip(&s.joints_after)
+                .map(|(b, a)| format!("{} {:.4} → {:.4} {}", a.name, b.rms, a.rms, a.unit))
+                .collect();
+            println!("observed joints, {set} set, RMS reading − model before → after: {}", per.join(", "));
+        }
+    }
     for v in &report.variants {
         let (set, stats) = match &v.validation {
             Some(s) => ("validation", s),

@@ -157,6 +157,24 @@ impl CalibrationReport {
             }
         }
         h.push_str("</table>\n");
+        if sets.iter().any(|(_, s)| !s.joints_after.is_empty()) {
+            h.push_str("<h2>Observed joints</h2>\n<p>The passive-joint encoders read as observations: reading minus the model's value.</p>\n<table><tr><th class=\"l\">set</th><th class=\"l\">joint</th><th>nominal RMS</th><th>nominal max</th><th>calibrated RMS</th><th>calibrated max</th><th class=\"l\">unit</th></tr>");
+            for (name, s) in sets {
+                for (b, a) in s.joints_before.iter().zip(&s.joints_after) {
+                    let _ = write!(
+                        h,
+                        "<tr><td class=\"l\">{name}</td><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td class=\"l\">{}</td></tr>",
+                        esc(&a.name),
+                        sig(b.rms),
+                        sig(b.max),
+                        sig(a.rms),
+                        sig(a.max),
+                        a.unit
+                    );
+                }
+            }
+            h.push_str("</table>\n");
+        }
     }
 
     /// The same data fitted with fewer terms (a model with joint terms only).

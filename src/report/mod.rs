@@ -34,6 +34,10 @@ pub struct SetErrors {
     pub ids: Vec<i64>,
     /// Input values of each pose (internal units: rad, mm), for errors against each input.
     pub inputs: Vec<Vec<f64>>,
+    /// Observed joints' readings against the starting model (empty without readings).
+    pub joints_before: Vec<crate::validate::JointErrors>,
+    /// Observed joints' readings against the calibrated model.
+    pub joints_after: Vec<crate::validate::JointErrors>,
 }
 
 impl SetErrors {
@@ -49,6 +53,8 @@ impl SetErrors {
         let reached = forward_all(calibrated, data)?;
         let after = errors_at(&reached, data);
         Ok(SetErrors {
+            joints_before: crate::validate::observed_joint_errors(nominal, data)?,
+            joints_after: crate::validate::observed_joint_errors(calibrated, data)?,
             source: source.into(),
             before_stats: ErrorStats::of(&before),
             after_stats: ErrorStats::of(&after),

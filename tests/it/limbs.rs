@@ -92,6 +92,18 @@ fn whole_workflow(text: &str, rank: u64, frames: &str) {
         ],
     );
     assert_eq!(rep["converged"], true, "{}", rep["verdict"]);
+    // Observed joints (the 3T1R machine's encoders): their readings are in the data and fitted
+    // to round-off, in the JSON and in the report.
+    if let Some(joints) = rep["validation"]["joints_after"].as_array().filter(|j| !j.is_empty()) {
+        let header = std::fs::read_to_string(d.join("ident.csv")).unwrap();
+        assert!(header.lines().next().unwrap().contains("u1_deg"), "{header}");
+        for j in joints {
+            assert!(j["rms"].as_f64().unwrap() < 1e-6, "{j}");
+        }
+        assert!(rep["validation"]["joints_before"][0]["rms"].as_f64().unwrap() > 1e-3);
+        let html = std::fs::read_to_string(d.join("r.html")).unwrap();
+        assert!(html.contains("<h2>Observed joints</h2>"));
+    }
     // The frames add nothing: the limbs' base placements and platform points absorb them.
     assert_eq!(rep["rank"].as_u64().unwrap(), rank);
     let v = &rep["validation"];
