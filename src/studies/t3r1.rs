@@ -1016,32 +1016,13 @@ fn run_case(
         agreement_orientation_deg: aw.to_degrees(),
     };
     // Compensation.
-    let mut comp = CompensationStats {
-        before_position_mm: 0.0,
-        before_yaw_deg: 0.0,
-        after_position_mm: 0.0,
-        after_yaw_deg: 0.0,
-        tilt_deg: 0.0,
-        program_change_mm: 0.0,
-    };
+    let mut comp = CompensationStats::default();
     for (i, s) in valid.iter().enumerate() {
         let kin = |source| CalibError::Kinematics { pose: i, source };
         let (sliders, t_cp) = compensate(&main.pair, &idle.pair, nominal, &s.target).map_err(kin)?;
         let (_, reached) = actual.forward(&sliders).map_err(kin)?;
-        let err = |t: &Pose| {
-            let p = PlatformPose::from_pose(t);
-            let dp = nalgebra::Vector3::new(p.x - s.target.x, p.y - s.target.y, p.z - s.target.z).norm();
-            (dp, (p.yaw - s.target.yaw).abs().to_degrees())
-        };
-        let (bp, by) = err(&s.pose);
-        let (cp, cy) = err(&reached);
-        comp.before_position_mm = comp.before_position_mm.max(bp);
-        comp.before_yaw_deg = comp.before_yaw_deg.max(by);
-        comp.after_position_mm = comp.after_position_mm.max(cp);
-        comp.after_yaw_deg = comp.after_yaw_deg.max(cy);
-        comp.tilt_deg = comp.tilt_deg.max(crate::studies::t3r1_machine::tilt(&reached).to_degrees());
         let dprog = nalgebra::Vector3::new(t_cp.x - s.target.x, t_cp.y - s.target.y, t_cp.z - s.target.z).norm();
-        comp.program_change_mm = comp.program_change_mm.max(dprog);
+        comp.add(&s.target, &s.pose, &reached, dprog);
     }
     // The same tracker and encoder readings (the main and the idle pair's data share them).
     let idle_id = &results[1].2;

@@ -20,7 +20,7 @@ use crate::validate::{self, ErrorStats};
 use serde::Serialize;
 
 /// Compensation results on the validation targets (§7).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Default)]
 pub struct CompensationStats {
     /// Largest position error of the actual machine at the nominal slider commands (mm).
     pub before_position_mm: f64,
@@ -34,6 +34,27 @@ pub struct CompensationStats {
     pub tilt_deg: f64,
     /// Largest position change `|T_cp − T_co|` of the programmed pose (mm).
     pub program_change_mm: f64,
+}
+
+impl CompensationStats {
+    /// Account for one target: the pose the nominal commands reach (`before`), the pose the
+    /// compensated commands reach on the actual machine (`reached`) and how far the programmed
+    /// pose moved (`program_change_mm`).
+    pub fn add(&mut self, target: &PlatformPose, before: &Pose, reached: &Pose, program_change_mm: f64) {
+        let err = |t: &Pose| {
+            let p = PlatformPose::from_pose(t);
+            let dp = nalgebra::Vector3::new(p.x - target.x, p.y - target.y, p.z - target.z).norm();
+            (dp, (p.yaw - target.yaw).abs().to_degrees())
+        };
+        let (bp, by) = err(before);
+        let (cp, cy) = err(reached);
+        self.before_position_mm = self.before_position_mm.max(bp);
+        self.before_yaw_deg = self.before_yaw_deg.max(by);
+        self.after_position_mm = self.after_position_mm.max(cp);
+        self.after_yaw_deg = self.after_yaw_deg.max(cy);
+        self.tilt_deg = self.tilt_deg.max(tilt(reached).to_degrees());
+        self.program_change_mm = self.program_change_mm.max(program_change_mm);
+    }
 }
 
 /// The model file and its free parameters.
@@ -243,34 +264,16 @@ pub fn run_whole_machine(
             pose: ident.len() + e.target,
             source: e.source,
         })?;
-    let mut comp = CompensationStats {
-        before_position_mm: 0.0,
-        before_yaw_deg: 0.0,
-        after_position_mm: 0.0,
-        after_yaw_deg: 0.0,
-        tilt_deg: 0.0,
-        program_change_mm: 0.0,
-    };
+    let mut comp = CompensationStats::default();
     for (i, (v, q)) in valid.iter().zip(&commands).enumerate() {
         let kin = |source| CalibError::Kinematics {
             pose: ident.len() + i,
             source,
         };
         let (_, reached) = actual.forward(&machine.sliders(q)).map_err(kin)?;
-        let programmed = machine.model.forward(q).map_err(kin)?;
-        let err = |t: &Pose| {
-            let p = PlatformPose::from_pose(t);
-            let dp = nalgebra::Vector3::new(p.x - v.target.x, p.y - v.target.y, p.z - v.target.z).norm();
-            (dp, (p.yaw - v.target.yaw).abs().to_degrees())
-        };
-        let (bp, by) = err(&v.pose);
-        let (cp, cy) = err(&reached);
-        comp.before_position_mm = comp.before_position_mm.max(bp);
-        comp.before_yaw_deg = comp.before_yaw_deg.max(by);
-        comp.after_position_mm = comp.after_position_mm.max(cp);
-        comp.after_yaw_deg = comp.after_yaw_deg.max(cy);
-        comp.tilt_deg = comp.tilt_deg.max(tilt(&reached).to_degrees());
-        comp.program_change_mm = comp.program_change_mm.max(err(&programmed).0);
+        let p = PlatformPose::from_pose(&machine.model.forward(q).map_err(kin)?);
+        let programmed = nalgebra::Vector3::new(p.x - v.target.x, p.y - v.target.y, p.z - v.target.z).norm();
+        comp.add(&v.target, &v.pose, &reached, programmed);
     }
     Ok(WholeMachineCase {
         params: machine.model.n_params(),
