@@ -132,7 +132,11 @@ fn print_whole_machine(c: &StudyCase) {
         w.iterations,
         w.sigma0
     );
-    for (label, e) in [("nominal model", &w.nominal_validation), ("calibrated, validation", &w.validation)] {
+    for (label, e) in [
+        ("nominal model", &w.nominal_validation),
+        ("after 1 iteration", &w.one_iteration),
+        ("calibrated, validation", &w.validation),
+    ] {
         println!(
             "  {label:<28} position mean {:>10.3e} max {:>10.3e} mm   orientation mean {:>10.3e} max {:>10.3e} deg",
             e.position_mean_mm,

@@ -204,6 +204,9 @@ pub struct WholeMachineCase {
     pub sigma0: f64,
     /// Errors of the nominal model on the validation poses (true poses).
     pub nominal_validation: ErrorStats,
+    /// Errors on the validation poses after one Gauss–Newton iteration (the paper's "one
+    /// iteration" figure, on the general path).
+    pub one_iteration: ErrorStats,
     /// Errors of the calibrated model on the validation poses.
     pub validation: ErrorStats,
     /// Compensation of the validation targets through the general `compensate`, checked on the
@@ -256,6 +259,15 @@ pub fn run_whole_machine(
     let all: Vec<Vec<f64>> = id_data.iter().chain(&va_data).map(|m| m.q.clone()).collect();
     let full_rank = identify::identifiability_at(&machine.model, &all, &machine.free, &opts.noise, opts.rank_tolerance)?.rank;
     let fit = identify::identify(&machine.model, &id_data, &opts)?;
+    let first = identify::identify(
+        &machine.model,
+        &id_data,
+        &Options {
+            max_iterations: 1,
+            ..opts.clone()
+        },
+    )?;
+    let one_iteration = ErrorStats::of(&validate::pose_errors(&first.model, &va_data)?);
     let nominal_validation = ErrorStats::of(&validate::pose_errors(&machine.model, &va_data)?);
     let validation = ErrorStats::of(&validate::pose_errors(&fit.model, &va_data)?);
     let targets: Vec<Pose> = valid.iter().map(|v| v.target.to_pose()).collect();
@@ -285,6 +297,7 @@ pub fn run_whole_machine(
         converged: fit.converged,
         sigma0: fit.sigma0,
         nominal_validation,
+        one_iteration,
         validation,
         compensation: comp,
     })

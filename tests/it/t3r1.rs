@@ -413,6 +413,11 @@ fn study_command_meets_the_claims() {
     assert_eq!(w["converged"], true);
     assert!(f(&w["validation"]["position_max_mm"]) < 1e-3, "{w}");
     assert!(f(&w["compensation"]["after_position_mm"]) < 1e-3, "{w}");
+    // One Gauss–Newton step already takes most of the position error out.
+    assert!(
+        f(&w["nominal_validation"]["position_max_mm"]) / f(&w["one_iteration"]["position_max_mm"]) > 10.0,
+        "{w}"
+    );
     let wn = &v["noisy"]["whole_machine"];
     assert_eq!(wn["converged"], true);
     // Below the paper's method's on the same data (the encoders' noise enters its predictions).
