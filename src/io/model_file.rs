@@ -477,6 +477,16 @@ impl ModelFile {
                 num(n.orientation / self.units.angle.to_rad()),
                 self.units.angle.symbol()
             );
+            let (d, a, l) = (Noise::default(), self.units.angle, self.units.length);
+            if (n.joint_angle, n.joint_length) != (d.joint_angle, d.joint_length) {
+                let (ea, el) = (num(n.joint_angle / a.to_rad()), num(n.joint_length / l.to_mm()));
+                let _ = writeln!(
+                    out,
+                    "encoder_angle = {ea}  # {}, observed joints\nencoder_length = {el}  # {}",
+                    a.symbol(),
+                    l.symbol()
+                );
+            }
         }
         if let Some(f) = &self.frames {
             out.push_str("\n[frames]  # found by frame registration (kinecal identify): T = measurement · mechanism(q) · tool\n");
@@ -618,6 +628,8 @@ struct RawCalibration {
 struct RawNoise {
     position: f64,
     orientation: f64,
+    encoder_angle: Option<f64>,
+    encoder_length: Option<f64>,
 }
 
 #[derive(Deserialize)]

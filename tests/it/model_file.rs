@@ -140,3 +140,23 @@ fn unknown_unit_and_bad_values_are_one_line() {
     assert!(e.contains("unknown mechanism kind 'delta'"), "{e}");
     assert_eq!(e.lines().count(), 1);
 }
+
+/// The encoders' noise of observed joints in `[noise]` (file units), read and written back; a
+/// bad value is a one-line error.
+#[test]
+fn encoder_noise_in_the_model_file() {
+    let text = include_str!("../../examples/models/t3r1.toml").to_string()
+        + "\n[noise]\nposition = 0.01\norientation = 0.005\nencoder_angle = 0.004\n";
+    let f = load(&text).unwrap();
+    let n = f.noise.unwrap();
+    assert_relative_eq!(n.joint_angle, 0.004f64.to_radians(), epsilon = 1e-15);
+    assert_relative_eq!(n.joint_length, 0.01, epsilon = 1e-15);
+    let back = load(&f.to_toml().unwrap()).unwrap().noise.unwrap();
+    assert_relative_eq!(back.joint_angle, n.joint_angle, epsilon = 1e-15);
+    let bad = load(
+        &(include_str!("../../examples/models/t3r1.toml").to_string()
+            + "\n[noise]\nposition = 0.01\norientation = 0.005\nencoder_angle = -1\n"),
+    )
+    .unwrap_err();
+    assert!(bad.contains("encoder_angle") && bad.lines().count() == 1, "{bad}");
+}

@@ -435,13 +435,22 @@ impl Ctx<'_> {
         let noise = match &raw.noise {
             Some(n) => {
                 let r = n.get_ref();
-                if !(r.position > 0.0 && r.orientation > 0.0 && r.position.is_finite() && r.orientation.is_finite()) {
-                    return Err(self.at(&n.span(), "noise: position and orientation must be finite and > 0".into()));
+                let d = Noise::default();
+                let (ea, el) = (
+                    r.encoder_angle.map_or(d.joint_angle, |v| v * units.angle.to_rad()),
+                    r.encoder_length.map_or(d.joint_length, |v| v * units.length.to_mm()),
+                );
+                if ![r.position, r.orientation, ea, el].iter().all(|v| *v > 0.0 && v.is_finite()) {
+                    return Err(self.at(
+                        &n.span(),
+                        "noise: position, orientation, encoder_angle and encoder_length must be finite and > 0".into(),
+                    ));
                 }
                 Some(Noise {
                     position: r.position * units.length.to_mm(),
                     orientation: r.orientation * units.angle.to_rad(),
-                    ..Noise::default()
+                    joint_angle: ea,
+                    joint_length: el,
                 })
             }
             None => None,
