@@ -137,6 +137,8 @@ def calibrate(
     *,
     noise_mm: Optional[float] = None,
     noise_deg: Optional[float] = None,
+    encoder_noise_deg: Optional[float] = None,
+    encoder_noise_mm: Optional[float] = None,
     method: str = "gauss-newton",
     frames: str = "estimate",
     reflectors: str = "frame",
@@ -149,7 +151,8 @@ def calibrate(
     with the same options: the measurement and tool frames found from the data (``frames=
     "estimate"``) or taken from the model (``"model"``), Gauss–Newton to convergence from
     ``starts`` starts, noise weights (``noise_mm``, ``noise_deg``; default: the model file's, else
-    0.02 mm / 0.02°), Huber loss (``huber`` robust σ, 0 = plain least squares), ``reflectors=
+    0.02 mm / 0.02°; ``encoder_noise_deg`` / ``encoder_noise_mm`` for the readings of observed
+    joints, ``Model.observed``: default 0.01° / 0.01 mm), Huber loss (``huber`` robust σ, 0 = plain least squares), ``reflectors=
     "points"`` to fit three reflector centres."""
     return Calibration(
         _kinecal.calibrate(
@@ -158,6 +161,8 @@ def calibrate(
             validation,
             noise_mm=noise_mm,
             noise_deg=noise_deg,
+            encoder_noise_deg=encoder_noise_deg,
+            encoder_noise_mm=encoder_noise_mm,
             method=method,
             frames=frames,
             reflectors=reflectors,
@@ -196,10 +201,13 @@ def simulate(
     error_deg: float = 0.1,
     noise_mm: float = 0.0,
     noise_deg: float = 0.0,
+    encoder_noise_deg: float = 0.0,
+    encoder_noise_mm: float = 0.0,
     measure: str = "pose",
 ):
     """A virtual prototype (``kinecal simulate``): returns (true model, data measured at ``poses``
-    random configurations). ``measure``: "pose", "position" or "reflectors"."""
+    random configurations, with the readings of the model's observed joints, ``Data.joints``).
+    ``measure``: "pose", "position" or "reflectors"."""
     return _kinecal.simulate(
         model,
         poses,
@@ -208,6 +216,8 @@ def simulate(
         error_deg=error_deg,
         noise_mm=noise_mm,
         noise_deg=noise_deg,
+        encoder_noise_deg=encoder_noise_deg,
+        encoder_noise_mm=encoder_noise_mm,
         measure=measure,
     )
 

@@ -18,6 +18,8 @@ class Model:
     @property
     def inputs(self) -> List[str]: ...
     @property
+    def observed(self) -> List[str]: ...
+    @property
     def input_units(self) -> List[str]: ...
     @property
     def parameters(self) -> List[str]: ...
@@ -34,6 +36,7 @@ class Data:
         positions: np.ndarray,
         rotations: Optional[np.ndarray] = None,
         ids: Optional[List[int]] = None,
+        joints: Optional[np.ndarray] = None,
     ) -> "Data": ...
     def __len__(self) -> int: ...
     @property
@@ -42,6 +45,8 @@ class Data:
     def q(self) -> np.ndarray: ...
     @property
     def positions(self) -> np.ndarray: ...
+    @property
+    def joints(self) -> np.ndarray: ...
 
 class Calibration:
     @property
@@ -58,6 +63,8 @@ def calibrate(
     *,
     noise_mm: Optional[float] = None,
     noise_deg: Optional[float] = None,
+    encoder_noise_deg: Optional[float] = None,
+    encoder_noise_mm: Optional[float] = None,
     method: str = "gauss-newton",
     frames: str = "estimate",
     reflectors: str = "frame",
@@ -78,6 +85,8 @@ def simulate(
     error_deg: float = 0.1,
     noise_mm: float = 0.0,
     noise_deg: float = 0.0,
+    encoder_noise_deg: float = 0.0,
+    encoder_noise_mm: float = 0.0,
     measure: str = "pose",
 ) -> Tuple[Model, Data]: ...
 def plan(

@@ -174,6 +174,13 @@ impl Model {
         self.file.inputs().into_iter().map(|i| i.name).collect()
     }
 
+    /// Observed joints (passive joints whose encoder readings are observations, `role =
+    /// "observed"`), in the order of `Data.joints`.
+    #[getter]
+    fn observed(&self) -> Vec<String> {
+        self.mech.observed_joints().into_iter().map(|(n, _)| n).collect()
+    }
+
     /// Unit kind of each input: "angle" (rad) or "length" (mm).
     #[getter]
     fn input_units(&self) -> Vec<&'static str> {
@@ -259,15 +266,27 @@ impl Data {
     /// Measurements from arrays: inputs `q` (n, inputs) in rad / mm and measured tool positions
     /// (n, 3) in mm, with measured rotations (n, 3, 3) for full poses; optional integer ids.
     #[staticmethod]
-    #[pyo3(signature = (model, q, positions, rotations = None, ids = None))]
+    #[pyo3(signature = (model, q, positions, rotations = None, ids = None, joints = None))]
     fn from_arrays<'py>(
         model: &Model,
         q: PyReadonlyArray2<'py, f64>,
         positions: PyReadonlyArray2<'py, f64>,
         rotations: Option<PyReadonlyArray3<'py, f64>>,
         ids: Option<Vec<i64>>,
+        joints: Option<PyReadonlyArray2<'py, f64>>,
     ) -> PyResult<Data> {
         let qs = input_rows(&q, &model.file, "q")?;
+        let n_obs = model.mech.observed_joints().len();
+        let js = match &joints {
+            Some(j) => {
+                let rows = rows_2d(j, n_obs, "joints")?;
+                if rows.len() != qs.len() {
+                    return Err(err(format!("joints: {} rows for {} rows of q", rows.len(), qs.len())));
+                }
+                rows
+            }
+            None => vec![Vec::new(); qs.len()],
+        };
         let ps = rows_2d(&positions, 3, "positions")?;
         if ps.len() != qs.len() {
             return Err(err(format!("positions: {} rows for {} rows of q", ps.len(), qs.len())));
@@ -290,7 +309,7 @@ impl Data {
             }
         };
         let mut measurements = Vec::with_capacity(qs.len());
-        for (i, (q, p)) in qs.into_iter().zip(ps).enumerate() {
+        for (i, ((q, p), joints)) in qs.into_iter().zip(ps).zip(js).enumerate() {
             let p = Vector3::new(p[0], p[1], p[2]);
             let obs = match &rots {
                 None => Observation::Position(p),
@@ -301,11 +320,7 @@ impl Data {
                     Observation::Pose(matrix_pose(&m, &format!("rotations[{i}]"))?)
                 }
             };
-            measurements.push(Measurement {
-                joints: Vec::new(),
-                q,
-                obs,
-            });
+            measurements.push(Measurement { joints, q, obs });
         }
         let mut set = DataSet::from_measurements("<arrays>", measurements);
         if let Some(ids) = ids {
@@ -331,6 +346,14 @@ impl Data {
     #[getter]
     fn q<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
         let rows: Vec<Vec<f64>> = self.set.measurements.iter().map(|m| m.q.clone()).collect();
+        let k = rows.first().map_or(0, Vec::len);
+        rows_array(py, &rows, k)
+    }
+
+    /// Observed joints' readings (n, observed) in rad / mm; (n, 0) without them.
+    #[getter]
+    fn joints<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        let rows: Vec<Vec<f64>> = self.set.measurements.iter().map(|m| m.joints.clone()).collect();
         let k = rows.first().map_or(0, Vec::len);
         rows_array(py, &rows, k)
     }
@@ -404,7 +427,7 @@ fn method_of(name: &str) -> PyResult<Method> {
 /// Identify the model's free parameters from `data` (optionally validated on `validation`): the
 /// library call behind `kinecal identify`, with the same options and defaults.
 #[pyfunction]
-#[pyo3(signature = (model, data, validation = None, *, noise_mm = None, noise_deg = None, method = "gauss-newton", frames = "estimate", reflectors = "frame", starts = 3, seed = 1, reweight = false, huber = 5.0))]
+#[pyo3(signature = (model, data, validation = None, *, noise_mm = None, noise_deg = None, encoder_noise_deg = None, encoder_noise_mm = None, method = "gauss-newton", frames = "estimate", reflectors = "frame", starts = 3, seed = 1, reweight = false, huber = 5.0))]
 #[allow(clippy::too_many_arguments)]
 fn calibrate(
     py: Python<'_>,
@@ -413,6 +436,8 @@ fn calibrate(
     validation: Option<&Data>,
     noise_mm: Option<f64>,
     noise_deg: Option<f64>,
+    encoder_noise_deg: Option<f64>,
+    encoder_noise_mm: Option<f64>,
     method: &str,
     frames: &str,
     reflectors: &str,
@@ -425,10 +450,14 @@ fn calibrate(
     let noise = Noise {
         position: noise_mm.unwrap_or(base.position),
         orientation: noise_deg.map_or(base.orientation, f64::to_radians),
-        ..base
+        joint_angle: encoder_noise_deg.map_or(base.joint_angle, f64::to_radians),
+        joint_length: encoder_noise_mm.unwrap_or(base.joint_length),
     };
     if !(noise.position > 0.0 && noise.orientation > 0.0 && noise.position.is_finite() && noise.orientation.is_finite()) {
         return Err(err("noise_mm / noise_deg: must be finite and > 0"));
+    }
+    if !(noise.joint_angle > 0.0 && noise.joint_length > 0.0 && noise.joint_angle.is_finite() && noise.joint_length.is_finite()) {
+        return Err(err("encoder_noise_deg / encoder_noise_mm: must be finite and > 0"));
     }
     if !huber.is_finite() || huber < 0.0 {
         return Err(err("huber: a finite number of standard deviations ≥ 0 (0 = off)"));
@@ -523,7 +552,7 @@ fn compensate<'py>(
 /// measured at `poses` random configurations with Gaussian noise: (true model, data).
 /// `measure`: "pose", "position" or "reflectors".
 #[pyfunction]
-#[pyo3(signature = (model, poses, *, seed = 1, error_mm = 0.5, error_deg = 0.1, noise_mm = 0.0, noise_deg = 0.0, measure = "pose"))]
+#[pyo3(signature = (model, poses, *, seed = 1, error_mm = 0.5, error_deg = 0.1, noise_mm = 0.0, noise_deg = 0.0, encoder_noise_deg = 0.0, encoder_noise_mm = 0.0, measure = "pose"))]
 #[allow(clippy::too_many_arguments)]
 fn simulate(
     model: &Model,
@@ -533,6 +562,8 @@ fn simulate(
     error_deg: f64,
     noise_mm: f64,
     noise_deg: f64,
+    encoder_noise_deg: f64,
+    encoder_noise_mm: f64,
     measure: &str,
 ) -> PyResult<(Model, Data)> {
     for (name, v) in [
@@ -540,6 +571,8 @@ fn simulate(
         ("error_deg", error_deg),
         ("noise_mm", noise_mm),
         ("noise_deg", noise_deg),
+        ("encoder_noise_deg", encoder_noise_deg),
+        ("encoder_noise_mm", encoder_noise_mm),
     ] {
         if !(v.is_finite() && v >= 0.0) {
             return Err(err(format!("{name}: must be a finite value ≥ 0, got {v}")));
@@ -560,7 +593,8 @@ fn simulate(
     let noise = Noise {
         position: noise_mm,
         orientation: noise_deg.to_radians(),
-        ..Noise::default()
+        joint_angle: encoder_noise_deg.to_radians(),
+        joint_length: encoder_noise_mm,
     };
     let set = synthesize(&*truth, qs, instrument, &noise, &mut rng, &|_| {}).map_err(err)?;
     let mut data = DataSet::from_measurements("<simulated>", set.measurements);

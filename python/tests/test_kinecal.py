@@ -180,3 +180,28 @@ def test_limbs_machines_with_sub_loops_and_parallelograms(name):
     assert cal.converged
     q = valid.q
     np.testing.assert_allclose(cal.model.forward(q)[:, :3, 3], truth.forward(q)[:, :3, 3], atol=1e-7)
+
+
+def test_observed_joints_of_the_3t1r_machine():
+    # The whole 3T1R machine: four sliders, five encoders read as observations. Simulated with
+    # their readings, rebuilt from arrays, calibrated; without readings the encoder zeros are
+    # not identified.
+    m = kinecal.Model.load("t3r1")
+    assert m.inputs == ["s1", "s3", "s2", "s4"]
+    assert m.observed == ["u1", "r1", "u3", "u2", "u4"]
+    truth, data = kinecal.simulate(m, 30, seed=4, error_mm=0.2, error_deg=0.02)
+    assert data.joints.shape == (30, 5)
+    _, valid = kinecal.simulate(m, 10, seed=5, error_mm=0.0, error_deg=0.0)
+    cal = kinecal.calibrate(m, data, noise_mm=0.01, noise_deg=0.005, encoder_noise_deg=0.005, frames="model")
+    assert cal.converged
+    assert cal.report["rank"] == 43
+    q = valid.q
+    np.testing.assert_allclose(cal.model.forward(q)[:, :3, 3], truth.forward(q)[:, :3, 3], atol=1e-7)
+    rot = truth.forward(data.q)[:, :3, :3]
+    again = kinecal.Data.from_arrays(m, data.q, data.positions, rot, joints=data.joints)
+    np.testing.assert_allclose(again.joints, data.joints)
+    poses_only = kinecal.Data.from_arrays(m, data.q, data.positions, rot)
+    assert poses_only.joints.shape == (30, 0)
+    assert kinecal.calibrate(m, poses_only, frames="model").report["rank"] == 38
+    with pytest.raises(ValueError, match="encoder_noise_deg"):
+        kinecal.calibrate(m, data, encoder_noise_deg=0.0)

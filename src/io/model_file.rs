@@ -469,24 +469,7 @@ impl ModelFile {
             num(self.tolerances.angle_deg)
         );
         if let Some(n) = &self.noise {
-            let _ = write!(
-                out,
-                "\n[noise]  # measurement standard deviations, per axis\nposition = {}  # {}\norientation = {}  # {}\n",
-                num(n.position / self.units.length.to_mm()),
-                self.units.length.symbol(),
-                num(n.orientation / self.units.angle.to_rad()),
-                self.units.angle.symbol()
-            );
-            let (d, a, l) = (Noise::default(), self.units.angle, self.units.length);
-            if (n.joint_angle, n.joint_length) != (d.joint_angle, d.joint_length) {
-                let (ea, el) = (num(n.joint_angle / a.to_rad()), num(n.joint_length / l.to_mm()));
-                let _ = writeln!(
-                    out,
-                    "encoder_angle = {ea}  # {}, observed joints\nencoder_length = {el}  # {}",
-                    a.symbol(),
-                    l.symbol()
-                );
-            }
+            write::write_noise(n, &self.units, &mut out);
         }
         if let Some(f) = &self.frames {
             out.push_str("\n[frames]  # found by frame registration (kinecal identify): T = measurement · mechanism(q) · tool\n");

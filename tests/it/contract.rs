@@ -203,7 +203,8 @@ const KINDS: &[Kind] = &[
 ];
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(6))]
+    // A fixed seed: the same cases on every run (CI must not depend on the draw).
+    #![proptest_config(ProptestConfig { rng_seed: proptest::test_runner::RngSeed::Fixed(20261125), ..ProptestConfig::with_cases(6) })]
 
     #[test]
     fn forward_of_inverse_is_the_pose(seed in 0u64..100_000) {

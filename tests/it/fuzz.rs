@@ -93,7 +93,8 @@ fn within_watchdog(model: String, data: String) -> Result<(), String> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(96))]
+    // A fixed seed: the same cases on every run (CI must not depend on the draw).
+    #![proptest_config(ProptestConfig { rng_seed: proptest::test_runner::RngSeed::Fixed(20261125), ..ProptestConfig::with_cases(96) })]
 
     #[test]
     fn mutated_files_get_an_answer(kind in 0usize..3, in_model: bool, at in 0.0..1.0f64, len in 0usize..6, with in proptest::sample::select(REPLACEMENTS.to_vec())) {

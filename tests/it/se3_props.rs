@@ -31,7 +31,8 @@ fn check_roundtrip(v: Vector3<f64>, w: Vector3<f64>) {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(256))]
+    // A fixed seed: the same cases on every run (CI must not depend on the draw).
+    #![proptest_config(ProptestConfig { rng_seed: proptest::test_runner::RngSeed::Fixed(20261125), ..ProptestConfig::with_cases(256) })]
 
     #[test]
     fn exp_log_roundtrip_generic(a in axis(), angle in 0.0..PI, v in lin()) {

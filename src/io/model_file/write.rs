@@ -2,6 +2,29 @@
 use super::*;
 use crate::model::Mechanism as _;
 
+/// Write the `[noise]` section in `units` (the encoders' only when not the default).
+pub(super) fn write_noise(n: &Noise, units: &Units, out: &mut String) {
+    let (a, l) = (units.angle, units.length);
+    let _ = write!(
+        out,
+        "\n[noise]  # measurement standard deviations, per axis\nposition = {}  # {}\norientation = {}  # {}\n",
+        num(n.position / l.to_mm()),
+        l.symbol(),
+        num(n.orientation / a.to_rad()),
+        a.symbol()
+    );
+    let d = Noise::default();
+    if (n.joint_angle, n.joint_length) != (d.joint_angle, d.joint_length) {
+        let (ea, el) = (num(n.joint_angle / a.to_rad()), num(n.joint_length / l.to_mm()));
+        let _ = writeln!(
+            out,
+            "encoder_angle = {ea}  # {}, observed joints\nencoder_length = {el}  # {}",
+            a.symbol(),
+            l.symbol()
+        );
+    }
+}
+
 /// Write the `[mechanism]` part of a model file for `spec` in `units`.
 pub(super) fn write_mechanism(spec: &MechanismSpec, units: &Units, out: &mut String) -> Result<(), String> {
     let (l, a) = (units.length.to_mm(), units.angle.to_rad());
