@@ -106,6 +106,9 @@ fn summary(d: &DataSet, json: bool) -> anyhow::Result<()> {
         );
     } else {
         println!("{}: {} poses, measured: {format}", d.path.display(), d.measurements.len());
+        if let Some(n) = d.measurements.first().map(|m| m.joints.len()).filter(|n| *n > 0) {
+            println!("with the readings of {n} observed joints");
+        }
         if let Some(note) = d.derived_note() {
             eprintln!("note: {note}");
         }

@@ -32,14 +32,22 @@ pub fn run(a: ValidateArgs) -> anyhow::Result<()> {
     let errors = pose_errors(&*model, &data.measurements).map_err(|e| data.locate(e))?;
     let stats = ErrorStats::of(&errors);
     let flagged = outliers(&*model, &data.measurements, 3.0).map_err(|e| data.locate(e))?;
+    let joints = kinecal::validate::observed_joint_errors(&*model, &data.measurements).map_err(|e| data.locate(e))?;
     if a.json {
         println!(
             "{}",
             serde_json::to_string_pretty(&serde_json::json!({"model": file.name, "data": a.data, "stats": stats,
-                "per_pose": errors, "outliers": flagged}))?
+                "per_pose": errors, "outliers": flagged, "observed_joints": joints}))?
         );
     } else {
         println!("{} on {} ({} poses): {}", file.name, a.data.display(), stats.poses, stats);
+        if !joints.is_empty() {
+            let per: Vec<String> = joints
+                .iter()
+                .map(|j| format!("{} {:.4} / {:.4} {}", j.name, j.rms, j.max, j.unit))
+                .collect();
+            println!("observed joints, reading − model RMS / max: {}", per.join(", "));
+        }
         if let (Task::PositionAndAxis, Some(m), Some(x)) = (model.task(), stats.tool_axis_mean_deg, stats.tool_axis_max_deg) {
             println!("tool axis (what this 5-DOF machine commands; the rotation about it is parasitic): mean {m:.5} / max {x:.5} deg");
         }

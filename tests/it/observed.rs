@@ -116,3 +116,67 @@ fn observed_readings_enter_the_identification() {
     );
     let _ = Noise::default();
 }
+
+/// The command line with the encoders: `simulate` writes their columns (with their noise),
+/// `data check` says so, `validate` reports reading − model per joint; a data file with one of
+/// them missing is a one-line error naming it.
+#[test]
+fn observed_joints_through_the_command_line() {
+    use crate::cli::{fails, ok};
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    ok(
+        d,
+        &[
+            "simulate",
+            "t3r1",
+            "--poses",
+            "12",
+            "--seed",
+            "2",
+            "--error-mm",
+            "0.2",
+            "--error-deg",
+            "0.02",
+            "--encoder-noise-deg",
+            "0.01",
+            "--out",
+            "d.csv",
+            "--truth",
+            "truth.toml",
+        ],
+    );
+    let text = std::fs::read_to_string(d.join("d.csv")).unwrap();
+    assert!(
+        text.starts_with("id,s1_mm,s3_mm,s2_mm,s4_mm,u1_deg,r1_deg,u3_deg,u2_deg,u4_deg,x_mm"),
+        "{text}"
+    );
+    assert!(ok(d, &["data", "check", "t3r1", "d.csv"]).contains("with the readings of 5 observed joints"));
+    // The true machine on its own data: the encoders' noise is what is left (0.01 deg).
+    let v = ok(d, &["validate", "truth.toml", "d.csv"]);
+    let line = v.lines().find(|l| l.starts_with("observed joints")).unwrap();
+    let rms: Vec<f64> = line
+        .split_once(": ")
+        .unwrap()
+        .1
+        .split(", ")
+        .map(|s| s.split_whitespace().rev().nth(3).unwrap().parse().unwrap())
+        .collect();
+    assert_eq!(rms.len(), 5, "{line}");
+    assert!(rms.iter().all(|r| (0.003..0.02).contains(r)), "{line}");
+    let cut: String = text
+        .lines()
+        .map(|l| {
+            let mut c: Vec<&str> = l.split(',').collect();
+            c.remove(9);
+            c.join(",")
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    std::fs::write(d.join("cut.csv"), cut).unwrap();
+    let e = fails(d, &["identify", "t3r1", "cut.csv", "--out", "c.toml"]);
+    assert!(
+        e.contains("observed-joint columns missing: u4_deg") && e.trim().lines().count() == 1,
+        "{e}"
+    );
+}
