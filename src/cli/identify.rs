@@ -155,6 +155,14 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         Some(p) => Some(read_data(p, &inputs, InputColumns::Required)?),
         None => None,
     };
+    let observed: Vec<&str> = inputs.iter().filter(|c| c.observed).map(|c| c.name.as_str()).collect();
+    if !observed.is_empty() && data.measurements.first().is_some_and(|m| m.joints.is_empty()) {
+        eprintln!(
+            "note: {} holds no readings of the model's observed joints ({}): fitted from the poses alone, their encoders' zeros stay unidentified",
+            a.data.display(),
+            observed.join(", ")
+        );
+    }
     let opts = CalibrationOptions {
         compare_terms: true,
         method: match a.method {
