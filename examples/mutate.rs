@@ -11,7 +11,8 @@
 //! emptied) and runs one command on it with a watchdog of `--timeout` seconds. Every outcome is
 //! counted: exit 0, 1 (input refused), 2 (computed but failed its checks), and the defects: a
 //! panic or another exit code, a hang, an error of more than one line, an input file changed.
-//! The program exits non-zero when any defect was found and prints the first ones.
+//! The program exits non-zero when any defect was found and prints the first ones; `--keep CASE`
+//! stops at that case and leaves its files in a temporary directory.
 use rand::seq::IndexedRandom;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -332,6 +333,7 @@ fn main() {
     let mut cases = 10_000usize;
     let mut seed = 1u64;
     let mut timeout = 10.0f64;
+    let mut keep: Option<usize> = None;
     let args: Vec<String> = std::env::args().collect();
     let mut i = 1;
     while i < args.len() {
@@ -340,7 +342,8 @@ fn main() {
             "--cases" => cases = v.parse().expect("--cases N"),
             "--seed" => seed = v.parse().expect("--seed S"),
             "--timeout" => timeout = v.parse().expect("--timeout SECONDS"),
-            other => panic!("unknown argument {other} (--cases N, --seed S, --timeout SECONDS)"),
+            "--keep" => keep = Some(v.parse().expect("--keep CASE")),
+            other => panic!("unknown argument {other} (--cases N, --seed S, --timeout SECONDS, --keep CASE)"),
         }
         i += 2;
     }
@@ -364,6 +367,14 @@ fn main() {
             std::fs::copy(tmp.join(f), case_dir.join(f)).unwrap();
         }
         std::fs::write(case_dir.join(target), &mutated).unwrap();
+        if keep == Some(case) {
+            // The files of one case, to run its commands by hand.
+            let kept = std::env::temp_dir().join(format!("kinecal-mutate-case-{case}"));
+            let _ = std::fs::remove_dir_all(&kept);
+            std::fs::rename(&case_dir, &kept).unwrap();
+            println!("case {case}: {target} mutated; files in {}", kept.display());
+            return;
+        }
         let (m, d, v, t) = (kind.model, kind.data, kind.validation, kind.targets);
         let commands: Vec<Vec<&str>> = if target == kind.model {
             vec![

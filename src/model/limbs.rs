@@ -465,6 +465,9 @@ impl LimbMechanism {
         let unknowns = 6 + m.passive.len();
         let joints: Joints = m.limbs.iter().map(|l| l.home.clone()).collect();
         let (_, fz) = m.closure(&m.home, &joints, true);
+        if fz.iter().any(|v| !v.is_finite() || v.abs() > 1e100) {
+            return Err("the closure's derivative at the home pose has extreme values: check the joint placements and platform points for extreme numbers".into());
+        }
         if rows < unknowns {
             return Err(format!(
                 "wrong mobility: {rows} closure equations for {unknowns} unknowns (the platform's 6 and {} passive joints): with the inputs fixed the platform could still move{}; actuate or sense more joints, or close limbs with a full frame",

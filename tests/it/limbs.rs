@@ -193,6 +193,10 @@ fn mistakes_in_a_limbs_file_are_one_line_errors_naming_the_limb() {
     ))
     .unwrap_err();
     assert!(e.contains("limb 'leg1' cannot close at the home pose"), "{e}");
+    // A placement of -1e308 mm (a mutated file that used to hang in the SVD of the mobility
+    // check): refused at once.
+    let e = load(&HEAD.replacen("position = [129.9038, -75.0000, 0.0]", "position = [-1e308, -75.0000, 0.0]", 1)).unwrap_err();
+    assert!(e.contains("extreme values") && e.lines().count() == 1, "{e}");
     // An actuator made passive: the platform keeps a freedom.
     let e = load(&HEAD.replacen("role = \"actuated\"", "role = \"passive\"", 1)).unwrap_err();
     assert!(e.contains("wrong mobility"), "{e}");

@@ -98,8 +98,13 @@ impl LimbMechanism {
             return String::new();
         }
         // (Through the normal matrix: square, so its SVD has the whole null space even where
-        // there are fewer equations than unknowns.)
-        let svd = (fz.transpose() * fz).svd(false, true);
+        // there are fewer equations than unknowns. nalgebra's SVD does not return on non-finite
+        // input: extreme placements overflow the product.)
+        let n = fz.transpose() * fz;
+        if n.iter().any(|v| !v.is_finite()) {
+            return String::new();
+        }
+        let svd = n.svd(false, true);
         let Some(vt) = svd.v_t else { return String::new() };
         let Some(k) = (0..svd.singular_values.len()).min_by(|a, b| svd.singular_values[*a].total_cmp(&svd.singular_values[*b])) else {
             return String::new();
