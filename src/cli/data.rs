@@ -224,7 +224,7 @@ pub fn run(args: DataArgs) -> anyhow::Result<()> {
                         references: reference,
                         lengths: LengthUnit::parse(&units).unwrap_or(LengthUnit::Mm),
                     };
-                    let j = join_exports(&files, &file.inputs(), &out)?;
+                    let j = join_exports(&files, &file.data_columns(), &out)?;
                     print_join(&j, json);
                     let r = (!j.data.reflectors.is_empty()).then(|| j.data.reflectors.clone());
                     (j.data, r)

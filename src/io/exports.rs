@@ -163,7 +163,13 @@ fn stability(path: &Path, points: &[Option<Vector3<f64>>]) -> ReferenceStability
 /// Join the exports of `files` for a mechanism with `inputs` into one data set (see the module
 /// docs). `out` names the data set (used in its messages). The joined set passes every check of
 /// a data file (joint limits, duplicate ids); an empty join is an error.
-pub fn join_exports(files: &ExportFiles, inputs: &[InputSpec], out: &Path) -> Result<JoinedExports, IoError> {
+///
+/// `columns` are a model's data columns (its inputs, then its observed joints,
+/// [`crate::io::model_file::ModelFile::data_columns`]): the controller log holds the inputs'
+/// values and, optionally, the observed joints' readings after them.
+pub fn join_exports(files: &ExportFiles, columns: &[InputSpec], out: &Path) -> Result<JoinedExports, IoError> {
+    let n_q = columns.iter().take_while(|c| !c.observed).count();
+    let (inputs, observed) = columns.split_at(n_q);
     if !matches!(files.reflectors.len(), 1 | 3) {
         return Err(IoError::Invalid {
             path: files.joints.clone(),
@@ -176,7 +182,19 @@ pub fn join_exports(files: &ExportFiles, inputs: &[InputSpec], out: &Path) -> Re
     // The controller log holds the joint values; approach directions (a model with lost motion)
     // come from its row order, the motion order, lost beams included.
     let measured_inputs = inputs.iter().filter(|i| i.approach_of.is_none()).count();
-    let joints = read_export(&files.joints, measured_inputs, "joint values, in the model's input order")?;
+    // With the observed joints' readings when the log has their columns too.
+    let logged = read_table_with_gaps(&files.joints)?.columns.len().saturating_sub(1);
+    let with_observed = !observed.is_empty() && logged == measured_inputs + observed.len();
+    let values = measured_inputs + if with_observed { observed.len() } else { 0 };
+    let what = if observed.is_empty() {
+        "joint values, in the model's input order".to_string()
+    } else {
+        format!(
+            "joint values, in the model's input order, optionally followed by the readings of its observed joints {}",
+            observed.iter().map(|o| o.name.as_str()).collect::<Vec<_>>().join(", ")
+        )
+    };
+    let joints = read_export(&files.joints, values, &what)?;
     let mut with_approach: Vec<Vec<f64>> = joints
         .table
         .rows
@@ -184,7 +202,7 @@ pub fn join_exports(files: &ExportFiles, inputs: &[InputSpec], out: &Path) -> Re
         .filter(|row| row[1..].iter().all(|v| v.is_finite()))
         .map(|row| {
             let mut q = vec![0.0; inputs.len()];
-            q[..measured_inputs].copy_from_slice(&row[1..]);
+            q[..measured_inputs].copy_from_slice(&row[1..=measured_inputs]);
             q
         })
         .collect();
@@ -201,7 +219,12 @@ pub fn join_exports(files: &ExportFiles, inputs: &[InputSpec], out: &Path) -> Re
         .map(|p| read_export(p, 3, "x, y, z"))
         .collect::<Result<_, _>>()?;
     let to_mm = files.lengths.to_mm();
-    let factors: Vec<f64> = inputs
+    let logged_columns: Vec<&InputSpec> = inputs
+        .iter()
+        .filter(|i| i.approach_of.is_none())
+        .chain(observed.iter().filter(|_| with_observed))
+        .collect();
+    let factors: Vec<f64> = logged_columns
         .iter()
         .map(|i| {
             if i.unit == Unit::Angle {
@@ -211,14 +234,17 @@ pub fn join_exports(files: &ExportFiles, inputs: &[InputSpec], out: &Path) -> Re
             }
         })
         .collect();
-    let mut columns = vec!["id".to_string()];
-    columns.extend(input_headers(inputs));
+    let mut header = vec!["id".to_string()];
+    header.extend(input_headers(inputs));
+    if with_observed {
+        header.extend(input_headers(observed));
+    }
     if tool.len() == 3 {
         for k in 1..=3 {
-            columns.extend(["x", "y", "z"].map(|a| format!("m{k}{a}_mm")));
+            header.extend(["x", "y", "z"].map(|a| format!("m{k}{a}_mm")));
         }
     } else {
-        columns.extend(["x_mm", "y_mm", "z_mm"].map(String::from));
+        header.extend(["x_mm", "y_mm", "z_mm"].map(String::from));
     }
     let mut rows = Vec::new();
     let mut lines = Vec::new();
@@ -227,13 +253,18 @@ pub fn join_exports(files: &ExportFiles, inputs: &[InputSpec], out: &Path) -> Re
     'pose: for (r, row) in joints.table.rows.iter().enumerate() {
         let id = row[0] as i64;
         if let Some(c) = row[1..].iter().position(|v| !v.is_finite()) {
-            dropped.push((id, format!("no value of input {} in {}", inputs[c].name, files.joints.display())));
+            dropped.push((
+                id,
+                format!("no value of input {} in {}", logged_columns[c].name, files.joints.display()),
+            ));
             continue;
         }
         let approach = approach_rows.next().unwrap_or_default();
         let mut out_row: Vec<f64> = vec![id as f64];
-        out_row.extend(row[1..].iter().zip(&factors).map(|(v, f)| v * f));
+        let converted: Vec<f64> = row[1..].iter().zip(&factors).map(|(v, f)| v * f).collect();
+        out_row.extend(&converted[..measured_inputs]);
         out_row.extend(&approach[measured_inputs.min(approach.len())..]);
+        out_row.extend(&converted[measured_inputs..]);
         for (k, e) in tool.iter().enumerate() {
             match e.point(id, to_mm) {
                 Ok(Some(p)) => out_row.extend([p.x, p.y, p.z]),
@@ -284,11 +315,11 @@ pub fn join_exports(files: &ExportFiles, inputs: &[InputSpec], out: &Path) -> Re
     }
     let table = Table {
         path: out.to_path_buf(),
-        columns,
+        columns: header,
         rows,
         lines,
     };
-    let mut data = data_from_table(&table, inputs, InputColumns::Required).map_err(|e| match e {
+    let mut data = data_from_table(&table, columns, InputColumns::Required).map_err(|e| match e {
         // A joined row's problem is a problem of the controller log's line.
         IoError::AtLine { line, message, .. } => IoError::AtLine {
             path: files.joints.clone(),

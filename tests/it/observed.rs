@@ -180,3 +180,97 @@ fn observed_joints_through_the_command_line() {
         "{e}"
     );
 }
+
+/// A controller log with the encoders' readings after the sliders, joined with three reflector
+/// exports (`data join --joints … --reflector …`): the joined file holds the readings as observed
+/// columns; a log without them joins to a file without them.
+#[test]
+fn a_controller_log_with_the_encoders_joins_with_the_tracker_exports() {
+    use crate::cli::ok;
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    ok(
+        d,
+        &[
+            "simulate",
+            "t3r1",
+            "--poses",
+            "6",
+            "--seed",
+            "3",
+            "--measure",
+            "reflectors",
+            "--out",
+            "sim.csv",
+            "--truth",
+            "truth.toml",
+        ],
+    );
+    let text = std::fs::read_to_string(d.join("sim.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = text.lines().map(|l| l.split(',').collect()).collect();
+    let col = |name: &str| rows[0].iter().position(|c| *c == name).unwrap();
+    let write = |file: &str, names: &[&str], header: &str| {
+        let mut t = format!("{header}\n");
+        for r in &rows[1..] {
+            let v: Vec<&str> = std::iter::once(r[0]).chain(names.iter().map(|n| r[col(n)])).collect();
+            t += &(v.join(",") + "\n");
+        }
+        std::fs::write(d.join(file), t).unwrap();
+    };
+    let sliders = ["s1_mm", "s3_mm", "s2_mm", "s4_mm"];
+    let encoders = ["u1_deg", "r1_deg", "u3_deg", "u2_deg", "u4_deg"];
+    let all: Vec<&str> = sliders.iter().chain(&encoders).copied().collect();
+    write("log.csv", &all, "idx,s1,s3,s2,s4,u1,r1,u3,u2,u4");
+    write("log-sliders.csv", &sliders, "idx,s1,s3,s2,s4");
+    for k in 1..=3 {
+        let names = [format!("m{k}x_mm"), format!("m{k}y_mm"), format!("m{k}z_mm")];
+        let names: Vec<&str> = names.iter().map(String::as_str).collect();
+        write(&format!("smr{k}.csv"), &names, "idx,x,y,z");
+    }
+    let join = |log: &str, out: &str| {
+        ok(
+            d,
+            &[
+                "data",
+                "join",
+                "t3r1",
+                "--joints",
+                log,
+                "--reflector",
+                "smr1.csv",
+                "--reflector",
+                "smr2.csv",
+                "--reflector",
+                "smr3.csv",
+                "--out",
+                out,
+            ],
+        )
+    };
+    join("log.csv", "joined.csv");
+    let joined = std::fs::read_to_string(d.join("joined.csv")).unwrap();
+    assert!(
+        joined.starts_with("id,s1_mm,s3_mm,s2_mm,s4_mm,u1_deg,r1_deg,u3_deg,u2_deg,u4_deg,m1x_mm"),
+        "{joined}"
+    );
+    let t3r1 = ModelFile::load_str(Path::new("t3r1.toml"), include_str!("../../examples/models/t3r1.toml")).unwrap();
+    let a = kinecal::io::data_file::read_data(
+        &d.join("joined.csv"),
+        &t3r1.data_columns(),
+        kinecal::io::data_file::InputColumns::Required,
+    )
+    .unwrap();
+    let b = kinecal::io::data_file::read_data(
+        &d.join("sim.csv"),
+        &t3r1.data_columns(),
+        kinecal::io::data_file::InputColumns::Required,
+    )
+    .unwrap();
+    for (x, y) in a.measurements.iter().zip(&b.measurements) {
+        assert!(x.joints.iter().zip(&y.joints).all(|(p, q)| (p - q).abs() < 1e-12));
+        assert_eq!(x.joints.len(), 5);
+    }
+    join("log-sliders.csv", "joined-sliders.csv");
+    let plain = std::fs::read_to_string(d.join("joined-sliders.csv")).unwrap();
+    assert!(plain.starts_with("id,s1_mm,s3_mm,s2_mm,s4_mm,m1x_mm"), "{plain}");
+}
