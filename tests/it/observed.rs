@@ -117,6 +117,14 @@ fn observed_readings_enter_the_identification() {
     let _ = Noise::default();
 }
 
+/// `kinecal simulate t3r1 ARGS --out OUT --truth truth.toml` in `d`.
+fn simulate_t3r1(d: &Path, out: &str, args: &[&str]) {
+    let mut a = vec!["simulate", "t3r1"];
+    a.extend_from_slice(args);
+    a.extend_from_slice(&["--out", out, "--truth", "truth.toml"]);
+    crate::cli::ok(d, &a);
+}
+
 /// The command line with the encoders: `simulate` writes their columns (with their noise),
 /// `data check` says so, `validate` reports reading − model per joint; a data file with one of
 /// them missing is a one-line error naming it.
@@ -125,11 +133,10 @@ fn observed_joints_through_the_command_line() {
     use crate::cli::{fails, ok};
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
-    ok(
+    simulate_t3r1(
         d,
+        "d.csv",
         &[
-            "simulate",
-            "t3r1",
             "--poses",
             "12",
             "--seed",
@@ -140,10 +147,6 @@ fn observed_joints_through_the_command_line() {
             "0.02",
             "--encoder-noise-deg",
             "0.01",
-            "--out",
-            "d.csv",
-            "--truth",
-            "truth.toml",
         ],
     );
     let text = std::fs::read_to_string(d.join("d.csv")).unwrap();
@@ -189,23 +192,7 @@ fn a_controller_log_with_the_encoders_joins_with_the_tracker_exports() {
     use crate::cli::ok;
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
-    ok(
-        d,
-        &[
-            "simulate",
-            "t3r1",
-            "--poses",
-            "6",
-            "--seed",
-            "3",
-            "--measure",
-            "reflectors",
-            "--out",
-            "sim.csv",
-            "--truth",
-            "truth.toml",
-        ],
-    );
+    simulate_t3r1(d, "sim.csv", &["--poses", "6", "--seed", "3", "--measure", "reflectors"]);
     let text = std::fs::read_to_string(d.join("sim.csv")).unwrap();
     let rows: Vec<Vec<&str>> = text.lines().map(|l| l.split(',').collect()).collect();
     let col = |name: &str| rows[0].iter().position(|c| *c == name).unwrap();
