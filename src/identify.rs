@@ -243,29 +243,6 @@ pub struct Linearization {
     pub angular_rows: Vec<bool>,
 }
 
-/// The predicted pose and the residual Jacobian rows (unweighted) of measurement `m`, number `i`
-/// in its set: a kinematic failure or a non-finite Jacobian is [`CalibError::Kinematics`].
-pub(crate) fn residual_jacobian_at<M: Mechanism + ?Sized>(
-    model: &M,
-    i: usize,
-    m: &Measurement,
-) -> Result<(crate::se3::Pose, DMatrix<f64>), CalibError> {
-    residual_jacobian_near(model, i, m, None)
-}
-
-/// [`residual_jacobian_at`] with the forward kinematics started from `near` (the pose at the
-/// measurement's inputs, when known: [`Mechanism::forward_with_jacobian_near`]).
-pub(crate) fn residual_jacobian_near<M: Mechanism + ?Sized>(
-    model: &M,
-    i: usize,
-    m: &Measurement,
-    near: Option<&crate::se3::Pose>,
-) -> Result<(crate::se3::Pose, DMatrix<f64>), CalibError> {
-    let (pose, jac) = spatial_jacobian_near(model, i, m, near)?;
-    let a = measure::residual_jacobian(&m.obs, &pose, &jac);
-    Ok((pose, a))
-}
-
 /// The predicted pose and the spatial identification Jacobian of measurement `m`, number `i`,
 /// the forward kinematics started from `near` when given: a kinematic failure or a non-finite
 /// Jacobian is [`CalibError::Kinematics`].
@@ -280,11 +257,17 @@ pub(crate) fn spatial_jacobian_near<M: Mechanism + ?Sized>(
         None => model.forward_with_jacobian(&m.q),
     }
     .map_err(|source| CalibError::Kinematics { pose: i, source })?;
+    check_jacobian(i, &jac)?;
+    Ok((pose, jac))
+}
+
+/// A non-finite identification Jacobian at pose `i` is [`CalibError::Kinematics`].
+pub(crate) fn check_jacobian(i: usize, jac: &nalgebra::Matrix6xX<f64>) -> Result<(), CalibError> {
     if jac.iter().any(|v| !v.is_finite()) {
         let source = KinError::NonFinite("the identification Jacobian (check the model's geometry for extreme values)".into());
         return Err(CalibError::Kinematics { pose: i, source });
     }
-    Ok((pose, jac))
+    Ok(())
 }
 
 /// Linearise `model` at every measurement (in parallel), weighting rows by `noise`.
@@ -294,15 +277,15 @@ pub fn linearize<M: Mechanism + ?Sized>(model: &M, data: &[Measurement], noise: 
         .par_iter()
         .enumerate()
         .map(|(i, m)| {
-            let (pose, a) = residual_jacobian_at(model, i, m)?;
+            let (pose, jac, jr, ja) = joints::linearize(model, i, m, &units, noise, None)?;
+            let a = measure::residual_jacobian(&m.obs, &pose, &jac);
             let r = measure::residual(&m.obs, &pose);
             if r.iter().any(|v| !v.is_finite()) {
                 let source = KinError::NonFinite("the residual (check the measurement and the model's geometry)".into());
                 return Err(CalibError::Kinematics { pose: i, source });
             }
             let w = measure::row_weights(&m.obs, noise);
-            let joints = joints::joint_rows(model, i, m, &units, noise, true)?;
-            Ok((a, r, w, joints))
+            Ok((a, r, w, (jr, ja)))
         })
         .collect::<Vec<Result<_, CalibError>>>()
         // The first failing pose in data order (not whichever thread failed first): the same

@@ -108,14 +108,9 @@ pub struct IdentifyArgs {
     pub force: bool,
 }
 
-/// The noise weights: command line, else model file, else the default.
-#[allow(dead_code)]
-pub fn resolve_noise(file: &ModelFile, mm: Option<f64>, deg: Option<f64>) -> anyhow::Result<Noise> {
-    resolve_noise_with_encoders(file, mm, deg, None, None)
-}
-
-/// [`resolve_noise`] with the observed joints' encoder noise (degrees, mm).
-pub fn resolve_noise_with_encoders(
+/// The noise weights, the observed joints' encoders' included (degrees, mm): command line, else
+/// model file, else the default.
+pub fn resolve_noise(
     file: &ModelFile,
     mm: Option<f64>,
     deg: Option<f64>,
@@ -170,7 +165,7 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
             MethodArg::Linear => Method::Linear,
             MethodArg::Recursive => Method::Recursive,
         },
-        noise: resolve_noise_with_encoders(&file, a.noise_mm, a.noise_deg, a.encoder_noise_deg, a.encoder_noise_mm)?,
+        noise: resolve_noise(&file, a.noise_mm, a.noise_deg, a.encoder_noise_deg, a.encoder_noise_mm)?,
         reweight: a.reweight,
         frames: match a.frames {
             FramesArg::Estimate => FrameMode::Estimate,

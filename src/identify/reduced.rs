@@ -53,7 +53,7 @@ pub(crate) fn evaluate<M: Mechanism + ?Sized>(model: &M, data: &[Measurement], n
         .par_iter()
         .enumerate()
         .map(|(i, m)| {
-            let pose = model.forward(&m.q).map_err(|source| CalibError::Kinematics { pose: i, source })?;
+            let (pose, joint_rows) = super::joints::evaluate(model, i, m, &units, noise)?;
             let r = measure::residual(&m.obs, &pose);
             if r.iter().any(|v| !v.is_finite()) {
                 let source = KinError::NonFinite("the residual (check the measurement and the model's geometry)".into());
@@ -64,7 +64,7 @@ pub(crate) fn evaluate<M: Mechanism + ?Sized>(model: &M, data: &[Measurement], n
                 *v *= measure::row_weight(&m.obs, k, noise);
             }
             let nobs = r.len();
-            r.extend(super::joints::joint_rows(model, i, m, &units, noise, false)?.0);
+            r.extend(joint_rows);
             Ok((pose, (r, nobs)))
         })
         .collect::<Vec<Result<_, CalibError>>>()
@@ -253,11 +253,12 @@ pub(crate) fn factor<M: Mechanism + ?Sized>(
         for (i, d) in data.iter().enumerate().take(be).skip(b) {
             let lw = ev.pose_weights[i].sqrt();
             let r0 = ev.offsets[i] - ev.offsets[b];
+            // One evaluation of the model for the observation's rows and the observed joints'.
+            let (pose, jac, _, joints) = super::joints::linearize(model, i, d, &units, noise, ev.poses.get(i))?;
             match &d.obs {
                 // Pose and position rows straight from the spatial Jacobian: (v − p × ω, ω) per
                 // column, weighted, without an intermediate matrix per pose.
                 Observation::Pose(_) | Observation::Position(_) => {
-                    let (pose, jac) = super::spatial_jacobian_near(model, i, d, ev.poses.get(i))?;
                     let pt = pose.translation.vector;
                     let nrows = if matches!(d.obs, Observation::Pose(_)) { 6 } else { 3 };
                     let (wp, wo) = (lw / noise.position, lw / noise.orientation);
@@ -279,7 +280,7 @@ pub(crate) fn factor<M: Mechanism + ?Sized>(
                     }
                 }
                 Observation::Points(_) => {
-                    let (_, a) = super::residual_jacobian_near(model, i, d, ev.poses.get(i))?;
+                    let a = measure::residual_jacobian(&d.obs, &pose, &jac);
                     let w = measure::row_weights(&d.obs, noise);
                     for (k, wk) in w.iter().enumerate() {
                         let s = wk * lw;
@@ -291,7 +292,7 @@ pub(crate) fn factor<M: Mechanism + ?Sized>(
                 }
             }
             // The observed joints' rows, after the observation's.
-            if let (_, Some(j)) = super::joints::joint_rows(model, i, d, &units, noise, true)? {
+            if let Some(j) = joints {
                 let j0 = d.obs.rows();
                 for k in 0..j.nrows() {
                     for c in 0..p {

@@ -365,12 +365,18 @@ fn inputs_from_table(path: &Path, table: &Table, inputs: &[InputSpec]) -> Result
     Ok((ids, qs))
 }
 
+/// A model's data columns ([`crate::io::model_file::ModelFile::data_columns`]) split into its
+/// inputs and the observed joints' readings that follow them.
+pub(crate) fn split_observed(columns: &[InputSpec]) -> (&[InputSpec], &[InputSpec]) {
+    columns.split_at(columns.iter().take_while(|c| !c.observed).count())
+}
+
 /// [`read_data`] on a table already read.
 pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: InputColumns) -> Result<DataSet, IoError> {
     let path = &table.path;
     // The inputs, then the observed joints' readings (optional: all of them or none).
-    let n_q = columns.iter().take_while(|c| !c.observed).count();
-    let (inputs, observed) = columns.split_at(n_q);
+    let (inputs, observed) = split_observed(columns);
+    let n_q = inputs.len();
     if observed.iter().any(|c| !c.observed) {
         return Err(IoError::Invalid {
             path: path.clone(),

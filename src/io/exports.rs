@@ -71,7 +71,9 @@ struct Export {
     by_id: HashMap<i64, usize>,
 }
 
-fn read_export(path: &Path, values: usize, what: &str) -> Result<Export, IoError> {
+/// An export with an id column and then `values` value columns, or `also` when given (a
+/// controller log with optional extra columns).
+fn read_export(path: &Path, values: usize, also: Option<usize>, what: &str) -> Result<Export, IoError> {
     let table = read_table_with_gaps(path)?;
     let id_col = table.columns.iter().position(|c| {
         let c = c.trim().to_ascii_lowercase();
@@ -86,7 +88,7 @@ fn read_export(path: &Path, values: usize, what: &str) -> Result<Export, IoError
             ),
         });
     }
-    if table.columns.len() != values + 1 {
+    if table.columns.len() != values + 1 && also.is_none_or(|a| table.columns.len() != a + 1) {
         return Err(IoError::Invalid {
             path: path.to_path_buf(),
             message: format!(
@@ -168,8 +170,7 @@ fn stability(path: &Path, points: &[Option<Vector3<f64>>]) -> ReferenceStability
 /// [`crate::io::model_file::ModelFile::data_columns`]): the controller log holds the inputs'
 /// values and, optionally, the observed joints' readings after them.
 pub fn join_exports(files: &ExportFiles, columns: &[InputSpec], out: &Path) -> Result<JoinedExports, IoError> {
-    let n_q = columns.iter().take_while(|c| !c.observed).count();
-    let (inputs, observed) = columns.split_at(n_q);
+    let (inputs, observed) = crate::io::data_file::split_observed(columns);
     if !matches!(files.reflectors.len(), 1 | 3) {
         return Err(IoError::Invalid {
             path: files.joints.clone(),
@@ -183,9 +184,7 @@ pub fn join_exports(files: &ExportFiles, columns: &[InputSpec], out: &Path) -> R
     // come from its row order, the motion order, lost beams included.
     let measured_inputs = inputs.iter().filter(|i| i.approach_of.is_none()).count();
     // With the observed joints' readings when the log has their columns too.
-    let logged = read_table_with_gaps(&files.joints)?.columns.len().saturating_sub(1);
-    let with_observed = !observed.is_empty() && logged == measured_inputs + observed.len();
-    let values = measured_inputs + if with_observed { observed.len() } else { 0 };
+    let also = (!observed.is_empty()).then_some(measured_inputs + observed.len());
     let what = if observed.is_empty() {
         "joint values, in the model's input order".to_string()
     } else {
@@ -194,7 +193,8 @@ pub fn join_exports(files: &ExportFiles, columns: &[InputSpec], out: &Path) -> R
             observed.iter().map(|o| o.name.as_str()).collect::<Vec<_>>().join(", ")
         )
     };
-    let joints = read_export(&files.joints, values, &what)?;
+    let joints = read_export(&files.joints, measured_inputs, also, &what)?;
+    let with_observed = also == Some(joints.table.columns.len() - 1);
     let mut with_approach: Vec<Vec<f64>> = joints
         .table
         .rows
@@ -211,12 +211,12 @@ pub fn join_exports(files: &ExportFiles, columns: &[InputSpec], out: &Path) -> R
     let tool: Vec<Export> = files
         .reflectors
         .iter()
-        .map(|p| read_export(p, 3, "x, y, z"))
+        .map(|p| read_export(p, 3, None, "x, y, z"))
         .collect::<Result<_, _>>()?;
     let refs: Vec<Export> = files
         .references
         .iter()
-        .map(|p| read_export(p, 3, "x, y, z"))
+        .map(|p| read_export(p, 3, None, "x, y, z"))
         .collect::<Result<_, _>>()?;
     let to_mm = files.lengths.to_mm();
     let logged_columns: Vec<&InputSpec> = inputs

@@ -65,6 +65,13 @@ impl<M: Mechanism> Framed<M> {
     }
 }
 
+/// Rows over an inner mechanism's parameters, with the frames' (zero) columns in front.
+fn frame_columns(j: &nalgebra::DMatrix<f64>) -> nalgebra::DMatrix<f64> {
+    let mut out = nalgebra::DMatrix::zeros(j.nrows(), FRAME_PARAMS + j.ncols());
+    out.view_mut((0, FRAME_PARAMS), j.shape()).copy_from(j);
+    out
+}
+
 impl<M: Mechanism + Clone + 'static> Mechanism for Framed<M> {
     fn name(&self) -> &str {
         self.inner.name()
@@ -185,9 +192,17 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Framed<M> {
     /// The inner mechanism's rows, the frames' columns zero (joint values do not depend on them).
     fn observed_joints_with_jacobian(&self, q: &[f64]) -> Result<(Vec<f64>, nalgebra::DMatrix<f64>), KinError> {
         let (v, j) = self.inner.observed_joints_with_jacobian(q)?;
-        let mut out = nalgebra::DMatrix::zeros(j.nrows(), FRAME_PARAMS + j.ncols());
-        out.view_mut((0, FRAME_PARAMS), j.shape()).copy_from(&j);
-        Ok((v, out))
+        Ok((v, frame_columns(&j)))
+    }
+    fn forward_and_observed(&self, q: &[f64]) -> Result<(Pose, Vec<f64>), KinError> {
+        let (t, v) = self.inner.forward_and_observed(q)?;
+        Ok((self.measurement * t * self.tool, v))
+    }
+    fn forward_with_jacobian_and_observed(&self, q: &[f64], near: Option<&Pose>) -> Result<super::ForwardAndObserved, KinError> {
+        let inner_near = near.map(|n| self.measurement.inverse() * n * self.tool.inverse());
+        let (t, j, v, rows) = self.inner.forward_with_jacobian_and_observed(q, inner_near.as_ref())?;
+        let (pose, jac) = self.framed_jacobian((t, j))?;
+        Ok((pose, jac, v, frame_columns(&rows)))
     }
     fn frames(&self) -> Option<(Pose, Pose)> {
         Some((self.measurement, self.tool))

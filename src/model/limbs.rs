@@ -31,7 +31,7 @@
 //! in the platform pose and every joint value, solved by Gauss–Newton along a straight path from
 //! the home configuration to the target (continuation: the assembly mode of home is kept).
 use super::chain::{JointKind, SerialChain};
-use super::{check_inputs, Mechanism, Task};
+use super::{check_inputs, ForwardAndObserved, Mechanism, Task};
 use crate::error::KinError;
 use crate::params::{Param, Unit};
 use crate::se3::{self, Pose, Twist};
@@ -580,37 +580,8 @@ impl Mechanism for LimbMechanism {
     }
 
     fn forward_with_jacobian(&self, q: &[f64]) -> Result<(Pose, Matrix6xX<f64>), KinError> {
-        let (x, passive) = self.forward_full(q)?;
-        let joints = self.joints_of(q, &passive);
-        let (_, fz) = self.closure(&x, &joints, true);
-        let fp = self.closure_params(&x, &joints);
-        // Only the platform's six rows of dz = −F_z⁺·F_θ are needed: with F_z square, the six
-        // rows of F_z⁻¹ from F_zᵀ·Y = [I₆; 0] (six solves instead of one per parameter).
-        let singular = || KinError::Singular {
-            what: "identification Jacobian of a limb mechanism".into(),
-            condition: f64::INFINITY,
-        };
-        let top = if let Some(top) = self.platform_jacobian_by_limbs(&fz, &fp) {
-            top
-        } else if fz.is_square() {
-            let e = DMatrix::from_fn(fz.nrows(), 6, |r, c| if r == c { 1.0 } else { 0.0 });
-            let y = fz
-                .transpose()
-                .lu()
-                .solve(&e)
-                .filter(|y| y.iter().all(|v| v.is_finite()))
-                .ok_or_else(singular)?;
-            -(y.transpose() * fp)
-        } else if fz.iter().chain(fp.iter()).any(|v| !v.is_finite()) {
-            // (nalgebra's SVD does not return on non-finite input.)
-            return Err(singular());
-        } else {
-            let dz = fz.svd(true, true).solve(&(-fp), 0.0).map_err(|_| singular())?;
-            dz.rows(0, 6).into_owned()
-        };
-        let mut j = Matrix6xX::zeros(top.ncols());
-        j.copy_from(&top);
-        Ok((x, j))
+        let (x, _, fz, fp) = self.linearized(q)?;
+        Ok((x, self.platform_rows(&fz, &fp)?))
     }
 
     fn retract(&mut self, delta: &DVector<f64>) {
@@ -683,6 +654,23 @@ impl Mechanism for LimbMechanism {
 
     fn observed_joints_with_jacobian(&self, q: &[f64]) -> Result<(Vec<f64>, DMatrix<f64>), KinError> {
         self.observed_with_jacobian(q)
+    }
+
+    fn forward_and_observed(&self, q: &[f64]) -> Result<(Pose, Vec<f64>), KinError> {
+        let (x, passive) = self.forward_full(q)?;
+        Ok((x, self.observed_of(&passive)))
+    }
+
+    /// One forward solve and one closure derivative for both: the platform's rows and the
+    /// observed joints' rows of `dz = −F_z⁻¹·F_θ`.
+    fn forward_with_jacobian_and_observed(&self, q: &[f64], _near: Option<&Pose>) -> Result<ForwardAndObserved, KinError> {
+        let (x, passive, fz, fp) = self.linearized(q)?;
+        Ok((
+            x,
+            self.platform_rows(&fz, &fp)?,
+            self.observed_of(&passive),
+            self.observed_rows(&fz, &fp)?,
+        ))
     }
 }
 

@@ -28,6 +28,11 @@ pub mod kind;
 pub mod limbs;
 pub mod presets;
 
+/// The tool pose, the spatial identification Jacobian (6 × p), the observed joints' values and
+/// their parameter Jacobian (observed × p), from one evaluation
+/// ([`Mechanism::forward_with_jacobian_and_observed`]).
+pub type ForwardAndObserved = (Pose, Matrix6xX<f64>, Vec<f64>, DMatrix<f64>);
+
 /// Which part of the tool pose the actuators command.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 pub enum Task {
@@ -142,6 +147,23 @@ pub trait Mechanism: Send + Sync {
         let _ = q;
         Ok((Vec::new(), DMatrix::zeros(0, self.n_params())))
     }
+    /// The tool pose and the observed joints' values at `q` ([`Mechanism::forward`],
+    /// [`Mechanism::observed_joint_values`]); a mechanism that solves them together overrides this
+    /// to solve once.
+    fn forward_and_observed(&self, q: &[f64]) -> Result<(Pose, Vec<f64>), KinError> {
+        Ok((self.forward(q)?, self.observed_joint_values(q)?))
+    }
+    /// [`Mechanism::forward_with_jacobian_near`] (or without a hint) and
+    /// [`Mechanism::observed_joints_with_jacobian`]; a mechanism that solves them together
+    /// overrides this to solve once.
+    fn forward_with_jacobian_and_observed(&self, q: &[f64], near: Option<&Pose>) -> Result<ForwardAndObserved, KinError> {
+        let (pose, jac) = match near {
+            Some(p) => self.forward_with_jacobian_near(q, p)?,
+            None => self.forward_with_jacobian(q)?,
+        };
+        let (values, rows) = self.observed_joints_with_jacobian(q)?;
+        Ok((pose, jac, values, rows))
+    }
 }
 
 impl Clone for Box<dyn Mechanism> {
@@ -204,6 +226,12 @@ impl Mechanism for Box<dyn Mechanism> {
     }
     fn observed_joints_with_jacobian(&self, q: &[f64]) -> Result<(Vec<f64>, DMatrix<f64>), KinError> {
         (**self).observed_joints_with_jacobian(q)
+    }
+    fn forward_and_observed(&self, q: &[f64]) -> Result<(Pose, Vec<f64>), KinError> {
+        (**self).forward_and_observed(q)
+    }
+    fn forward_with_jacobian_and_observed(&self, q: &[f64], near: Option<&Pose>) -> Result<ForwardAndObserved, KinError> {
+        (**self).forward_with_jacobian_and_observed(q, near)
     }
 }
 

@@ -50,7 +50,7 @@ pub fn data_text(
     let mut header = vec!["id".to_string()];
     // `inputs` may end with observed joints' columns (a model's data columns): written when
     // the measurements hold their readings.
-    let (inputs, observed) = inputs.split_at(inputs.iter().take_while(|c| !c.observed).count());
+    let (inputs, observed) = split_observed(inputs);
     let with_inputs = measurements.first().is_some_and(|m| !m.q.is_empty());
     if with_inputs {
         header.extend(input_headers(inputs));

@@ -1,12 +1,17 @@
-//! Observed joints ([`super::JointRole::Observed`]): passive joints the closure solves whose
-//! sensors are read as observations. Their values come with the forward kinematics; their
-//! derivative with respect to the error parameters is the implicit-function theorem's
-//! `dz = −F_z⁺·F_θ` at their rows (the platform's rows are the identification Jacobian).
+//! The closure's derivatives at a forward solution, and the observed joints
+//! ([`super::JointRole::Observed`]): passive joints the closure solves whose sensors are read as
+//! observations. By the implicit-function theorem `dz = −F_z⁺·F_θ`: its first six rows are the
+//! platform's (the identification Jacobian), the observed joints' rows are theirs.
 use super::LimbMechanism;
 use crate::error::KinError;
 use crate::model::chain::JointKind;
 use crate::params::Unit;
-use nalgebra::DMatrix;
+use crate::se3::Pose;
+use nalgebra::{DMatrix, Matrix6xX};
+
+/// A forward solution (platform pose, passive joints) with the closure's derivatives there with
+/// respect to the unknowns (`F_z`) and the error parameters (`F_θ`).
+type ClosureAt = (Pose, Vec<f64>, DMatrix<f64>, DMatrix<f64>);
 
 impl LimbMechanism {
     /// Names and units of the observed joints, in limb order.
@@ -25,13 +30,17 @@ impl LimbMechanism {
             .collect()
     }
 
+    /// The observed joints' values among the passive joints' `passive`.
+    pub(super) fn observed_of(&self, passive: &[f64]) -> Vec<f64> {
+        self.observed.iter().map(|&k| passive[k]).collect()
+    }
+
     /// The observed joints' values at inputs `q`.
     pub(super) fn observed_values(&self, q: &[f64]) -> Result<Vec<f64>, KinError> {
         if self.observed.is_empty() {
             return Ok(Vec::new());
         }
-        let (_, passive) = self.forward_full(q)?;
-        Ok(self.observed.iter().map(|&k| passive[k]).collect())
+        Ok(self.observed_of(&self.forward_full(q)?.1))
     }
 
     /// The observed joints' values at inputs `q` and their parameter Jacobian (rows: observed
@@ -41,10 +50,56 @@ impl LimbMechanism {
         if self.observed.is_empty() {
             return Ok((Vec::new(), DMatrix::zeros(0, self.n_params())));
         }
+        let (_, passive, fz, fp) = self.linearized(q)?;
+        Ok((self.observed_of(&passive), self.observed_rows(&fz, &fp)?))
+    }
+
+    /// The forward solution at inputs `q` (platform pose, passive joints) and the closure's
+    /// derivatives there with respect to the unknowns (`F_z`) and the error parameters (`F_θ`).
+    pub(super) fn linearized(&self, q: &[f64]) -> Result<ClosureAt, KinError> {
         let (x, passive) = self.forward_full(q)?;
         let joints = self.joints_of(q, &passive);
         let (_, fz) = self.closure(&x, &joints, true);
         let fp = self.closure_params(&x, &joints);
+        Ok((x, passive, fz, fp))
+    }
+
+    /// The platform's six rows of `dz = −F_z⁺·F_θ`: the spatial identification Jacobian.
+    pub(super) fn platform_rows(&self, fz: &DMatrix<f64>, fp: &DMatrix<f64>) -> Result<Matrix6xX<f64>, KinError> {
+        let singular = || KinError::Singular {
+            what: "identification Jacobian of a limb mechanism".into(),
+            condition: f64::INFINITY,
+        };
+        // With F_z square, the six rows of F_z⁻¹ from F_zᵀ·Y = [I₆; 0] (six solves instead of
+        // one per parameter).
+        let top = if let Some(top) = self.platform_jacobian_by_limbs(fz, fp) {
+            top
+        } else if fz.is_square() {
+            let e = DMatrix::from_fn(fz.nrows(), 6, |r, c| if r == c { 1.0 } else { 0.0 });
+            let y = fz
+                .transpose()
+                .lu()
+                .solve(&e)
+                .filter(|y| y.iter().all(|v| v.is_finite()))
+                .ok_or_else(singular)?;
+            -(y.transpose() * fp)
+        } else if fz.iter().chain(fp.iter()).any(|v| !v.is_finite()) {
+            // (nalgebra's SVD does not return on non-finite input.)
+            return Err(singular());
+        } else {
+            let dz = fz.clone().svd(true, true).solve(&(-fp), 0.0).map_err(|_| singular())?;
+            dz.rows(0, 6).into_owned()
+        };
+        let mut j = Matrix6xX::zeros(top.ncols());
+        j.copy_from(&top);
+        Ok(j)
+    }
+
+    /// The observed joints' rows of `dz = −F_z⁺·F_θ` (none without observed joints).
+    pub(super) fn observed_rows(&self, fz: &DMatrix<f64>, fp: &DMatrix<f64>) -> Result<DMatrix<f64>, KinError> {
+        if self.observed.is_empty() {
+            return Ok(DMatrix::zeros(0, fp.ncols()));
+        }
         let singular = || KinError::Singular {
             what: "observed-joint Jacobian of a limb mechanism".into(),
             condition: f64::INFINITY,
@@ -67,7 +122,6 @@ impl LimbMechanism {
         if y.iter().any(|v| !v.is_finite()) {
             return Err(singular());
         }
-        let jac = -(y.transpose() * fp);
-        Ok((self.observed.iter().map(|&k| passive[k]).collect(), jac))
+        Ok(-(y.transpose() * fp))
     }
 }
