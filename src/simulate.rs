@@ -62,7 +62,9 @@ pub fn measure<M: Mechanism + ?Sized, R: Rng>(
 ) -> Result<Vec<Measurement>, CalibError> {
     let mut out = Vec::with_capacity(inputs.len());
     for (i, q) in inputs.iter().enumerate() {
-        let t = truth.forward(q).map_err(|source| CalibError::Kinematics { pose: i, source })?;
+        let (t, values) = truth
+            .forward_and_observed(q)
+            .map_err(|source| CalibError::Kinematics { pose: i, source })?;
         let (dp, dw) = match noise {
             Some(n) => {
                 let np = Normal::new(0.0, n.position).map_err(|e| CalibError::InvalidOption(e.to_string()))?;
@@ -85,30 +87,22 @@ pub fn measure<M: Mechanism + ?Sized, R: Rng>(
             joint_length: 0.0,
             ..Noise::default()
         };
-        let joints = observed_readings(truth, i, q, noise.unwrap_or(&exact), rng)?;
+        let joints = observed_readings(truth, values, noise.unwrap_or(&exact), rng)?;
         out.push(Measurement { joints, q: q.clone(), obs });
     }
     Ok(out)
 }
 
-/// The readings of `truth`'s observed joints at `q` (pose `k`) with Gaussian noise of
+/// The readings of `truth`'s observed joints: their `values` with Gaussian noise of
 /// [`Noise::joint_angle`] / [`Noise::joint_length`] (0: none); nothing drawn without observed
 /// joints.
 pub fn observed_readings<M: Mechanism + ?Sized, R: Rng>(
     truth: &M,
-    k: usize,
-    q: &[f64],
+    mut values: Vec<f64>,
     noise: &Noise,
     rng: &mut R,
 ) -> Result<Vec<f64>, CalibError> {
-    let units = truth.observed_joints();
-    if units.is_empty() {
-        return Ok(Vec::new());
-    }
-    let mut v = truth
-        .observed_joint_values(q)
-        .map_err(|source| CalibError::Kinematics { pose: k, source })?;
-    for (x, (_, u)) in v.iter_mut().zip(&units) {
+    for (x, (_, u)) in values.iter_mut().zip(&truth.observed_joints()) {
         let s = if *u == crate::params::Unit::Angle {
             noise.joint_angle
         } else {
@@ -120,7 +114,7 @@ pub fn observed_readings<M: Mechanism + ?Sized, R: Rng>(
                 .sample(rng);
         }
     }
-    Ok(v)
+    Ok(values)
 }
 
 /// A random serial chain with `revolute` + `prismatic` joints in random order, random joint axes
@@ -292,7 +286,9 @@ pub fn synthesize<M: Mechanism + ?Sized, R: Rng>(
     let mut measurements = Vec::with_capacity(configurations.len());
     let mut reflectors = Vec::new();
     for (k, q) in configurations.into_iter().enumerate() {
-        let t = truth.forward(&q).map_err(|source| CalibError::Kinematics { pose: k, source })?;
+        let (t, values) = truth
+            .forward_and_observed(&q)
+            .map_err(|source| CalibError::Kinematics { pose: k, source })?;
         let mut draw = |d: &Normal<f64>, s: f64| {
             if s > 0.0 {
                 Vector3::new(d.sample(rng), d.sample(rng), d.sample(rng))
@@ -314,7 +310,7 @@ pub fn synthesize<M: Mechanism + ?Sized, R: Rng>(
                 Observation::Pose(f)
             }
         };
-        let joints = observed_readings(truth, k, &q, noise, rng)?;
+        let joints = observed_readings(truth, values, noise, rng)?;
         measurements.push(Measurement { joints, q, obs });
         progress(k);
     }
