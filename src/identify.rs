@@ -645,11 +645,13 @@ pub fn identifiability_at<M: Mechanism + ?Sized>(
         .iter()
         .enumerate()
         .map(|(i, q)| {
-            let kin = |source| crate::error::CalibError::Kinematics { pose: i, source };
+            let (t, joints) = mechanism
+                .forward_and_observed(q)
+                .map_err(|source| crate::error::CalibError::Kinematics { pose: i, source })?;
             Ok(Measurement {
-                joints: mechanism.observed_joint_values(q).map_err(kin)?,
+                joints,
                 q: q.clone(),
-                obs: Observation::Pose(mechanism.forward(q).map_err(kin)?),
+                obs: Observation::Pose(t),
             })
         })
         .collect::<Result<Vec<_>, _>>()?;
