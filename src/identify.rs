@@ -109,7 +109,8 @@ pub enum Loss {
     Squares,
     /// Huber's loss on the per-pose RMS residual `s_i` (in units of the stated noise): quadratic
     /// up to `k` robust standard deviations of the set (1.4826 × the median of `s_i`, re-estimated
-    /// at every linearisation), linear beyond. A blunder of millimetres then pulls on the fit like
+    /// at every linearisation, and never below the stated noise: a pose within `k` stated
+    /// standard deviations is no blunder, however exactly the others fit), linear beyond. A blunder of millimetres then pulls on the fit like
     /// a residual of `k` standard deviations, not like its square.
     Huber {
         /// Threshold in robust standard deviations (5 keeps Gaussian data untouched).
@@ -152,7 +153,9 @@ pub(crate) fn loss_weights(residual: &DVector<f64>, offsets: &[usize], loss: Los
     let mut sorted = s.clone();
     sorted.sort_by(f64::total_cmp);
     let median = if sorted.is_empty() { 0.0 } else { sorted[sorted.len() / 2] };
-    let threshold = k * 1.4826 * median;
+    // The rows are noise-weighted: 1 is the stated noise. Without that floor, a noise-free fit
+    // (a robust scale of round-off) would treat its least exact poses as blunders.
+    let threshold = k * (1.4826 * median).max(1.0);
     let mut cost = 0.0;
     let mut weights = Vec::with_capacity(n);
     for (i, &si) in s.iter().enumerate() {

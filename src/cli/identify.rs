@@ -287,7 +287,7 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
     }
     if cal.starts.len() > 1 {
         let spread = cal.starts.iter().map(|s| s.max_difference_mm).fold(0.0, f64::max);
-        let agree = if spread <= opts.noise.position { "agree" } else { "DISAGREE" };
+        let agree = if spread <= cal.start_tolerance_mm { "agree" } else { "DISAGREE" };
         println!(
             "{} starts {agree}: predictions within {spread:.2e} mm of the kept solution (σ̂₀ {})",
             cal.starts.len(),

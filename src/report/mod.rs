@@ -3,6 +3,9 @@
 //! ([`CalibrationReport::to_html`]).
 mod html;
 pub mod plot;
+mod verdict;
+
+pub use verdict::{Beyond, Status, ToleranceCheck, Verdict, CHANCE_BEYOND_3_SIGMA, SIGMA0_FAIL, SIGMA0_WARN};
 
 use crate::error::CalibError;
 use crate::identify::Identification;
@@ -112,51 +115,6 @@ pub struct ParamCovariance {
     pub matrix: Vec<Vec<f64>>,
 }
 
-/// The overall judgement of a calibration, shown first in the report and deciding the exit code
-/// of `kinecal identify`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Status {
-    /// Converged, residual consistent with the noise, nothing flagged.
-    Calibrated,
-    /// Usable, but look at the reasons (residual above the noise, poorly determined parameters,
-    /// outliers).
-    UsableWithWarnings,
-    /// Not usable: not converged, or the residual is far beyond the stated noise.
-    Failed,
-}
-
-impl Status {
-    /// `"calibrated"`, `"usable with warnings"`, `"failed"`.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Status::Calibrated => "calibrated",
-            Status::UsableWithWarnings => "usable with warnings",
-            Status::Failed => "failed",
-        }
-    }
-}
-
-/// A [`Status`] and the reasons for it, most serious first.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Verdict {
-    /// The judgement.
-    pub status: Status,
-    /// Why (empty when calibrated).
-    pub reasons: Vec<String>,
-}
-
-/// σ̂₀ above this fails a calibration: the residual is an order of magnitude beyond the stated
-/// noise, which a wrong unit, swapped columns, a wrong model or an unregistered frame gives, and
-/// real unmodelled errors of a sound setup do not.
-pub const SIGMA0_FAIL: f64 = 10.0;
-
-/// Probability that a Gaussian residual component lies beyond 3σ.
-pub const CHANCE_BEYOND_3_SIGMA: f64 = 0.0027;
-/// σ̂₀ above this (and up to [`SIGMA0_FAIL`]) is a warning: errors the model does not describe
-/// remain, or the stated noise is optimistic.
-pub const SIGMA0_WARN: f64 = 3.0;
-
 /// Everything an identification produced.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CalibrationReport {
@@ -215,6 +173,13 @@ pub struct CalibrationReport {
     /// For a model with joint terms: the same data fitted by the geometric model alone and with
     /// each kind of term alone (empty otherwise), to show what each term contributes.
     pub variants: Vec<ModelVariant>,
+    /// The corrections judged against the model's tolerances in the split of redundant
+    /// parameters and frames that keeps them smallest (set by `calibrate`; without it the
+    /// verdict judges the reported values).
+    pub tolerance_check: Option<ToleranceCheck>,
+    /// The model is a serial chain without joint terms: a residual above the noise then points
+    /// at them in the verdict.
+    pub serial_chain: bool,
 }
 
 /// The same data fitted by a model with fewer terms (see [`CalibrationReport::variants`]).
@@ -339,160 +304,13 @@ impl CalibrationReport {
             provenance: None,
             blunders: Vec::new(),
             variants: Vec::new(),
+            tolerance_check: None,
+            serial_chain: false,
         };
         report.correlations(result, &params);
         report.absorbed = absorbed(result, &params);
         report.assess(&result.noise, &Tolerances::default());
         Ok(report)
-    }
-
-    /// Judge the calibration ([`CalibrationReport::verdict`]) against the noise the user stated
-    /// (`stated`; with re-estimated weights the estimate is compared with it).
-    pub fn assess(&mut self, stated: &Noise, tolerances: &Tolerances) {
-        let mut failed = Vec::new();
-        let mut warnings = Vec::new();
-        let short = |names: &[&str]| {
-            if names.len() > 6 {
-                format!("{} … ({} in all)", names[..6].join(" "), names.len())
-            } else {
-                names.join(" ")
-            }
-        };
-        let beyond: Vec<String> = self
-            .params
-            .iter()
-            .filter(|p| p.status == ParamStatus::Identified && !p.group.ends_with(" frame"))
-            .filter(|p| match p.unit.as_str() {
-                "mm" => p.value.abs() > tolerances.length_mm,
-                "deg" => p.value.abs() > tolerances.angle_deg,
-                _ => false,
-            })
-            .map(|p| format!("{} {:+.3} {}", p.name, p.value, p.unit))
-            .collect();
-        let ratio = [
-            self.noise_mm_deg.0 / stated.position,
-            self.noise_mm_deg.1.to_radians() / stated.orientation,
-        ]
-        .into_iter()
-        .filter(|r| r.is_finite())
-        .fold(1.0, f64::max);
-        let excess = self.sigma0 * ratio;
-        if !beyond.is_empty() {
-            let names: Vec<&str> = beyond.iter().map(String::as_str).collect();
-            // A fit down to the noise with implausible corrections: not a wrong model but a
-            // combination of parameters the poses barely separate.
-            let advice = if excess <= SIGMA0_WARN {
-                format!(
-                    "the fit matches the data (σ̂₀ {:.3}): either a combination of parameters the poses barely separate (fix one of them in [calibration] fixed, or add or spread poses) or a model of another machine (check its dimensions; raise the tolerances if the machine really is this far from its drawing)",
-                    self.sigma0
-                )
-            } else {
-                "is the model of this machine, and are the joint columns in the right order and unit?".to_string()
-            };
-            failed.push(format!(
-                "corrections beyond the model's tolerances ({} mm, {} deg): {}: {advice}",
-                tolerances.length_mm,
-                tolerances.angle_deg,
-                short(&names)
-            ));
-        }
-        if !self.converged {
-            failed.push(format!(
-                "the identification did not converge after {} iterations (too few or badly spread poses, or a model that does not fit the data)",
-                self.iterations
-            ));
-        }
-        if !excess.is_finite() {
-            failed.push("the residual is not finite".into());
-        } else if excess > SIGMA0_FAIL {
-            failed.push(format!(
-                "the residual is {excess:.1}× the stated noise (σ̂₀ {:.2}{}): a wrong unit or column order, a model of another machine, or data in an unregistered frame",
-                self.sigma0,
-                if ratio > 1.0 { format!(", re-estimated weights {ratio:.1}× the stated noise") } else { String::new() }
-            ));
-        } else if excess > SIGMA0_WARN {
-            warnings.push(format!(
-                "the residual is {excess:.1}× the stated noise: errors the model does not describe remain (see the residual plots), or the stated noise is optimistic"
-            ));
-        }
-        self.flags.clear();
-        let poor: Vec<&str> = self
-            .params
-            .iter()
-            .filter(|p| p.status == ParamStatus::Identified && p.std_dev > p.value.abs())
-            .map(|p| p.name.as_str())
-            .collect();
-        if !poor.is_empty() {
-            self.flags.push(format!(
-                "{} identified parameters have a standard deviation larger than their value (not distinguished from zero by these data): {}",
-                poor.len(),
-                short(&poor)
-            ));
-        }
-        if !self.correlated.is_empty() {
-            let pairs: Vec<String> = self.correlated.iter().map(|(a, b, r)| format!("{a}/{b} {r:+.3}")).collect();
-            let pairs: Vec<&str> = pairs.iter().map(String::as_str).collect();
-            self.flags.push(format!(
-                "{} pairs of identified parameters correlated beyond ±{STRONG_CORRELATION}: {} (their sum or difference is better determined than each)",
-                pairs.len(),
-                short(&pairs)
-            ));
-        }
-        if let Some(v) = &self.validation {
-            if v.after_stats.position_rms_mm > v.before_stats.position_rms_mm {
-                warnings.push(format!(
-                    "the validation error grew ({:.4} → {:.4} mm RMS)",
-                    v.before_stats.position_rms_mm, v.after_stats.position_rms_mm
-                ));
-            }
-        }
-        if !self.blunders.is_empty() {
-            let ids: Vec<String> = self.blunders.iter().map(|i| i.to_string()).collect();
-            let ids: Vec<&str> = ids.iter().map(String::as_str).collect();
-            warnings.push(format!(
-                "{} poses set aside as gross blunders (ids {}): check those readings",
-                self.blunders.len(),
-                short(&ids)
-            ));
-        }
-        // A residual component beyond 3σ happens to 0.27 % of components by chance, so to
-        // 1 − 0.9973^c of poses with c components (1.6 % of full poses, 0.8 % of positions):
-        // only more than 3 + twice that many flagged poses is a warning.
-        let flagged = self.identification.outliers.len() + self.validation.as_ref().map_or(0, |v| v.outliers.len());
-        let poses = self.identification.after_stats.poses + self.validation.as_ref().map_or(0, |v| v.after_stats.poses);
-        let components = if self.identification.after_stats.orientation_mean_deg.is_some() {
-            6
-        } else {
-            3
-        };
-        let chance = 1.0 - (1.0 - CHANCE_BEYOND_3_SIGMA).powi(components);
-        if flagged as f64 > 3.0 + 2.0 * chance * poses as f64 {
-            warnings.push(format!(
-                "{flagged} of {poses} poses flagged as outliers (a residual component beyond 3σ; Gaussian noise flags about {:.1} %)",
-                100.0 * chance
-            ));
-        } else if flagged > 0 {
-            self.flags.push(format!(
-                "{flagged} poses with a residual component beyond 3σ (as many as chance gives)"
-            ));
-        }
-        self.verdict = if !failed.is_empty() {
-            failed.extend(warnings);
-            Verdict {
-                status: Status::Failed,
-                reasons: failed,
-            }
-        } else if !warnings.is_empty() {
-            Verdict {
-                status: Status::UsableWithWarnings,
-                reasons: warnings,
-            }
-        } else {
-            Verdict {
-                status: Status::Calibrated,
-                reasons: Vec::new(),
-            }
-        };
     }
 
     /// The correlation matrix of the identified parameters and the strongly correlated pairs.
@@ -547,12 +365,6 @@ impl CalibrationReport {
             .iter()
             .map(|i| (i.name.clone(), if i.unit == Unit::Angle { "deg" } else { "mm" }.to_string()))
             .collect();
-    }
-
-    /// Fail the verdict for `reason` (put first among the reasons), whatever it was.
-    pub fn fail(&mut self, reason: String) {
-        self.verdict.status = Status::Failed;
-        self.verdict.reasons.insert(0, reason);
     }
 }
 

@@ -192,28 +192,45 @@ fn outputs_never_replace_inputs_each_other_or_existing_files() {
 }
 
 #[test]
-fn a_fit_far_beyond_the_stated_noise_exits_2_and_writes_nothing_without_force() {
+fn a_stated_noise_far_too_small_alone_warns_and_does_not_fail() {
     let tmp = noisy_irb120();
     let d = tmp.path();
-    let before = snapshot(d);
-    // 0.05 mm noise stated as 1 µm: σ̂₀ ≈ 50.
+    // 0.05 mm noise stated as 1 µm: σ̂₀ ≈ 50, but the calibration clearly improves the held-out
+    // poses with a machine within its tolerances: usable, the warning names the residual.
     let args = [
         "identify",
         "m.toml",
         "d.csv",
+        "--validation",
+        "v.csv",
         "--noise-mm",
         "0.001",
         "--noise-deg",
         "0.001",
         "--out",
         "c.toml",
-        "--report",
-        "r.html",
     ];
+    let text = crate::cli::ok(d, &args);
+    assert!(text.contains("verdict: usable with warnings: the residual is"), "{text}");
+    assert!(text.contains("the stated noise is optimistic"), "{text}");
+}
+
+#[test]
+fn a_wrong_model_exits_2_and_writes_nothing_without_force() {
+    let tmp = noisy_irb120();
+    let d = tmp.path();
+    // A model of another machine: a link 120 mm longer than the simulated one.
+    let model = std::fs::read_to_string(d.join("m.toml")).unwrap().replacen("270.0", "390.0", 1);
+    std::fs::write(d.join("other.toml"), model).unwrap();
+    let before = snapshot(d);
+    let args = ["identify", "other.toml", "d.csv", "--out", "c.toml", "--report", "r.html"];
     let out = crate::cli::kinecal(d, &args);
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8(out.stderr).unwrap();
-    assert!(err.starts_with("kinecal: failed: verdict: failed: the residual is"), "{err}");
+    assert!(
+        err.starts_with("kinecal: failed: verdict: failed: corrections beyond the model's tolerances"),
+        "{err}"
+    );
     assert!(
         !String::from_utf8(out.stdout).unwrap().contains(" converged after"),
         "a failed fit must not say converged"
@@ -385,7 +402,7 @@ fn hostile_cases_answer_at_once_with_one_line() {
         (
             vec!["identify", "st-typo.toml", "s.csv", "--out", "c.toml"],
             2,
-            "beyond the model's tolerances",
+            "the model's tolerances",
             vec![],
         ),
         (
@@ -489,5 +506,116 @@ fn hostile_cases_answer_at_once_with_one_line() {
         for w in writes {
             std::fs::remove_file(d.join(w)).unwrap();
         }
+    }
+}
+
+/// Drop the `dir_<joint>` columns of a CSV file (`from` → `to`, in `dir`).
+fn without_directions(dir: &Path, from: &str, to: &str) {
+    let text = std::fs::read_to_string(dir.join(from)).unwrap();
+    let rows: Vec<Vec<&str>> = text.lines().map(|l| l.split(',').collect()).collect();
+    let keep: Vec<usize> = (0..rows[0].len()).filter(|&i| !rows[0][i].starts_with("dir_")).collect();
+    let out: String = rows
+        .iter()
+        .map(|r| keep.iter().map(|&i| r[i]).collect::<Vec<_>>().join(",") + "\n")
+        .collect();
+    std::fs::write(dir.join(to), out).unwrap();
+}
+
+/// What a real arm leaves after a geometric calibration: a virtual IRB 120 with lost motion and
+/// gravity compliance in its joints (the joint terms), measured from a tracker with 20 µm /
+/// 0.02° noise, calibrated with the geometric model at the default noise. The residual is
+/// ~12× the noise, the held-out error halves: usable with warnings, never failed.
+#[test]
+fn a_real_arm_s_unmodelled_residual_is_usable_with_warnings_not_failed() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    crate::cli::ok(d, &["model", "export", "irb120", "--out", "m.toml"]);
+    let text = std::fs::read_to_string(d.join("m.toml")).unwrap();
+    let at = text.find("\n[calibration]").expect("a [calibration] section");
+    let terms = format!(
+        "{}\n[mechanism.joint_terms]\nbacklash = [\"q1\", \"q2\", \"q3\", \"q4\", \"q5\", \"q6\"]\ngravity = [\"q2\", \"q3\"]\n{}\n[frames]\n[frames.measurement]\nposition = [2000.0, -700.0, 400.0]\nrpy = [100.0, -40.0, 75.0]\n[frames.tool]\nposition = [90.0, -80.0, 90.0]\nrpy = [10.0, 20.0, -30.0]\n",
+        &text[..at],
+        &text[at..]
+    );
+    std::fs::write(d.join("terms.toml"), terms).unwrap();
+    let args = [
+        "simulate",
+        "terms.toml",
+        "--poses",
+        "150",
+        "--seed",
+        "6",
+        "--noise-mm",
+        "0.02",
+        "--noise-deg",
+        "0.02",
+        "--out",
+        "d.csv",
+        "--truth",
+        "t.toml",
+        "--validation-poses",
+        "50",
+        "--validation-out",
+        "v.csv",
+    ];
+    crate::cli::ok(d, &args);
+    without_directions(d, "d.csv", "dg.csv");
+    without_directions(d, "v.csv", "vg.csv");
+    let out = crate::cli::ok(d, &["identify", "m.toml", "dg.csv", "--validation", "vg.csv", "--out", "c.toml"]);
+    assert!(out.contains("verdict: usable with warnings: the residual is"), "{out}");
+    assert!(
+        out.contains("real machines leave such a residual") && out.contains("joint terms"),
+        "{out}"
+    );
+    assert!(d.join("c.toml").exists());
+}
+
+/// A Stewart platform whose joint centres sit up to 5 mm (its tolerance) from the drawing,
+/// measured in a tracker frame with a tool offset, frames estimated: the corrections are judged
+/// in the split of redundant parameters and frames that keeps them smallest, so a machine within
+/// its tolerances is not failed for how the minimum-norm solution split them.
+#[test]
+fn a_machine_at_its_tolerances_is_not_failed_for_a_split_of_the_parameters() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    crate::cli::ok(d, &["model", "export", "stewart", "--out", "s.toml"]);
+    let mut text = std::fs::read_to_string(d.join("s.toml")).unwrap();
+    text.push_str(
+        "\n[frames]\n[frames.measurement]\nposition = [2000.0, -700.0, 400.0]\nrpy = [100.0, -40.0, 75.0]\n\
+         [frames.tool]\nposition = [20.0, -30.0, 50.0]\nrpy = [10.0, 20.0, -30.0]\n",
+    );
+    std::fs::write(d.join("tracker.toml"), text).unwrap();
+    for (seed, noise) in [("2", "0.02"), ("1", "0")] {
+        let args = [
+            "simulate",
+            "tracker.toml",
+            "--poses",
+            "50",
+            "--seed",
+            seed,
+            "--error-mm",
+            "5",
+            "--error-deg",
+            "0.5",
+            "--noise-mm",
+            noise,
+            "--noise-deg",
+            noise,
+            "--out",
+            "d.csv",
+            "--truth",
+            "t.toml",
+            "--validation-poses",
+            "20",
+            "--validation-out",
+            "v.csv",
+            "--force",
+        ];
+        crate::cli::ok(d, &args);
+        let out = crate::cli::ok(
+            d,
+            &["identify", "s.toml", "d.csv", "--validation", "v.csv", "--out", "c.toml", "--force"],
+        );
+        assert!(out.contains("verdict: calibrated"), "seed {seed}, noise {noise}: {out}");
     }
 }

@@ -1,0 +1,180 @@
+//! Other starts of the identification: the geometry perturbed within a third of the model's
+//! tolerances, the same frames. The lowest residual is kept; predictions that disagree name a
+//! fit with several minima.
+use super::{StartOutcome, START_AGREEMENT, START_POSES};
+use crate::identify::{identify, Agreement, Identification, Options};
+use crate::io::data_file::DataSet;
+use crate::io::model_file::Tolerances;
+use crate::io::IoError;
+use crate::measure::Measurement;
+use crate::model::Mechanism;
+use crate::params::Unit;
+
+/// A random perturbation of the free, non-frame geometric parameters: uniform within a third of
+/// the tolerance of each parameter's unit (lengths in mm, angles in rad).
+fn perturbation(model: &dyn Mechanism, free: &[usize], tol: &Tolerances, seed: u64) -> nalgebra::DVector<f64> {
+    use rand::{RngExt, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let params = model.params();
+    let mut d = nalgebra::DVector::zeros(params.len());
+    for &i in free {
+        if params[i].group.ends_with(" frame") {
+            continue;
+        }
+        let s = match params[i].unit {
+            Unit::Length => tol.length_mm / 3.0,
+            Unit::Angle => tol.angle_deg.to_radians() / 3.0,
+            _ => 0.0,
+        };
+        d[i] = rng.random_range(-s..=s);
+    }
+    d
+}
+
+/// Largest distance (mm) between the tool positions two models predict at the poses of `data`.
+fn max_prediction_difference(a: &dyn Mechanism, b: &dyn Mechanism, data: &[Measurement]) -> f64 {
+    data.iter()
+        .map(|m| match (a.forward(&m.q), b.forward(&m.q)) {
+            (Ok(x), Ok(y)) => (x.translation.vector - y.translation.vector).norm(),
+            _ => f64::INFINITY,
+        })
+        .fold(0.0, f64::max)
+}
+
+/// What the starts gave: the kept identification and each start's outcome (the kept one first).
+pub struct Starts {
+    /// The kept identification, on every kept pose.
+    pub identification: Identification<Box<dyn Mechanism>>,
+    /// Each start's outcome, the kept one first.
+    pub outcomes: Vec<StartOutcome>,
+}
+
+/// The inputs the other starts share.
+pub struct StartSetup<'a> {
+    /// The starting model (nominal geometry in the registered frames).
+    pub start: &'a dyn Mechanism,
+    /// Free parameters.
+    pub free: &'a [usize],
+    /// The model's tolerances (the perturbations are a third of them).
+    pub tolerances: &'a Tolerances,
+    /// Identification options of the main fit.
+    pub opts: &'a Options,
+    /// Number of starts, the main fit included.
+    pub starts: u64,
+    /// Seed of the perturbations.
+    pub seed: u64,
+}
+
+/// Run `setup.starts − 1` perturbed starts beside `fit` (the fit of the registered start on the
+/// kept poses `kept` of `measurements`) and keep the best. On large sets they run on an evenly
+/// spread subset of [`START_POSES`] poses, the main fit polished there for the comparison, and a
+/// winner other than the main fit is refitted on every kept pose.
+pub fn other_starts(
+    setup: &StartSetup,
+    fit: Identification<Box<dyn Mechanism>>,
+    measurements: &[Measurement],
+    kept: &[usize],
+    data: &DataSet,
+) -> Result<Starts, IoError> {
+    let id_opts = setup.opts;
+    let stride = kept.len().div_ceil(START_POSES).max(1);
+    let subset: Vec<Measurement> = kept.iter().step_by(stride).map(|&i| measurements[i].clone()).collect();
+    // A start whose predictions come within a hundredth of the noise of the first fit's has
+    // entered its basin: it agrees, and is not iterated to the end.
+    let agree_opts = Options {
+        agree_with: (setup.starts > 1)
+            .then(|| -> Option<Agreement> {
+                let positions = subset
+                    .iter()
+                    .map(|m| fit.model.forward(&m.q).ok().map(|t| t.translation.vector))
+                    .collect::<Option<Vec<_>>>()?;
+                Some(Agreement {
+                    positions,
+                    tolerance_mm: START_AGREEMENT * id_opts.noise.position,
+                    identifiability: (stride == 1).then(|| fit.identifiability.clone()),
+                })
+            })
+            .flatten(),
+        ..id_opts.clone()
+    };
+    let mut others = Vec::new();
+    for k in 1..setup.starts.max(1) as usize {
+        let pert = perturbation(setup.start, setup.free, setup.tolerances, setup.seed.wrapping_add(k as u64));
+        let mut perturbed = setup.start.box_clone();
+        perturbed.retract(&pert);
+        // A start that fails outright (a pose out of reach) is a start that did not agree.
+        let outcome = identify(&perturbed, &subset, &agree_opts).ok().map(|r| {
+            let delta = pert + &r.delta;
+            Identification { delta, ..r }
+        });
+        others.push(outcome);
+    }
+    // On a subset, the fit on every pose is compared with the other starts on the same poses:
+    // polished there first (one or two iterations from its solution).
+    let (first, full_fit) = if stride > 1 {
+        let on_subset = identify(&fit.model, &subset, id_opts).ok().map(|r| {
+            let delta = fit.delta.clone() + &r.delta;
+            Identification { delta, ..r }
+        });
+        (on_subset, Some(fit))
+    } else {
+        (Some(fit), None)
+    };
+    let mut all: Vec<Option<Identification<Box<dyn Mechanism>>>> = vec![first];
+    all.extend(others);
+    // The registered start is kept unless another reaches a clearly lower residual: equal fits
+    // from perturbed starts differ only in how redundant directions were split.
+    let sigma = |k: usize| {
+        all[k]
+            .as_ref()
+            .filter(|r| r.converged && r.sigma0.is_finite())
+            .map_or(f64::INFINITY, |r| r.sigma0)
+    };
+    let mut best = 0;
+    for k in 1..all.len() {
+        if sigma(k) < sigma(best) * (1.0 - 1e-6) || (sigma(best).is_infinite() && sigma(k).is_finite()) {
+            best = k;
+        }
+    }
+    let reference = all[best].as_ref().map(|r| r.model.box_clone());
+    let outcomes: Vec<StartOutcome> = std::iter::once(best)
+        .chain((0..all.len()).filter(|&k| k != best))
+        .map(|k| match (&all[k], &reference) {
+            (Some(r), Some(reference)) => StartOutcome {
+                sigma0: r.sigma0,
+                converged: r.converged,
+                max_difference_mm: if k == best {
+                    0.0
+                } else {
+                    max_prediction_difference(&*r.model, &**reference, &subset)
+                },
+            },
+            (Some(r), None) => StartOutcome {
+                sigma0: r.sigma0,
+                converged: r.converged,
+                max_difference_mm: 0.0,
+            },
+            (None, _) => StartOutcome {
+                sigma0: f64::NAN,
+                converged: false,
+                max_difference_mm: if k == best { 0.0 } else { f64::INFINITY },
+            },
+        })
+        .collect();
+    let chosen = all[best].take();
+    let identification = match (full_fit, best) {
+        (Some(full), 0) => full,
+        // Another start won on the subset: its solution, refitted on every kept pose.
+        (Some(full), _) => match chosen {
+            Some(c) => {
+                let kept_data: Vec<Measurement> = kept.iter().map(|&i| measurements[i].clone()).collect();
+                let r = identify(&c.model, &kept_data, id_opts).map_err(|e| data.locate(e))?;
+                let delta = c.delta + &r.delta;
+                Identification { delta, ..r }
+            }
+            None => full,
+        },
+        (None, _) => chosen.expect("the best start has a result"),
+    };
+    Ok(Starts { identification, outcomes })
+}
