@@ -60,7 +60,6 @@ pub mod simulate;
 #[cfg(feature = "studies")]
 pub mod studies;
 pub mod validate;
-pub mod workflow;
 
 /// The IRB 120 dataset pipeline ([`studies::irb120`]), under its earlier name.
 #[cfg(feature = "studies")]

@@ -2,12 +2,12 @@
 //! calibrated model.
 use super::progress;
 use clap::Args;
+use kinecal::compensate::{compensate, target_poses};
 use kinecal::io::data_file::{csv_text, input_headers, input_values_for_file, read_data, InputColumns};
 use kinecal::io::model_file::ModelFile;
 use kinecal::io::output::Outputs;
 use kinecal::model::Task;
 use kinecal::se3;
-use kinecal::workflow::{compensate, target_poses};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `kinecal compensate`.
@@ -61,7 +61,7 @@ pub fn run(a: CompensateArgs) -> anyhow::Result<()> {
             data.lines[i]
         )
     })?;
-    let locate = |e: kinecal::workflow::CompensationError, what: &str| {
+    let locate = |e: kinecal::compensate::CompensationError, what: &str| {
         anyhow::anyhow!(
             "{}:{}: target {}: {what}{}",
             a.targets.display(),

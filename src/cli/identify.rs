@@ -8,7 +8,7 @@ use kinecal::io::model_file::{ModelFile, Provenance};
 use kinecal::io::output::Outputs;
 use kinecal::measure::Noise;
 use kinecal::report::{ParamStatus, Status};
-use kinecal::workflow::default_noise;
+use kinecal::simulate::default_noise;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 

@@ -5,7 +5,7 @@ use kinecal::io::tracker;
 use kinecal::measure::{self, Noise};
 use kinecal::model::irb120;
 use kinecal::tracker_calibration::{self, CalibrateOptions, Scheme, SchemeResult, ToolMeasurement};
-use kinecal::workflow::ErrorStats;
+use kinecal::validate::ErrorStats;
 use kinecal::Mechanism;
 use serde::Serialize;
 use std::path::PathBuf;

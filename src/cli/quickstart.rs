@@ -4,9 +4,10 @@
 //! measure a virtual prototype there, identify, validate, compensate — then it checks the
 //! compensated commands on the virtual prototype itself.
 use clap::Args;
+use kinecal::compensate::target_poses;
 use kinecal::io::data_file::{read_data, read_inputs, InputColumns};
 use kinecal::io::model_file::ModelFile;
-use kinecal::workflow::{commanded_error, target_poses};
+use kinecal::validate::commanded_error;
 use std::path::{Path, PathBuf};
 
 /// Arguments of `kinecal quickstart`.

@@ -3,7 +3,7 @@ use clap::Args;
 use kinecal::io::data_file::{read_data, InputColumns};
 use kinecal::io::model_file::ModelFile;
 use kinecal::model::Task;
-use kinecal::workflow::{outliers, pose_errors, ErrorStats};
+use kinecal::validate::{outliers, pose_errors, ErrorStats};
 use std::path::PathBuf;
 
 /// Arguments of `kinecal validate`.

@@ -33,7 +33,7 @@ use crate::measure::{self, register_points, Measurement, Noise, Observation};
 use crate::model::chain::SerialChain;
 use crate::model::Mechanism;
 use crate::se3::{self, Pose};
-use crate::validate::{self as workflow, ErrorStats};
+use crate::validate::{self, ErrorStats};
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 use serde::Serialize;
 use std::time::Instant;
@@ -59,9 +59,9 @@ pub enum Scheme {
     Full,
 }
 
-/// Statistics of the errors of `model` on `data` (see [`workflow::ErrorStats`]).
+/// Statistics of the errors of `model` on `data` (see [`validate::ErrorStats`]).
 pub fn error_stats<M: Mechanism + ?Sized>(model: &M, data: &[Measurement]) -> Result<ErrorStats, CalibError> {
-    Ok(ErrorStats::of(&workflow::pose_errors(model, data)?))
+    Ok(ErrorStats::of(&validate::pose_errors(model, data)?))
 }
 
 /// Result of [`register`]: the first guess of the base and tool frames.

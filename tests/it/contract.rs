@@ -63,7 +63,7 @@ fn sampled(m: &dyn Mechanism, n: usize, seed: u64) -> Vec<Vec<f64>> {
         return q.unwrap();
     }
     let inputs: Vec<_> = builtin_file(m.name()).inputs();
-    kinecal::workflow::random_configurations(m, &inputs, n, &mut ChaCha8Rng::seed_from_u64(seed)).unwrap()
+    kinecal::simulate::random_configurations(m, &inputs, n, &mut ChaCha8Rng::seed_from_u64(seed)).unwrap()
 }
 
 /// Chain B1 of the 3T1R machine at configurations of the whole machine (its inverse kinematics
@@ -88,7 +88,7 @@ fn irb120_with_terms() -> ModelFile {
 
 /// Configurations within a model file's input limits, approach directions from their order.
 fn file_configurations(file: fn() -> ModelFile) -> impl Fn(&dyn Mechanism, usize, u64) -> Vec<Vec<f64>> {
-    move |m, n, seed| kinecal::workflow::random_configurations(m, &file().inputs(), n, &mut ChaCha8Rng::seed_from_u64(seed)).unwrap()
+    move |m, n, seed| kinecal::simulate::random_configurations(m, &file().inputs(), n, &mut ChaCha8Rng::seed_from_u64(seed)).unwrap()
 }
 
 fn terms_configurations(m: &dyn Mechanism, n: usize, seed: u64) -> Vec<Vec<f64>> {
@@ -251,7 +251,7 @@ fn measure(model: &dyn Mechanism, qs: &[Vec<f64>]) -> Vec<Measurement> {
 }
 
 fn largest_position_error(model: &dyn Mechanism, data: &[Measurement]) -> f64 {
-    let e = kinecal::workflow::pose_errors(model, data).unwrap();
+    let e = kinecal::validate::pose_errors(model, data).unwrap();
     e.position.iter().copied().fold(0.0, f64::max)
 }
 

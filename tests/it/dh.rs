@@ -7,7 +7,7 @@ use kinecal::io::model_file::{MechanismSpec, ModelFile};
 use kinecal::measure::{Measurement, Noise, Observation};
 use kinecal::model::dh::{DhConvention, DhError, DhOptions};
 use kinecal::se3::{self, Pose};
-use kinecal::workflow::random_inputs;
+use kinecal::simulate::random_inputs;
 use kinecal::Mechanism;
 use nalgebra::{DVector, Matrix4};
 use rand::SeedableRng;

@@ -5,7 +5,7 @@ use kinecal::io::builtin;
 use kinecal::io::model_file::ModelFile;
 use kinecal::io::urdf::{self, UrdfError};
 use kinecal::se3::{self, Pose};
-use kinecal::workflow::random_inputs;
+use kinecal::simulate::random_inputs;
 use kinecal::Mechanism;
 use nalgebra::{UnitQuaternion, Vector3};
 use rand::SeedableRng;
@@ -433,7 +433,8 @@ fn calibrated_irb120_through_urdf_and_back() {
     use kinecal::measure::{Measurement, Noise, Observation};
     use kinecal::model::dh::{DhConvention, DhOptions};
     use kinecal::model::framed::Framed;
-    use kinecal::workflow::{pose_errors, virtual_prototype, ErrorStats};
+    use kinecal::simulate::virtual_prototype;
+    use kinecal::validate::{pose_errors, ErrorStats};
     use rand_distr::{Distribution, Normal};
 
     let file = builtin::model_file("irb120").unwrap();
