@@ -25,6 +25,8 @@ use crate::params::{Param, Unit};
 use crate::se3::{self, Pose, Twist};
 use nalgebra::{DVector, Matrix6xX};
 
+mod commanded;
+
 /// Number of frame parameters [`Framed`] adds in front of the mechanism's own.
 pub const FRAME_PARAMS: usize = 12;
 
@@ -41,9 +43,6 @@ pub struct Framed<M> {
     /// `Y`: the measured tool frame in the mechanism's tool (flange / platform) frame.
     pub tool: Pose,
 }
-
-/// Fixed-point iterations of [`Framed`]'s inverse kinematics for a position-only task.
-const MAX_TOOL_POINT_ITERATIONS: usize = 30;
 
 impl<M: Mechanism> Framed<M> {
     /// `inner` seen through the frames `measurement` (`X`) and `tool` (`Y`).
@@ -114,59 +113,15 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Framed<M> {
         let rest = delta.rows(FRAME_PARAMS, delta.len() - FRAME_PARAMS).into_owned();
         self.inner.retract(&rest);
     }
+    /// The whole pose commanded: the inner mechanism at `X⁻¹·T·Y⁻¹`. Part of it commanded:
+    /// Newton on that part of `X·M(q)·Y` ([`commanded::inverse`]), the rest following from the
+    /// constraints through the tool offset.
     fn inverse(&self, target: &Pose, seed: Option<&[f64]>) -> Result<Vec<f64>, KinError> {
-        let inner_target = self.measurement.inverse() * target * self.tool.inverse();
-        let task = self.inner.task();
-        if !matches!(task, Task::Position | Task::HeightAndAxis | Task::PositionAndYaw) {
+        if self.inner.task() == Task::Full {
+            let inner_target = self.measurement.inverse() * target * self.tool.inverse();
             return self.inner.inverse(&inner_target, seed);
         }
-        // A machine that commands the tool point's position (or height) but not its whole
-        // orientation: the tool point, offset from the platform, moves with the orientation the
-        // constraints give. Fixed point on that orientation.
-        let goal = self.measurement.inverse_transform_point(&target.translation.vector.into());
-        let y = nalgebra::Point3::from(self.tool.translation.vector);
-        // The tool axis in the platform frame, and where it must point (base frame).
-        let a = self.tool.rotation * nalgebra::Vector3::z();
-        let b = self.measurement.rotation.inverse() * (target.rotation * nalgebra::Vector3::z());
-        let mut rot = inner_target.rotation;
-        // The commanded platform axis, moved by the tool axis' miss each round.
-        let mut axis = inner_target.rotation * nalgebra::Vector3::z();
-        let mut miss = f64::INFINITY;
-        // The tool's yaw in the base frame (a 3T1R machine): the platform's yaw, corrected each
-        // round by what the tilt the constraints give adds through the tool's rotation.
-        let target_in_base = self.measurement.inverse() * target;
-        let mut yaw_fix = 0.0;
-        for _ in 0..MAX_TOOL_POINT_ITERATIONS {
-            let want = match task {
-                Task::HeightAndAxis => nalgebra::UnitQuaternion::rotation_between(&nalgebra::Vector3::z(), &axis).unwrap_or(rot),
-                Task::PositionAndYaw => {
-                    nalgebra::UnitQuaternion::from_axis_angle(&nalgebra::Vector3::z_axis(), yaw_fix) * inner_target.rotation
-                }
-                _ => inner_target.rotation,
-            };
-            let platform = Pose::from_parts((goal.coords - rot * y.coords).into(), want);
-            let q = self.inner.inverse(&platform, seed)?;
-            let reached = self.inner.forward(&q)?;
-            let d = reached * y - goal;
-            let axis_miss = b - reached.rotation * a;
-            let yaw_miss = se3::yaw_difference(&target_in_base, &(reached * self.tool));
-            miss = match task {
-                Task::Position => d.norm(),
-                Task::PositionAndYaw => d.norm() + yaw_miss.abs() * 1e3,
-                _ => d.z.abs() + axis_miss.norm() * 1e3,
-            };
-            if miss < 1e-10 {
-                return Ok(q);
-            }
-            rot = reached.rotation;
-            axis = (axis + axis_miss).normalize();
-            yaw_fix -= yaw_miss;
-        }
-        Err(KinError::NoConvergence {
-            what: "inverse kinematics of the tool point".into(),
-            iterations: MAX_TOOL_POINT_ITERATIONS,
-            residual: miss,
-        })
+        commanded::inverse(&self.inner, &self.tool, &(self.measurement.inverse() * target), seed)
     }
     fn box_clone(&self) -> Box<dyn Mechanism> {
         Box::new(self.clone())

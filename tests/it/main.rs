@@ -3,6 +3,7 @@ mod architecture;
 mod chain;
 mod cli;
 mod closed;
+mod compensate;
 mod contract;
 mod design;
 mod dh;
