@@ -356,3 +356,36 @@ fn gross_blunders_are_down_weighted_and_listed() {
     assert!(listed.len() <= moved.len() + 3, "too many poses listed: {listed:?}");
     assert!(listed_clean.len() <= 2, "clean data: {listed_clean:?}");
 }
+
+/// Models whose noise-free fit with estimated frames and a tool offset stops short of round-off
+/// (held-out max measured with the data of [`run`]): their nominal geometry is a special point
+/// where some directions (the tool offset of a platform that only translates, joint axes exactly
+/// parallel) act at second order only; the start's rank analysis names them redundant and the
+/// fit never moves along them (docs/parallel-machines.md). The bounds guard against a
+/// regression; the aim is 1e-9 mm (`linear_delta_with_a_tool_offset_in_any_frame`).
+const FRAMED_FLOORS: [(&str, f64); 2] = [("linear-delta", 5e-2), ("t3r1", 1e-4)];
+
+/// Every built-in model (`kinecal model list`, the shipped example files among them): noise-free
+/// pose data with the tracker 2 m away and turned, the tool 150 mm out, frames estimated.
+#[test]
+fn every_shipped_model_in_a_tracker_frame() {
+    for (name, _) in builtin::list() {
+        let e = run(name, Kind::Pose, None, 60).position_max_mm;
+        eprintln!("{name}: noise-free, tracker 2 m / 120°, tool 150 mm, frames estimated: held-out max {e:.2e} mm");
+        let bound = FRAMED_FLOORS.iter().find(|(n, _)| *n == name).map_or(1e-9, |(_, b)| *b);
+        assert!(e < bound, "{name}: held-out {e:e} mm");
+    }
+}
+
+/// Issue 28, point 5: the linear delta with its frames estimated and the tool 150 mm out should be
+/// fitted to round-off like every other machine; it stops at 2.3e-2 mm (see [`FRAMED_FLOORS`]).
+#[test]
+#[ignore = "open: held-out 2.3e-2 mm, not 1e-9 (docs/parallel-machines.md, frames estimated around a translating platform)"]
+fn linear_delta_with_a_tool_offset_in_any_frame() {
+    let s = run("linear-delta", Kind::Pose, None, 60);
+    eprintln!(
+        "linear delta, noise-free, tracker 2 m / 120°, tool 150 mm: held-out max {:.2e} mm",
+        s.position_max_mm
+    );
+    assert!(s.position_max_mm < 1e-9, "held-out {:e} mm", s.position_max_mm);
+}
