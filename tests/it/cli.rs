@@ -52,3 +52,32 @@ pub fn kinecal_within(dir: &Path, args: &[&str], seconds: u64) -> std::process::
     assert!(out.status.code().is_some(), "kinecal {args:?} did not answer within {seconds} s");
     out
 }
+
+/// `kinecal simulate MODEL` in `dir`: `poses` identification poses to `d.csv` (truth `t.toml`)
+/// and `validation` held-out poses to `v.csv`, seed `seed`, noise `noise` mm and degrees, then
+/// any `extra` arguments (errors, `--force`).
+pub fn simulate(dir: &Path, model: &str, poses: usize, validation: usize, seed: u64, noise: f64, extra: &[&str]) -> String {
+    let (poses, validation, seed, noise) = (poses.to_string(), validation.to_string(), seed.to_string(), noise.to_string());
+    let mut args = vec![
+        "simulate",
+        model,
+        "--poses",
+        &poses,
+        "--seed",
+        &seed,
+        "--noise-mm",
+        &noise,
+        "--noise-deg",
+        &noise,
+        "--out",
+        "d.csv",
+        "--truth",
+        "t.toml",
+        "--validation-poses",
+        &validation,
+        "--validation-out",
+        "v.csv",
+    ];
+    args.extend_from_slice(extra);
+    ok(dir, &args)
+}

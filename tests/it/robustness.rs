@@ -538,27 +538,7 @@ fn a_real_arm_s_unmodelled_residual_is_usable_with_warnings_not_failed() {
         &text[at..]
     );
     std::fs::write(d.join("terms.toml"), terms).unwrap();
-    let args = [
-        "simulate",
-        "terms.toml",
-        "--poses",
-        "150",
-        "--seed",
-        "6",
-        "--noise-mm",
-        "0.02",
-        "--noise-deg",
-        "0.02",
-        "--out",
-        "d.csv",
-        "--truth",
-        "t.toml",
-        "--validation-poses",
-        "50",
-        "--validation-out",
-        "v.csv",
-    ];
-    crate::cli::ok(d, &args);
+    crate::cli::simulate(d, "terms.toml", 150, 50, 6, 0.02, &[]);
     without_directions(d, "d.csv", "dg.csv");
     without_directions(d, "v.csv", "vg.csv");
     let out = crate::cli::ok(d, &["identify", "m.toml", "dg.csv", "--validation", "vg.csv", "--out", "c.toml"]);
@@ -585,33 +565,16 @@ fn a_machine_at_its_tolerances_is_not_failed_for_a_split_of_the_parameters() {
          [frames.tool]\nposition = [20.0, -30.0, 50.0]\nrpy = [10.0, 20.0, -30.0]\n",
     );
     std::fs::write(d.join("tracker.toml"), text).unwrap();
-    for (seed, noise) in [("2", "0.02"), ("1", "0")] {
-        let args = [
-            "simulate",
+    for (seed, noise) in [(2, 0.02), (1, 0.0)] {
+        crate::cli::simulate(
+            d,
             "tracker.toml",
-            "--poses",
-            "50",
-            "--seed",
+            50,
+            20,
             seed,
-            "--error-mm",
-            "5",
-            "--error-deg",
-            "0.5",
-            "--noise-mm",
             noise,
-            "--noise-deg",
-            noise,
-            "--out",
-            "d.csv",
-            "--truth",
-            "t.toml",
-            "--validation-poses",
-            "20",
-            "--validation-out",
-            "v.csv",
-            "--force",
-        ];
-        crate::cli::ok(d, &args);
+            &["--error-mm", "5", "--error-deg", "0.5", "--force"],
+        );
         let out = crate::cli::ok(
             d,
             &["identify", "s.toml", "d.csv", "--validation", "v.csv", "--out", "c.toml", "--force"],
