@@ -43,6 +43,7 @@
 //! ```
 #![warn(missing_docs)]
 
+pub mod assess;
 pub mod calibrate;
 pub mod compensate;
 pub mod design;

@@ -43,6 +43,9 @@ enum Command {
     Validate(cli::validate::ValidateArgs),
     /// Target poses → actuator commands through the calibrated model's inverse kinematics.
     Compensate(cli::compensate::CompensateArgs),
+    /// ISO 9283 pose accuracy and repeatability (and distance accuracy) of measured test runs at
+    /// commanded test poses, before and after calibration side by side.
+    Assess(cli::assess::AssessArgs),
     /// Data files: check one against a model, join an inputs file and a measurement file.
     Data(cli::data::DataArgs),
     /// Reproduce a seed paper's simulation study (`study pm5`, `study pm5-design`: the 5-DOF paper; `study t3r1`: the 3T1R paper) and print
@@ -66,6 +69,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Identify(a) => cli::identify::run(a),
         Command::Validate(a) => cli::validate::run(a),
         Command::Compensate(a) => cli::compensate::run(a),
+        Command::Assess(a) => cli::assess::run(a),
         Command::Plan(a) => cli::plan::run(*a),
     }
 }

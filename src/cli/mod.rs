@@ -1,4 +1,5 @@
 //! One module per subcommand: each parses its arguments, calls the library and prints.
+pub mod assess;
 pub mod compensate;
 pub mod data;
 pub mod identifiability;

@@ -7,6 +7,7 @@ pub mod model_file;
 pub mod output;
 pub mod split;
 pub mod table;
+pub mod test_poses;
 pub mod tracker;
 pub mod urdf;
 

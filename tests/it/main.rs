@@ -1,5 +1,6 @@
 //! kinecal integration tests (one binary, one module per concern).
 mod architecture;
+mod assess;
 mod chain;
 mod cli;
 mod closed;

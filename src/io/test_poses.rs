@@ -1,0 +1,86 @@
+//! ISO 9283 test files ([`crate::assess`]): the commanded test poses and the attained poses.
+//!
+//! Commanded: `pose,x_mm,y_mm,z_mm` and optionally `roll_deg,pitch_deg,yaw_deg` (the rotations
+//! `a, b, c` about x, y, z), one row per test pose. Attained: `pose,cycle,x_mm,y_mm,z_mm` and
+//! optionally the same three angles, one row per pose reached; both in the same frame (the
+//! robot's base, as a registered tracker gives them).
+use super::table::{read_table, Table};
+use super::IoError;
+use crate::assess::{Attained, TestPose};
+use nalgebra::Vector3;
+use std::path::Path;
+
+const ANGLES: [&str; 3] = ["roll_deg", "pitch_deg", "yaw_deg"];
+
+/// The angle columns of a table: all three, or none.
+fn angle_columns(t: &Table) -> Result<Option<[usize; 3]>, IoError> {
+    let found: Vec<Option<usize>> = ANGLES.iter().map(|n| t.columns.iter().position(|c| c == n)).collect();
+    match found.iter().filter(|f| f.is_some()).count() {
+        0 => Ok(None),
+        3 => Ok(Some([found[0].unwrap_or(0), found[1].unwrap_or(0), found[2].unwrap_or(0)])),
+        _ => Err(IoError::Invalid {
+            path: t.path.clone(),
+            message: "the orientation needs all three columns roll_deg, pitch_deg, yaw_deg, or none of them".into(),
+        }),
+    }
+}
+
+/// An integer id column's value at a row, or an error naming the line.
+fn id(t: &Table, row: usize, col: usize, name: &str) -> Result<i64, IoError> {
+    let v = t.rows[row][col];
+    if v.fract() != 0.0 || v.abs() > 1e15 {
+        return Err(IoError::AtLine {
+            path: t.path.clone(),
+            line: t.lines[row],
+            message: format!("column '{name}': {v} is not a whole number"),
+        });
+    }
+    Ok(v as i64)
+}
+
+/// Position and angles of a row.
+fn pose_of(t: &Table, row: usize, xyz: [usize; 3], angles: Option<[usize; 3]>) -> (Vector3<f64>, Option<[f64; 3]>) {
+    let r = &t.rows[row];
+    (
+        Vector3::new(r[xyz[0]], r[xyz[1]], r[xyz[2]]),
+        angles.map(|a| [r[a[0]], r[a[1]], r[a[2]]]),
+    )
+}
+
+/// Read the commanded test poses.
+pub fn read_commanded(path: &Path) -> Result<Vec<TestPose>, IoError> {
+    let t = read_table(path)?;
+    let pose = t.column("pose")?;
+    let xyz = [t.column("x_mm")?, t.column("y_mm")?, t.column("z_mm")?];
+    let angles = angle_columns(&t)?;
+    (0..t.len())
+        .map(|r| {
+            let (position, angles) = pose_of(&t, r, xyz, angles);
+            Ok(TestPose {
+                pose: id(&t, r, pose, "pose")?,
+                position,
+                angles,
+            })
+        })
+        .collect()
+}
+
+/// Read the attained poses.
+pub fn read_attained(path: &Path) -> Result<Vec<Attained>, IoError> {
+    let t = read_table(path)?;
+    let (pose, cycle) = (t.column("pose")?, t.column("cycle")?);
+    let xyz = [t.column("x_mm")?, t.column("y_mm")?, t.column("z_mm")?];
+    let angles = angle_columns(&t)?;
+    (0..t.len())
+        .map(|r| {
+            let (position, angles) = pose_of(&t, r, xyz, angles);
+            Ok(Attained {
+                pose: id(&t, r, pose, "pose")?,
+                cycle: id(&t, r, cycle, "cycle")?,
+                position,
+                angles,
+                line: t.lines[r],
+            })
+        })
+        .collect()
+}

@@ -1,0 +1,58 @@
+//! `kinecal assess`: ISO 9283 figures from test files, and their mistakes as one clear line.
+use crate::cli::{fails, json, ok};
+
+/// The hand-worked example of `assess`'s unit tests through the command: P1 commanded at the
+/// origin, attained at (1, 0, 0), (1, 2, 0), (1, 0, 2): AP_P = √17 / 3, RP_l = 2.25707 mm.
+#[test]
+fn assess_prints_the_standard_figures_of_a_hand_worked_example() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    std::fs::write(d.join("c.csv"), "pose,x_mm,y_mm,z_mm\n1,0,0,0\n2,10,0,0\n").unwrap();
+    std::fs::write(
+        d.join("a.csv"),
+        "pose,cycle,x_mm,y_mm,z_mm\n1,1,1,0,0\n1,2,1,2,0\n1,3,1,0,2\n2,1,10.1,0,0\n2,2,9.9,0,0\n2,3,10,0,0\n",
+    )
+    .unwrap();
+    let v = json(d, &["assess", "--commanded", "c.csv", "a.csv", "--distance", "1:2"]);
+    let p1 = &v[0]["iso9283"]["poses"][0];
+    assert!((p1["ap_p"].as_f64().unwrap() - 17f64.sqrt() / 3.0).abs() < 1e-12, "{p1}");
+    assert!((p1["rp_l"].as_f64().unwrap() - 2.25707).abs() < 1e-5, "{p1}");
+    assert_eq!(v[0]["iso9283"]["distances"][0]["cycles"], 3);
+    let text = ok(d, &["assess", "--commanded", "c.csv", "a.csv", "a.csv"]);
+    assert!(text.contains("P1: AP_P 1.3744 → 1.3744, RP_l 2.2571 → 2.2571"), "{text}");
+}
+
+#[test]
+fn assess_names_each_mistake_on_one_line() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    std::fs::write(d.join("c.csv"), "pose,x_mm,y_mm,z_mm\n1,0,0,0\n2,10,0,0\n").unwrap();
+    let write = |name: &str, text: &str| std::fs::write(d.join(name), text).unwrap();
+    write("one.csv", "pose,cycle,x_mm,y_mm,z_mm\n1,1,0,0,0\n1,2,0,0,0\n2,1,10,0,0\n");
+    write("unknown.csv", "pose,cycle,x_mm,y_mm,z_mm\n1,1,0,0,0\n1,2,0,0,0\n3,1,10,0,0\n");
+    write("nocycle.csv", "pose,x_mm,y_mm,z_mm\n1,0,0,0\n");
+    write("half.csv", "pose,cycle,x_mm,y_mm,z_mm,roll_deg\n1,1,0,0,0,0\n");
+    write("frac.csv", "pose,cycle,x_mm,y_mm,z_mm\n1.5,1,0,0,0\n");
+    let cases: [(&[&str], &str); 6] = [
+        (&["assess", "--commanded", "c.csv", "one.csv"], "test pose 2 has 1 attained pose(s)"),
+        (
+            &["assess", "--commanded", "c.csv", "unknown.csv"],
+            "unknown.csv:4: test pose 3 is not among the commanded poses (1, 2)",
+        ),
+        (&["assess", "--commanded", "c.csv", "nocycle.csv"], "missing column 'cycle'"),
+        (
+            &["assess", "--commanded", "c.csv", "half.csv"],
+            "all three columns roll_deg, pitch_deg, yaw_deg",
+        ),
+        (
+            &["assess", "--commanded", "c.csv", "frac.csv"],
+            "frac.csv:2: column 'pose': 1.5 is not a whole number",
+        ),
+        (&["assess", "--commanded", "missing.csv", "one.csv"], "missing.csv"),
+    ];
+    for (args, expect) in cases {
+        let e = fails(d, args);
+        assert!(e.contains(expect), "{args:?}: {e}");
+        assert_eq!(e.trim_end().lines().count(), 1, "{args:?}: {e}");
+    }
+}
