@@ -120,7 +120,8 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         select,
         ..Default::default()
     };
-    opts.check().context("--noise-position-mm / --noise-orientation-deg")?;
+    opts.check()
+        .map_err(|e| anyhow::anyhow!("--noise-position-mm / --noise-orientation-deg: {e}"))?;
     let mut outputs = Outputs::new(args.force);
     if let Some(m) = &args.model {
         outputs.input(std::path::Path::new(m));
