@@ -51,6 +51,18 @@ pub enum ObservationKind {
     Position,
 }
 
+impl std::str::FromStr for ObservationKind {
+    type Err = String;
+    /// `pose` or `position`.
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "pose" => Ok(ObservationKind::Pose),
+            "position" => Ok(ObservationKind::Position),
+            o => Err(format!("must be pose or position, got '{o}'")),
+        }
+    }
+}
+
 /// Measure `truth` at each input vector, adding Gaussian noise (`None`: noise-free). The noise is
 /// applied as a position offset `N(0, σ_p²)` per axis and a rotation vector `N(0, σ_θ²)` per axis.
 pub fn measure<M: Mechanism + ?Sized, R: Rng>(

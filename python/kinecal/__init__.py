@@ -35,6 +35,8 @@ __all__ = [
     "compensate",
     "simulate",
     "plan",
+    "plan_sampled",
+    "SampledPlan",
     "__version__",
 ]
 
@@ -241,3 +243,39 @@ def plan(
         model, c, n, criterion=criterion, method=method, observe=observe, noise_mm=noise_mm, noise_deg=noise_deg
     )
     return list(chosen), json.loads(indices)
+
+
+class SampledPlan:
+    """The result of :func:`plan_sampled`: the chosen candidate numbers, the summary
+    (``kinecal plan --json``'s document plus the candidate generation report) and the plan CSV
+    exactly as ``kinecal plan`` writes it."""
+
+    def __init__(self, chosen: List[int], summary: str, csv: str) -> None:
+        self.chosen = list(chosen)
+        self.summary: Dict[str, Any] = json.loads(summary)
+        self.csv = csv
+
+    @property
+    def indices(self) -> Dict[str, float]:
+        """Observability indices of the chosen set (o1 … o5, o_t, log_det)."""
+        return self.summary["indices"]
+
+    @property
+    def generation(self) -> Dict[str, int]:
+        """Counts of the candidate generation (sampled, kept, unreachable, …)."""
+        return self.summary["generation"]
+
+    def save(self, path: str) -> None:
+        """Write the plan CSV (the data-file format ``simulate --at`` and ``compensate`` read)."""
+        with open(path, "w", encoding="utf-8", newline="") as f:
+            f.write(self.csv)
+
+
+def plan_sampled(model: Model, n: int = 30, **options: Any) -> SampledPlan:
+    """Sample candidates of ``model`` and choose ``n`` of them: ``kinecal plan`` in one call (the
+    same library function). Options as the command line's: ``x_mm``, ``y_mm``, ``z_mm``,
+    ``alpha_deg``, ``beta_deg``, ``gamma_deg`` (a value or a pair; omitted: the model's own box),
+    ``joint_range_deg`` (sample every input in ±range instead), ``grid`` (six counts or
+    ``"paper"``), ``candidates``, ``seed``, ``max_condition``, ``criterion``, ``method``,
+    ``observe``, ``noise_mm``, ``noise_deg``, ``pool``, ``shortlist``."""
+    return SampledPlan(*_kinecal.plan_sampled(model, n, **options))

@@ -1,5 +1,5 @@
 """Type stubs of the compiled core (see kinecal/__init__.py for the documented API)."""
-from typing import List, Optional, Tuple
+from typing import List, Optional, Tuple, Union
 
 import numpy as np
 
@@ -100,3 +100,26 @@ def plan(
     noise_mm: float = 0.02,
     noise_deg: float = 0.02,
 ) -> Tuple[List[int], str]: ...
+def plan_sampled(
+    model: Model,
+    n: int = 30,
+    *,
+    x_mm: Optional[Union[float, Tuple[float, float]]] = None,
+    y_mm: Optional[Union[float, Tuple[float, float]]] = None,
+    z_mm: Optional[Union[float, Tuple[float, float]]] = None,
+    alpha_deg: Optional[Union[float, Tuple[float, float]]] = None,
+    beta_deg: Optional[Union[float, Tuple[float, float]]] = None,
+    gamma_deg: Optional[Union[float, Tuple[float, float]]] = None,
+    joint_range_deg: Optional[float] = None,
+    grid: Optional[Union[str, List[int]]] = None,
+    candidates: int = 300000,
+    seed: int = 1,
+    max_condition: Optional[float] = None,
+    criterion: str = "o2",
+    method: str = "sffs",
+    observe: str = "pose",
+    noise_mm: float = 0.02,
+    noise_deg: float = 0.02,
+    pool: int = 10000,
+    shortlist: int = 32,
+) -> Tuple[List[int], str, str]: ...

@@ -662,6 +662,117 @@ fn plan<'py>(
     Ok((planned.selection.selected.clone(), json))
 }
 
+/// A range argument: a number (a fixed value) or a pair (min, max), times `unit`.
+fn py_range(value: Option<&Bound<'_, PyAny>>, what: &str, unit: f64) -> PyResult<Option<(f64, f64)>> {
+    let Some(v) = value else { return Ok(None) };
+    let (a, b) = match v.extract::<f64>() {
+        Ok(x) => (x, x),
+        Err(_) => v
+            .extract::<(f64, f64)>()
+            .map_err(|_| err(format!("{what}: expected a number or a pair (min, max)")))?,
+    };
+    if !(a.is_finite() && b.is_finite() && a <= b) {
+        return Err(err(format!("{what}: need finite min ≤ max, got ({a}, {b})")));
+    }
+    Ok(Some((a * unit, b * unit)))
+}
+
+/// Sample candidates of `model` and choose `n` of them (`kinecal plan`, the same library call
+/// `design::plan_sampled`): a box of poses (`x_mm` … `gamma_deg`, each a value or a pair; `None`
+/// takes the model's own box: a 5-DOF machine's platform workspace, a limbs machine's workspace),
+/// or with `joint_range_deg` every input in ±that range; Halton points (`candidates`, `seed`) or
+/// a `grid` (six counts, or "paper"). Returns (chosen candidate numbers, summary JSON as
+/// `kinecal plan --json` prints it plus the generation report, the plan CSV as `kinecal plan`
+/// writes it).
+#[pyfunction]
+#[pyo3(signature = (model, n = 30, *, x_mm = None, y_mm = None, z_mm = None, alpha_deg = None, beta_deg = None, gamma_deg = None, joint_range_deg = None, grid = None, candidates = 300_000, seed = 1, max_condition = None, criterion = "o2", method = "sffs", observe = "pose", noise_mm = 0.02, noise_deg = 0.02, pool = 10_000, shortlist = 32))]
+#[allow(clippy::too_many_arguments)]
+fn plan_sampled(
+    model: &Model,
+    n: usize,
+    x_mm: Option<&Bound<'_, PyAny>>,
+    y_mm: Option<&Bound<'_, PyAny>>,
+    z_mm: Option<&Bound<'_, PyAny>>,
+    alpha_deg: Option<&Bound<'_, PyAny>>,
+    beta_deg: Option<&Bound<'_, PyAny>>,
+    gamma_deg: Option<&Bound<'_, PyAny>>,
+    joint_range_deg: Option<f64>,
+    grid: Option<&Bound<'_, PyAny>>,
+    candidates: usize,
+    seed: u64,
+    max_condition: Option<f64>,
+    criterion: &str,
+    method: &str,
+    observe: &str,
+    noise_mm: f64,
+    noise_deg: f64,
+    pool: usize,
+    shortlist: usize,
+) -> PyResult<(Vec<usize>, String, String)> {
+    use kinecal::design::{self, CandidateSampling, PlanOptions, Points, PoseRanges, Region, SelectOptions};
+    let deg = 1f64.to_radians();
+    let region = match joint_range_deg {
+        Some(r) => {
+            let k = model.file.inputs().len();
+            Region::Inputs {
+                lower: vec![-r.to_radians(); k],
+                upper: vec![r.to_radians(); k],
+            }
+        }
+        None => Region::Poses(PoseRanges {
+            position: [
+                py_range(x_mm, "x_mm", 1.0)?,
+                py_range(y_mm, "y_mm", 1.0)?,
+                py_range(z_mm, "z_mm", 1.0)?,
+            ],
+            angles: [
+                py_range(alpha_deg, "alpha_deg", deg)?,
+                py_range(beta_deg, "beta_deg", deg)?,
+                py_range(gamma_deg, "gamma_deg", deg)?,
+            ],
+        }),
+    };
+    let points = match grid {
+        None => Points::Halton { n: candidates, seed },
+        Some(g) if g.extract::<String>().is_ok_and(|s| s == "paper") => Points::PaperGrid,
+        Some(g) => Points::Grid {
+            counts: g.extract::<Vec<usize>>().map_err(|_| err("grid: expected six counts or 'paper'"))?,
+        },
+    };
+    let sampling = CandidateSampling {
+        region,
+        points,
+        max_condition,
+    };
+    let opts = PlanOptions {
+        observe: observe.parse().map_err(|e| err(format!("observe: {e}")))?,
+        noise: Noise {
+            position: noise_mm,
+            orientation: noise_deg.to_radians(),
+            ..Noise::default()
+        },
+        method: method.parse().map_err(err)?,
+        select: SelectOptions {
+            n,
+            criterion: criterion.parse().map_err(err)?,
+            pool,
+            shortlist,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let planned = design::plan_sampled(&model.file, &sampling, &opts, None).map_err(err)?;
+    let mut summary = planned.summary();
+    summary["generation"] = serde_json::to_value(planned.candidates.report).map_err(err)?;
+    let mut csv = Vec::new();
+    planned.write_csv(&mut csv).map_err(err)?;
+    Ok((
+        planned.plan.selection.selected.clone(),
+        summary.to_string(),
+        String::from_utf8(csv).map_err(err)?,
+    ))
+}
+
 /// The compiled core of the `kinecal` package.
 #[pymodule]
 fn _kinecal(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -676,5 +787,6 @@ fn _kinecal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(compensate, m)?)?;
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
     m.add_function(wrap_pyfunction!(plan, m)?)?;
+    m.add_function(wrap_pyfunction!(plan_sampled, m)?)?;
     Ok(())
 }

@@ -205,3 +205,24 @@ def test_observed_joints_of_the_3t1r_machine():
     assert kinecal.calibrate(m, poses_only, frames="model").report["rank"] == 38
     with pytest.raises(ValueError, match="encoder_noise_deg"):
         kinecal.calibrate(m, data, encoder_noise_deg=0.0)
+
+
+def test_plan_sampled_writes_the_command_line_s_plan(tmp_path):
+    """Python's plan_sampled and `kinecal plan` are one library call: the same CSV, byte for byte."""
+    m = kinecal.Model.load("irb120")
+    box = dict(x_mm=(250, 450), y_mm=(-200, 200), z_mm=(300, 600), alpha_deg=(-20, 20), beta_deg=(-20, 20), gamma_deg=(-30, 30))
+    p = kinecal.plan_sampled(m, 20, candidates=3000, **box)
+    assert len(p.chosen) == 20 and p.generation["sampled"] == 3000
+    assert p.indices["o2"] > 0 and p.summary["mechanism"] == "irb120"
+    p.save(str(tmp_path / "py.csv"))
+    bin_ = kinecal_binary()
+    if bin_:
+        args = [bin_, "plan", "--model", "irb120", "-n", "20", "--candidates", "3000", "-o", str(tmp_path / "cli.csv")]
+        for k, (a, b) in box.items():
+            args += [f"--{k.replace('_', '-')}", f"{a},{b}"]
+        subprocess.run(args, check=True, capture_output=True)
+        assert (tmp_path / "cli.csv").read_bytes() == (tmp_path / "py.csv").read_bytes()
+    with pytest.raises(kinecal.KinecalError, match="range of x is required"):
+        kinecal.plan_sampled(m, 10, candidates=100)
+    with pytest.raises(kinecal.KinecalError, match="paper's grid"):
+        kinecal.plan_sampled(m, 10, grid="paper", **box)

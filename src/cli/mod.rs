@@ -9,6 +9,7 @@ pub mod model;
 pub mod plan;
 pub mod progress;
 pub mod quickstart;
+pub mod sampling;
 pub mod simulate;
 pub mod study;
 pub mod study_t3r1;

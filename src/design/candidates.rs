@@ -252,6 +252,17 @@ pub struct GenerationReport {
     pub kept: usize,
 }
 
+impl std::fmt::Display for GenerationReport {
+    /// "K candidates kept of N sampled (… unreachable, … outside strokes/limits, … near-singular, … rejected)".
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} candidates kept of {} sampled ({} unreachable, {} outside strokes/limits, {} near-singular, {} rejected)",
+            self.kept, self.sampled, self.unreachable, self.out_of_limits, self.near_singular, self.rejected
+        )
+    }
+}
+
 enum Outcome {
     Kept(Candidate),
     Unreachable,

@@ -62,6 +62,17 @@ impl std::str::FromStr for Criterion {
     }
 }
 
+impl std::fmt::Display for ObservabilityIndices {
+    /// "O1 … O2 … (O_T …)  O3 …  O4 …  O5 …  log det …", as `kinecal plan` prints them.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "O1 {:.4e}  O2 {:.4e} (O_T {:.3})  O3 {:.4e}  O4 {:.4e}  O5 {:.4e}  log det {:.3}",
+            self.o1, self.o2, self.o_t, self.o3, self.o4, self.o5, self.log_det
+        )
+    }
+}
+
 impl std::fmt::Display for Criterion {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let s = match self {

@@ -18,7 +18,10 @@
 //! All indices are computed on the **scaled** problem: rows divided by the measurement noise,
 //! columns by their root-mean-square over the candidate set ([`jacobians`]).
 //!
-//! [`plan()`] runs steps 2–4 in one call; [`write_plan_csv`] writes the chosen configurations.
+//! [`plan()`] runs steps 2–4 in one call; [`plan_sampled`] runs steps 1–4 for any mechanism a
+//! model file describes, from a description of where to sample ([`mod@sampling`]: what
+//! `kinecal plan` and Python's `plan_sampled` call); [`write_plan_csv`] writes the chosen
+//! configurations.
 pub mod candidates;
 pub mod closed;
 pub mod indices;
@@ -26,6 +29,7 @@ pub mod information;
 pub mod jacobians;
 pub mod lazy;
 pub mod plan;
+pub mod sampling;
 pub mod select;
 
 pub use candidates::{candidates_in_input_box, candidates_in_workspace, Candidate, CandidateFilter, GenerationReport, Sampling, Workspace};
@@ -34,6 +38,10 @@ pub use indices::{Criterion, ObservabilityIndices};
 pub use information::InformationState;
 pub use jacobians::{identifiable_columns, CandidateJacobians};
 pub use plan::{forward_agrees, plan, Plan, PlanOptions};
+pub use sampling::{
+    plan_sampled, sample_candidates, CandidateSampling, Candidates, PlanEvent, PlanProgress, Points, PoseRanges, Region, SampledPlan,
+    SampledSpace,
+};
 pub use select::{candidate_pool, exchange, greedy, select, sffs, ExchangeStart, SelectOptions, Selection, SelectionMethod, Step};
 
 use std::io::Write;

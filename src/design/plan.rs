@@ -46,6 +46,21 @@ impl Default for PlanOptions {
     }
 }
 
+impl PlanOptions {
+    /// An error unless the noise is finite and positive (it weights the rows).
+    pub fn check(&self) -> Result<(), CalibError> {
+        let ok = |v: f64| v > 0.0 && v.is_finite();
+        if ok(self.noise.position) && ok(self.noise.orientation) {
+            Ok(())
+        } else {
+            Err(CalibError::InvalidOption(format!(
+                "the measurement noise must be finite and > 0, got {} mm and {} rad",
+                self.noise.position, self.noise.orientation
+            )))
+        }
+    }
+}
+
 /// A chosen set and how it was reached.
 #[derive(Debug, Clone)]
 pub struct Plan {
@@ -101,6 +116,7 @@ pub fn plan<M: Mechanism + ?Sized>(
     jacobians: Option<ProgressFn>,
     step: StepFn,
 ) -> Result<Plan, CalibError> {
+    opts.check()?;
     if candidates.len() < opts.select.n {
         return Err(CalibError::InvalidOption(format!(
             "only {} candidates survived the filters, fewer than the {} configurations asked for",

@@ -104,6 +104,12 @@ fn chain_inputs(c: &SerialChain) -> Vec<InputSpec> {
         .collect()
 }
 
+impl From<SerialChain> for MechanismSpec {
+    fn from(chain: SerialChain) -> Self {
+        MechanismSpec::Serial(chain)
+    }
+}
+
 impl MechanismSpec {
     /// The kind's name as written in files.
     pub fn kind(&self) -> &'static str {

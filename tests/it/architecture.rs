@@ -1,7 +1,8 @@
 //! The shape of the crate, checked on its sources: the `use` edges between modules of `src/`
 //! (`crate::…` paths, `super::…`, and relative `use child::…`; a parent's use of its own child
 //! module is containment, not an edge) form no cycle; no core file (outside `src/cli/` and
-//! `src/studies/`) is longer than 700 lines; the core never imports the studies or the CLI.
+//! `src/studies/`) is longer than 700 lines; the core never imports the studies or the CLI; the
+//! general commands of `src/cli/` name no mechanism kind.
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
@@ -135,4 +136,59 @@ fn modules_form_no_cycle_and_core_files_stay_short() {
         }
     }
     assert!(edges.len() > 30, "only {} modules found", edges.len());
+}
+
+/// The general commands (`src/cli/`) reach every mechanism through the library: their code names
+/// no mechanism kind — no type of a kind (the presets `Pm5`, `Stewart`, the closed-loop and limbs
+/// types, `SerialChain`, the `MechanismSpec` variants) and no comparison with a kind's name as
+/// written in a model file (`== "pm5"`, a match arm `"limbs" =>`). A built-in model's name given
+/// as an argument (e.g. `quickstart` exporting `pm5`) is data, not a decision on the kind. The
+/// paper-study commands (`study.rs`, `study_t3r1.rs`, `irb120.rs`) reproduce studies of named
+/// machines and are exempt. Comments are not code.
+#[test]
+fn the_general_commands_name_no_mechanism_kind() {
+    const TYPES: [&str; 12] = [
+        "Pm5",
+        "Stewart",
+        "ClosedLoop",
+        "ConstraintSystem",
+        "LimbMechanism",
+        "SerialChain",
+        "WithJointTerms",
+        "MechanismSpec",
+        "Serial",
+        "SerialTerms",
+        "Limbs",
+        "presets",
+    ];
+    const STUDIES: [&str; 3] = ["study.rs", "study_t3r1.rs", "irb120.rs"];
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("src/cli");
+    let mut files = Vec::new();
+    rust_files(&dir, &mut files);
+    let mut checked = 0;
+    for f in &files {
+        if STUDIES.iter().any(|s| f.ends_with(s)) {
+            continue;
+        }
+        checked += 1;
+        let text = std::fs::read_to_string(f).unwrap();
+        for (n, line) in text.lines().enumerate() {
+            let code = line.split("//").next().unwrap_or("");
+            let words = code.split(|c: char| !(c.is_ascii_alphanumeric() || c == '_'));
+            if let Some(w) = words.clone().find(|w| TYPES.contains(w)) {
+                panic!("{}:{}: names the mechanism kind {w}: {line}", f.display(), n + 1);
+            }
+            for kind in kinecal::model::kind::KINDS {
+                let quoted = format!("\"{kind}\"");
+                let compared = [format!("== {quoted}"), format!("{quoted} =>"), format!("{quoted} |")];
+                assert!(
+                    !compared.iter().any(|c| code.contains(c.as_str())),
+                    "{}:{}: decides on the mechanism kind {kind}: {line}",
+                    f.display(),
+                    n + 1
+                );
+            }
+        }
+    }
+    assert!(checked >= 8, "only {checked} command files checked");
 }

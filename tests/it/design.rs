@@ -578,3 +578,54 @@ fn plan_replaces_a_chosen_candidate_the_forward_kinematics_does_not_reach() {
         assert!(design::forward_agrees(&chain, &cands[i].q, &cands[i].target, (1e-6, 1e-8)));
     }
 }
+
+#[test]
+fn plan_sampled_takes_the_model_s_own_box_and_needs_a_box_otherwise() {
+    use kinecal::design::{CandidateSampling, Points, PoseRanges, Region};
+    let halton = Points::Halton { n: 300, seed: 2 };
+    let poses = |ranges: PoseRanges| CandidateSampling {
+        region: Region::Poses(ranges),
+        points: halton.clone(),
+        max_condition: None,
+    };
+    let opts = design::PlanOptions {
+        select: SelectOptions {
+            n: 8,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    // A serial arm has no box of its own; its paper grid does not exist.
+    let irb = kinecal::io::builtin::model_file("irb120").unwrap();
+    let err = design::plan_sampled(&irb, &poses(PoseRanges::default()), &opts, None)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("range of x is required"), "{err}");
+    let ranges = PoseRanges {
+        position: [Some((250.0, 450.0)), Some((-200.0, 200.0)), Some((300.0, 600.0))],
+        ..Default::default()
+    };
+    let paper = CandidateSampling {
+        points: Points::PaperGrid,
+        ..poses(ranges)
+    };
+    let err = design::plan_sampled(&irb, &paper, &opts, None).unwrap_err().to_string();
+    assert!(err.contains("paper's grid"), "{err}");
+    let sp = design::plan_sampled(&irb, &poses(ranges), &opts, None).unwrap();
+    assert_eq!(sp.plan.selection.selected.len(), 8);
+    assert!(sp.angle_inputs.iter().all(|&a| a));
+    // A limbs machine samples its own workspace box from its home inputs.
+    let head = kinecal::io::builtin::model_file("head-3prs").unwrap();
+    let sp = design::plan_sampled(&head, &poses(PoseRanges::default()), &opts, None).unwrap();
+    let z: Vec<f64> = sp.candidates.candidates.iter().map(|c| c.target.translation.vector.z).collect();
+    assert!(z.iter().all(|&z| (81.4 - 1e-6..=161.4 + 1e-6).contains(&z)), "{z:?}");
+    // Non-positive noise is refused before any sampling.
+    let bad = design::PlanOptions {
+        noise: kinecal::measure::Noise {
+            position: 0.0,
+            ..Default::default()
+        },
+        ..opts
+    };
+    assert!(design::plan_sampled(&head, &poses(PoseRanges::default()), &bad, None).is_err());
+}

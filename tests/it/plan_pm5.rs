@@ -265,3 +265,66 @@ fn plan_json_reports_the_chosen_set_and_its_indices() {
     assert!(o2 > 0.0 && (v["indices"]["o_t"].as_f64().unwrap() * o2 - 1.0).abs() < 1e-9);
     assert!(out.exists());
 }
+
+#[test]
+fn plan_sampled_on_the_preset_is_its_platform_candidates_then_plan() {
+    use kinecal::design::{CandidateSampling, PlanEvent, Points, PoseRanges, Region, SampledSpace, SelectOptions};
+    let file = kinecal::io::builtin::model_file("pm5").unwrap();
+    let sampling = CandidateSampling {
+        region: Region::Poses(PoseRanges::default()),
+        points: Points::Halton { n: 400, seed: 5 },
+        max_condition: None,
+    };
+    let opts = design::PlanOptions {
+        select: SelectOptions {
+            n: 10,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let events = std::sync::Mutex::new(Vec::new());
+    let record = |e: PlanEvent| {
+        let name = match e {
+            PlanEvent::Sampling { space, .. } => format!("sampling {}", matches!(space, SampledSpace::Platform { .. })),
+            PlanEvent::Generated(_) => "generated".into(),
+            PlanEvent::Jacobians { blocks } => format!("jacobians {blocks}"),
+            PlanEvent::Done(_) => return,
+            PlanEvent::Step(_) => "step".into(),
+        };
+        let mut ev = events.lock().unwrap();
+        if ev.last() != Some(&name) {
+            ev.push(name);
+        }
+    };
+    let sp = design::plan_sampled(&file, &sampling, &opts, Some(&record)).unwrap();
+    // By hand: the preset's workspace, strokes, condition ≤ 100, FK∘IK left to the plan.
+    let mech = Pm5::mechanism(Parasitic::Physical);
+    let filter = CandidateFilter {
+        check_forward: false,
+        ..pm5_filter()
+    };
+    let (cands, gen) = design::candidates_in_platform_box(
+        &mech,
+        &mech.system().workspace(),
+        &Sampling::Halton { n: 400, seed: 5 },
+        &filter,
+        None,
+    )
+    .unwrap();
+    assert_eq!(sp.candidates.candidates, cands);
+    assert_eq!(sp.candidates.report, gen.report);
+    assert_eq!(sp.candidates.condition, Some((gen.condition_min, gen.condition_max)));
+    let p = design::plan(&mech, &cands, &opts, None, &mut |_| {}).unwrap();
+    assert_eq!(sp.plan.selection.selected, p.selection.selected);
+    assert_eq!(sp.angle_inputs, vec![false; 5]);
+    let n = cands.len();
+    assert_eq!(
+        *events.lock().unwrap(),
+        [
+            "sampling true".to_string(),
+            "generated".into(),
+            format!("jacobians {n}"),
+            "step".into()
+        ]
+    );
+}
