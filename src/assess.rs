@@ -149,6 +149,23 @@ pub struct Iso9283 {
     pub distances: Vec<DistanceCharacteristics>,
 }
 
+/// The ISO 9283 test positions P1–P5 in the largest cube, edges along the base axes, centred in
+/// the box `[min, max]` (mm): P1 at the cube's centre, P2–P5 on the diagonals of its test plane
+/// C1–C2–C7–C8 (the vertical plane through the cube's xy diagonal), each at a tenth of the
+/// diagonal's length from its corner: P2 near C1 (the low corner), P3 near C2, P4 near C7 (the
+/// high corner), P5 near C8. Returns the positions and the cube's side.
+pub fn test_positions(min: &Vector3<f64>, max: &Vector3<f64>) -> ([Vector3<f64>; 5], f64) {
+    let side = (max - min).min();
+    let centre = (min + max) / 2.0;
+    let h = side / 2.0;
+    let c1 = centre + Vector3::new(-h, -h, -h);
+    let c2 = centre + Vector3::new(h, h, -h);
+    let c7 = centre + Vector3::new(h, h, h);
+    let c8 = centre + Vector3::new(-h, -h, h);
+    let near = |from: Vector3<f64>, to: Vector3<f64>| from + (to - from) * 0.1;
+    ([centre, near(c1, c7), near(c2, c8), near(c7, c1), near(c8, c2)], side)
+}
+
 /// Mean of angles (degrees) on the circle, and each angle's difference from it (in ±180°).
 fn circular(values: &[f64]) -> (f64, Vec<f64>) {
     let (s, c) = values
@@ -403,6 +420,25 @@ mod tests {
         let pi = std::f64::consts::PI;
         let expected = sigma * (2.0 * (2.0 / pi).sqrt() + 3.0 * (3.0 - 8.0 / pi).sqrt());
         assert!((p.rp_l / expected - 1.0).abs() < 0.03, "RP_l {} against {expected}", p.rp_l);
+    }
+
+    #[test]
+    fn test_positions_sit_a_tenth_of_the_diagonal_from_the_corners() {
+        let (p, side) = test_positions(&Vector3::new(-50.0, -50.0, 350.0), &Vector3::new(50.0, 80.0, 450.0));
+        assert_eq!(side, 100.0);
+        assert_eq!(p[0], Vector3::new(0.0, 15.0, 400.0));
+        let diagonal = 100.0 * 3f64.sqrt();
+        let corners = [
+            Vector3::new(-50.0, -35.0, 350.0),
+            Vector3::new(50.0, 65.0, 350.0),
+            Vector3::new(50.0, 65.0, 450.0),
+            Vector3::new(-50.0, -35.0, 450.0),
+        ];
+        for (k, c) in corners.iter().enumerate() {
+            assert!(((p[k + 1] - c).norm() - 0.1 * diagonal).abs() < 1e-9, "P{}", k + 2);
+        }
+        // P2 and P4 on one diagonal, symmetric about P1.
+        assert!((p[1] + p[3] - 2.0 * p[0]).norm() < 1e-12);
     }
 
     #[test]
