@@ -16,7 +16,7 @@ message the command line prints.
 from __future__ import annotations
 
 import json
-from typing import Any, Dict, List, Optional
+from typing import Any, Dict, List, Optional, Tuple
 
 import numpy as np
 
@@ -32,6 +32,7 @@ __all__ = [
     "calibrate",
     "validate",
     "identifiability",
+    "assess",
     "compensate",
     "simulate",
     "plan",
@@ -184,6 +185,13 @@ def validate(model: Model, data: Data) -> Validation:
 def identifiability(model: Model, data: Data, tolerance: float = 1e-8) -> Dict[str, Any]:
     """Rank, identifiable and redundant parameters, condition number (``kinecal identifiability``)."""
     return json.loads(_kinecal.identifiability(model, data, tolerance))
+
+
+def assess(commanded: str, attained: str, distances: Optional[List[Tuple[int, int]]] = None) -> Dict[str, Any]:
+    """ISO 9283 pose accuracy and repeatability (``poses``: AP_x/y/z/P, RP_l, …) and distance
+    accuracy (``distances``) of an attained test file against the commanded test poses
+    (``kinecal assess --json``; docs/assess.md)."""
+    return json.loads(_kinecal.assess(commanded, attained, list(distances or [])))
 
 
 def compensate(model: Model, targets: np.ndarray, seeds: Optional[np.ndarray] = None) -> np.ndarray:

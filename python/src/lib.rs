@@ -510,6 +510,18 @@ fn validate<'py>(
 }
 
 /// Rank, identifiable and redundant parameters of `model` on `data` (as JSON).
+/// ISO 9283 figures of an attained test file against a commanded one (`kinecal assess --json`),
+/// with distance figures between the `(from, to)` test poses of `distances`.
+#[pyfunction]
+#[pyo3(signature = (commanded, attained, distances = Vec::new()))]
+fn assess(commanded: &str, attained: &str, distances: Vec<(i64, i64)>) -> PyResult<String> {
+    use kinecal::io::test_poses::{read_attained, read_commanded};
+    let c = read_commanded(std::path::Path::new(commanded)).map_err(err)?;
+    let a = read_attained(std::path::Path::new(attained)).map_err(err)?;
+    let r = kinecal::assess::iso9283(&c, &a, &distances).map_err(|e| err(format!("{attained}: {e}")))?;
+    serde_json::to_string(&r).map_err(err)
+}
+
 #[pyfunction]
 #[pyo3(signature = (model, data, tolerance = 1e-8))]
 fn identifiability(model: &Model, data: &Data, tolerance: f64) -> PyResult<String> {
@@ -784,6 +796,7 @@ fn _kinecal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(validate, m)?)?;
     m.add_function(wrap_pyfunction!(identifiability, m)?)?;
+    m.add_function(wrap_pyfunction!(assess, m)?)?;
     m.add_function(wrap_pyfunction!(compensate, m)?)?;
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
     m.add_function(wrap_pyfunction!(plan, m)?)?;

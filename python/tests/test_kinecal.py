@@ -226,3 +226,18 @@ def test_plan_sampled_writes_the_command_line_s_plan(tmp_path):
         kinecal.plan_sampled(m, 10, candidates=100)
     with pytest.raises(kinecal.KinecalError, match="paper's grid"):
         kinecal.plan_sampled(m, 10, grid="paper", **box)
+
+
+def test_assess_gives_the_iso_9283_figures(tmp_path):
+    """The hand-worked example of docs/assess.md: AP_P = sqrt(17)/3, RP_l = 2.25707 mm."""
+    (tmp_path / "c.csv").write_text("pose,x_mm,y_mm,z_mm\n1,0,0,0\n2,10,0,0\n")
+    (tmp_path / "a.csv").write_text(
+        "pose,cycle,x_mm,y_mm,z_mm\n1,1,1,0,0\n1,2,1,2,0\n1,3,1,0,2\n2,1,10.1,0,0\n2,2,9.9,0,0\n2,3,10,0,0\n"
+    )
+    r = kinecal.assess(str(tmp_path / "c.csv"), str(tmp_path / "a.csv"), [(1, 2)])
+    assert abs(r["poses"][0]["ap_p"] - 17 ** 0.5 / 3) < 1e-12
+    assert abs(r["poses"][0]["rp_l"] - 2.25707) < 1e-5
+    assert r["distances"][0]["cycles"] == 3
+    (tmp_path / "u.csv").write_text("pose,cycle,x_mm,y_mm,z_mm\n1,1,0,0,0\n1,2,0,0,0\n3,1,1,0,0\n")
+    with pytest.raises(kinecal.KinecalError, match="test pose 3 is not among the commanded poses"):
+        kinecal.assess(str(tmp_path / "c.csv"), str(tmp_path / "u.csv"))
