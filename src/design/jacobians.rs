@@ -23,6 +23,10 @@ use crate::simulate::ObservationKind;
 use nalgebra::DMatrix;
 use rayon::prelude::*;
 
+/// Blocks per partial sum of the column norms in [`CandidateJacobians::from_raw`]: a fixed
+/// partition, independent of the thread count.
+const NORM_CHUNK: usize = 1024;
+
 /// The weighted, column-scaled identification Jacobian blocks of a candidate set.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CandidateJacobians {
@@ -52,29 +56,28 @@ impl CandidateJacobians {
             return Err(CalibError::Numerical("non-finite identification Jacobian entry".into()));
         }
         let n = raw.len() / (rows * k);
-        let sums = raw
-            .par_chunks(rows * k)
-            .with_min_len(1024)
-            .fold(
-                || vec![0.0; k],
-                |mut acc, b| {
-                    for row in b.chunks_exact(k) {
-                        for (a, v) in acc.iter_mut().zip(row) {
-                            *a += v * v;
-                        }
+        // Partial sums over a fixed partition, added in order: the column norms (and so every
+        // scaled block) do not depend on the number of threads or their scheduling. (A rayon
+        // `fold`/`reduce` splits where work is stolen, and a different association order of the
+        // sums changed the last bits of the scales and, through near-ties, the chosen set.)
+        let partial: Vec<Vec<f64>> = raw
+            .par_chunks(rows * k * NORM_CHUNK)
+            .map(|c| {
+                let mut acc = vec![0.0; k];
+                for row in c.chunks_exact(k) {
+                    for (a, v) in acc.iter_mut().zip(row) {
+                        *a += v * v;
                     }
-                    acc
-                },
-            )
-            .reduce(
-                || vec![0.0; k],
-                |mut a, b| {
-                    for (x, y) in a.iter_mut().zip(b) {
-                        *x += y;
-                    }
-                    a
-                },
-            );
+                }
+                acc
+            })
+            .collect();
+        let mut sums = vec![0.0; k];
+        for p in &partial {
+            for (x, y) in sums.iter_mut().zip(p) {
+                *x += y;
+            }
+        }
         let scale: Vec<f64> = sums.iter().map(|s| (s / n as f64).sqrt()).collect();
         if let Some(j) = scale.iter().position(|&s| s <= 0.0) {
             return Err(CalibError::NothingToIdentify(format!(

@@ -303,6 +303,39 @@ fn selection_is_deterministic() {
     }
 }
 
+/// Same inputs, same plan on any number of threads: the column scaling (a parallel sum over all
+/// blocks) and the selection on it are bit-identical in pools of 1–4 threads. (The sum used to be
+/// a rayon fold/reduce, whose partition follows work stealing: `kinecal plan --model head-3prs`
+/// wrote different plans from run to run on a loaded machine.)
+#[test]
+fn blocks_and_selection_do_not_depend_on_the_thread_count() {
+    let (n, rows, k) = (20_000, 6, 9);
+    let mut rng = ChaCha8Rng::seed_from_u64(12);
+    let raw: Vec<f64> = (0..n * rows * k)
+        .map(|i| rng.random_range(-1.0..1.0) * 10f64.powi((i % 7) as i32 - 3))
+        .collect();
+    let o = SelectOptions {
+        pool: 2_000,
+        ..opts(Criterion::O2, 12)
+    };
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| {
+            let b = CandidateJacobians::from_raw(rows, (0..k).collect(), raw.clone()).unwrap();
+            let sel = design::select(&b, SelectionMethod::Sffs, &o, &mut |_| {}).unwrap();
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<u64>>();
+            (bits(b.column_scale()), bits(b.data()), sel.selected)
+        })
+    };
+    let one = run(1);
+    for threads in [2, 3, 4] {
+        let other = run(threads);
+        assert!(other.0 == one.0, "column scales differ on {threads} threads");
+        assert!(other.1 == one.1, "blocks differ on {threads} threads");
+        assert_eq!(other.2, one.2, "chosen set on {threads} threads");
+    }
+}
+
 #[test]
 fn workspace_candidates_are_reachable_and_filtered() {
     let mut rng = ChaCha8Rng::seed_from_u64(41);
