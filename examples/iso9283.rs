@@ -11,9 +11,9 @@
 //! standard's test positions P1–P5 in a cube of the workspace ([`kinecal::assess::test_positions`])
 //! at one tool orientation; nominal commands (the nominal model's inverse kinematics) and
 //! compensated commands (the calibrated model's, [`kinecal::compensate::compensate`]); `N`
-//! cycles of each on the prototype, which repeats to `R` mm per axis (Gaussian); then
-//! [`kinecal::assess::iso9283`] on both runs.
-use kinecal::assess::{iso9283, test_positions, Attained, Iso9283, TestPose};
+//! cycles of each on the prototype, which repeats to `R` mm per axis
+//! ([`kinecal::assess::measure_cycles`]); then [`kinecal::assess::iso9283`] on both runs.
+use kinecal::assess::{iso9283, measure_cycles, test_positions, Attained, Iso9283, Repeatability, TestPose};
 use kinecal::compensate::compensate;
 use kinecal::identify::{identify, Options};
 use kinecal::io::builtin;
@@ -24,7 +24,6 @@ use kinecal::Mechanism;
 use nalgebra::Vector3;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, Normal};
 
 struct Args {
     seed: u64,
@@ -67,28 +66,6 @@ struct Case {
     rotation_at: Option<Vec<f64>>,
 }
 
-/// `cycles` attained poses of `truth` at each of `commands` (test pose k + 1 for row k), each
-/// off by a Gaussian repeatability of `sigma` mm per axis.
-fn run(truth: &dyn Mechanism, commands: &[Vec<f64>], cycles: usize, sigma: f64, rng: &mut ChaCha8Rng) -> Vec<Attained> {
-    let d = Normal::new(0.0, sigma).expect("a positive σ");
-    let mut out = Vec::new();
-    for cycle in 0..cycles {
-        for (k, q) in commands.iter().enumerate() {
-            let t = truth.forward(q).expect("the prototype reaches its commands");
-            let e = Vector3::new(d.sample(rng), d.sample(rng), d.sample(rng));
-            let [a, b, c] = se3::rpy(&t.rotation);
-            out.push(Attained {
-                pose: k as i64 + 1,
-                cycle: cycle as i64,
-                position: t.translation.vector + e,
-                angles: Some([a.to_degrees(), b.to_degrees(), c.to_degrees()]),
-                line: 0,
-            });
-        }
-    }
-    out
-}
-
 fn case(c: &Case, a: &Args) -> Result<(Iso9283, Iso9283), String> {
     let file = builtin::model_file(c.name).ok_or(format!("no built-in {}", c.name))?;
     let nominal = file.build();
@@ -129,8 +106,21 @@ fn case(c: &Case, a: &Args) -> Result<(Iso9283, Iso9283), String> {
         .collect();
     let nominal_cmd = compensate(&*nominal, &inputs, &targets, None, &|_| {}).map_err(|e| format!("nominal: {:?}", e.source))?;
     let compensated = compensate(&*calibrated, &inputs, &targets, None, &|_| {}).map_err(|e| format!("calibrated: {:?}", e.source))?;
-    let before = run(&*truth, &nominal_cmd, a.cycles, a.repeatability_mm, &mut rng);
-    let after = run(&*truth, &compensated, a.cycles, a.repeatability_mm, &mut rng);
+    let repeat = Repeatability {
+        position_mm: a.repeatability_mm,
+        orientation_rad: 0.0,
+    };
+    let exact = Noise {
+        position: 0.0,
+        orientation: 0.0,
+        ..Noise::default()
+    };
+    let mut run = |commands: Vec<Vec<f64>>| {
+        let commands: Vec<(i64, Vec<f64>)> = (1..).zip(commands).collect();
+        measure_cycles(&*truth, &commands, a.cycles, &repeat, &exact, &mut rng).map_err(|e| e.to_string())
+    };
+    let before = run(nominal_cmd)?;
+    let after = run(compensated)?;
     let assess = |r: &[Attained]| iso9283(&commanded, r, &[(2, 4)]).map_err(|e| e.to_string());
     Ok((assess(&before)?, assess(&after)?))
 }

@@ -170,6 +170,60 @@ pub fn test_positions(min: &Vector3<f64>, max: &Vector3<f64>) -> ([Vector3<f64>;
     ([centre, near(c1, c7), near(c2, c8), near(c7, c1), near(c8, c2)], side)
 }
 
+/// How a virtual robot repeats: each attained pose is off the true machine's pose by a Gaussian
+/// displacement of `position_mm` per axis and a Gaussian rotation of `orientation_rad` per axis.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Repeatability {
+    /// Standard deviation per axis (mm).
+    pub position_mm: f64,
+    /// Standard deviation per axis (rad).
+    pub orientation_rad: f64,
+}
+
+/// A test run on a (virtual) machine: `cycles` times through `commands` (test-pose id and the
+/// inputs commanded there, rad / mm), each pose `truth` reaches off by `repeat`, then measured
+/// with the tracker noise `noise` (position and orientation). Returns the attained poses in
+/// cycle order, ready for [`iso9283`].
+pub fn measure_cycles<M: crate::Mechanism + ?Sized, R: rand::Rng>(
+    truth: &M,
+    commands: &[(i64, Vec<f64>)],
+    cycles: usize,
+    repeat: &Repeatability,
+    noise: &crate::measure::Noise,
+    rng: &mut R,
+) -> Result<Vec<Attained>, crate::error::CalibError> {
+    use rand_distr::{Distribution, Normal};
+    let normal = |s: f64| Normal::new(0.0, s).map_err(|e| crate::error::CalibError::InvalidOption(format!("σ {s}: {e}")));
+    let (dp, dr) = (normal(repeat.position_mm)?, normal(repeat.orientation_rad)?);
+    let (np, nr) = (normal(noise.position)?, normal(noise.orientation)?);
+    let poses = commands
+        .iter()
+        .enumerate()
+        .map(|(k, (_, q))| {
+            truth
+                .forward(q)
+                .map_err(|source| crate::error::CalibError::Kinematics { pose: k, source })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut out = Vec::with_capacity(cycles * commands.len());
+    for cycle in 0..cycles {
+        for ((id, _), t) in commands.iter().zip(&poses) {
+            let mut draw = |d: &Normal<f64>| Vector3::new(d.sample(rng), d.sample(rng), d.sample(rng));
+            let turn = draw(&dr) + draw(&nr);
+            let position = t.translation.vector + draw(&dp) + draw(&np);
+            let rotation = crate::se3::so3_exp(&turn) * t.rotation;
+            out.push(Attained {
+                pose: *id,
+                cycle: cycle as i64 + 1,
+                position,
+                angles: Some(crate::se3::rpy(&rotation).map(f64::to_degrees)),
+                line: 0,
+            });
+        }
+    }
+    Ok(out)
+}
+
 /// The rotation of angles `a, b, c` (degrees): `Rz(c)·Ry(b)·Rx(a)`.
 fn rotation(abc: &[f64; 3]) -> nalgebra::UnitQuaternion<f64> {
     nalgebra::UnitQuaternion::from_euler_angles(abc[0].to_radians(), abc[1].to_radians(), abc[2].to_radians())

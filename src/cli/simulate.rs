@@ -71,6 +71,19 @@ pub struct SimulateArgs {
     #[arg(long)]
     pub truth: PathBuf,
     /// Also write an independent validation set with this many poses (needs --validation-out).
+    /// An ISO 9283 test run instead of a data file: the robot goes `N` times through the
+    /// configurations of `--at` (the commands `kinecal compensate` writes: their `id` is the test
+    /// pose), and `--out` gets the attained poses (`pose,cycle,x_mm,…,yaw_deg`) for `kinecal
+    /// assess`
+    #[arg(long, value_name = "N", requires = "at", conflicts_with = "validation_out")]
+    pub cycles: Option<usize>,
+    /// Repeatability of the virtual robot in a test run: standard deviation per axis of where it
+    /// arrives (mm), beside the measurement noise
+    #[arg(long, default_value_t = 0.0)]
+    pub repeatability_mm: f64,
+    /// Repeatability of its orientation: standard deviation per axis (degrees)
+    #[arg(long, default_value_t = 0.0)]
+    pub repeatability_deg: f64,
     #[arg(long, default_value_t = 0, requires = "validation_out")]
     pub validation_poses: usize,
     /// Validation data file to write (CSV).
@@ -98,6 +111,8 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
         ("--noise-deg", a.noise_deg),
         ("--encoder-noise-deg", a.encoder_noise_deg),
         ("--encoder-noise-mm", a.encoder_noise_mm),
+        ("--repeatability-mm", a.repeatability_mm),
+        ("--repeatability-deg", a.repeatability_deg),
     ] {
         anyhow::ensure!(v.is_finite() && v >= 0.0, "{name}: must be a finite value ≥ 0, got {v}");
     }
@@ -132,6 +147,9 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
     let truth_text = truth_file.to_toml().map_err(|e| anyhow::anyhow!("{}: {e}", a.truth.display()))?;
     outputs.stage(&a.truth, truth_text.as_bytes())?;
 
+    if let (Some(cycles), Some(at)) = (a.cycles, &a.at) {
+        return test_run(&a, &*truth, &inputs, at, cycles, &noise, &mut rng, outputs);
+    }
     let planned: Option<Vec<Vec<f64>>> = match &a.at {
         Some(p) => {
             let qs = kinecal::io::data_file::read_configurations(p, &inputs)?;
@@ -214,5 +232,50 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
             );
         }
     }
+    Ok(())
+}
+
+/// `--cycles N`: an ISO 9283 test run of `truth` at the commands of `at`, written to `--out`.
+#[allow(clippy::too_many_arguments)]
+fn test_run(
+    a: &SimulateArgs,
+    truth: &dyn kinecal::Mechanism,
+    inputs: &[kinecal::model::kind::InputSpec],
+    at: &Path,
+    cycles: usize,
+    noise: &Noise,
+    rng: &mut ChaCha8Rng,
+    mut outputs: Outputs,
+) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        cycles >= 2,
+        "--cycles: ISO 9283 needs at least 2 cycles (30 in the standard), got {cycles}"
+    );
+    let (ids, qs) = kinecal::io::data_file::read_inputs(at, inputs)?;
+    anyhow::ensure!(!qs.is_empty(), "{}: no configuration in the file", at.display());
+    let commands: Vec<(i64, Vec<f64>)> = ids.into_iter().zip(qs).collect();
+    let repeat = kinecal::assess::Repeatability {
+        position_mm: a.repeatability_mm,
+        orientation_rad: a.repeatability_deg.to_radians(),
+    };
+    let attained = kinecal::assess::measure_cycles(truth, &commands, cycles, &repeat, noise, rng).map_err(|e| match e {
+        CalibError::Kinematics { pose, source } => anyhow::anyhow!(
+            "{}: command {}: the virtual prototype does not reach it: {source}",
+            at.display(),
+            commands[pose].0
+        ),
+        e => e.into(),
+    })?;
+    outputs.stage(&a.out, kinecal::io::test_poses::attained_text(&attained).as_bytes())?;
+    outputs.commit()?;
+    println!(
+        "ISO 9283 test run: {} test poses × {cycles} cycles, repeatability {} mm / {} deg, noise {} mm / {} deg → {}",
+        commands.len(),
+        a.repeatability_mm,
+        a.repeatability_deg,
+        a.noise_mm,
+        a.noise_deg,
+        a.out.display()
+    );
     Ok(())
 }

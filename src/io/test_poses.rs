@@ -3,7 +3,7 @@
 //! Commanded: `pose,x_mm,y_mm,z_mm` and optionally `roll_deg,pitch_deg,yaw_deg` (the rotations
 //! `a, b, c` about x, y, z), one row per test pose. Attained: `pose,cycle,x_mm,y_mm,z_mm` and
 //! optionally the same three angles, one row per pose reached; both in the same frame (the
-//! robot's base, as a registered tracker gives them).
+//! robot's base, as a registered tracker gives them). [`attained_text`] writes an attained file.
 use super::table::{read_table, Table};
 use super::IoError;
 use crate::assess::{Attained, TestPose};
@@ -47,10 +47,14 @@ fn pose_of(t: &Table, row: usize, xyz: [usize; 3], angles: Option<[usize; 3]>) -
     )
 }
 
-/// Read the commanded test poses.
+/// Read the commanded test poses. The test-pose column is `pose`, or `id`: a targets file of
+/// `kinecal compensate` (`id,x_mm,y_mm,z_mm,roll_deg,pitch_deg,yaw_deg`) is a commanded file.
 pub fn read_commanded(path: &Path) -> Result<Vec<TestPose>, IoError> {
     let t = read_table(path)?;
-    let pose = t.column("pose")?;
+    let pose = match t.columns.iter().position(|c| c == "id") {
+        Some(i) if !t.columns.iter().any(|c| c == "pose") => i,
+        _ => t.column("pose")?,
+    };
     let xyz = [t.column("x_mm")?, t.column("y_mm")?, t.column("z_mm")?];
     let angles = angle_columns(&t)?;
     (0..t.len())
@@ -83,4 +87,18 @@ pub fn read_attained(path: &Path) -> Result<Vec<Attained>, IoError> {
             })
         })
         .collect()
+}
+
+/// An attained file (the columns [`read_attained`] reads, with the three angles), full
+/// precision.
+pub fn attained_text(rows: &[Attained]) -> String {
+    let mut out = String::from("pose,cycle,x_mm,y_mm,z_mm,roll_deg,pitch_deg,yaw_deg\n");
+    for a in rows {
+        let [r, p, y] = a.angles.unwrap_or([0.0; 3]);
+        out.push_str(&format!(
+            "{},{},{},{},{},{r},{p},{y}\n",
+            a.pose, a.cycle, a.position.x, a.position.y, a.position.z
+        ));
+    }
+    out
 }

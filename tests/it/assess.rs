@@ -56,3 +56,66 @@ fn assess_names_each_mistake_on_one_line() {
         assert_eq!(e.trim_end().lines().count(), 1, "{args:?}: {e}");
     }
 }
+
+/// The whole ISO 9283 test through the commands, on a pm5 virtual prototype: calibrate, then
+/// the five test poses commanded with the nominal model and with the calibrated one, 30 cycles
+/// of each on the prototype (`simulate --cycles`, 5 µm repeatability), assessed side by side.
+#[test]
+fn a_test_run_before_and_after_calibration_through_the_commands() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    ok(d, &["model", "export", "pm5", "--out", "pm5.toml"]);
+    let errors = ["--error-mm", "0.2", "--error-deg", "0.02"];
+    crate::cli::simulate(d, "pm5.toml", 40, 1, 1, 0.02, &errors);
+    ok(d, &["identify", "pm5.toml", "d.csv", "--frames", "model", "--out", "cal.toml"]);
+    std::fs::write(
+        d.join("targets.csv"),
+        "id,x_mm,y_mm,z_mm,roll_deg,pitch_deg,yaw_deg\n1,0,0,400,0,0,0\n2,-24,-24,376,0,0,0\n3,24,24,376,0,0,0\n4,24,24,424,0,0,0\n5,-24,-24,424,0,0,0\n",
+    )
+    .unwrap();
+    ok(d, &["compensate", "pm5.toml", "targets.csv", "--out", "nom.csv"]);
+    ok(
+        d,
+        &["compensate", "cal.toml", "targets.csv", "--nominal", "pm5.toml", "--out", "cmp.csv"],
+    );
+    for (commands, out, seed) in [("nom.csv", "before.csv", "2"), ("cmp.csv", "after.csv", "3")] {
+        let args = [
+            "simulate",
+            "t.toml",
+            "--error-mm",
+            "0",
+            "--error-deg",
+            "0",
+            "--seed",
+            seed,
+            "--at",
+            commands,
+            "--cycles",
+            "30",
+            "--repeatability-mm",
+            "0.005",
+            "--out",
+            out,
+            "--truth",
+            "t2.toml",
+            "--force",
+        ];
+        ok(d, &args);
+    }
+    let v = json(d, &["assess", "--commanded", "targets.csv", "before.csv", "after.csv"]);
+    let rp_expected = 0.005 * (2.0 * (2.0 / std::f64::consts::PI).sqrt() + 3.0 * (3.0 - 8.0 / std::f64::consts::PI).sqrt());
+    for k in 0..5 {
+        let (b, a) = (&v[0]["iso9283"]["poses"][k], &v[1]["iso9283"]["poses"][k]);
+        let (ap_b, ap_a) = (b["ap_p"].as_f64().unwrap(), a["ap_p"].as_f64().unwrap());
+        assert!(ap_b > 0.3 && ap_a < ap_b / 5.0, "P{}: AP_P {ap_b} → {ap_a}", k + 1);
+        let rp = a["rp_l"].as_f64().unwrap();
+        assert!((rp / rp_expected - 1.0).abs() < 0.5, "P{}: RP_l {rp} against {rp_expected}", k + 1);
+    }
+    let e = crate::cli::fails(
+        d,
+        &[
+            "simulate", "t.toml", "--at", "nom.csv", "--cycles", "1", "--out", "x.csv", "--truth", "x.toml",
+        ],
+    );
+    assert!(e.contains("at least 2 cycles"), "{e}");
+}
