@@ -391,9 +391,14 @@ fn model_file_typo_names_file_line_and_key() {
     write(&d, "typo.toml", &typo);
     let e = fails(&d, &["identify", "typo.toml", "ident.csv", "--out", "c.toml"]);
     assert!(
-        e.starts_with(&format!("typo.toml:{line}: unknown field `limit`, expected one of")),
+        e.starts_with(&format!("typo.toml:{line}: `limit = [")) && e.contains("unknown field `limit`, expected one of"),
         "{e}"
     );
+    // A value the TOML parser cannot read: the line is quoted, so the reader sees the letter O.
+    let bad = m.replacen("limits = [-165.0", "limits = [-1O5.0", 1);
+    write(&d, "bad.toml", &bad);
+    let e = fails(&d, &["identify", "bad.toml", "ident.csv", "--out", "c.toml"]);
+    assert!(e.contains("`limits = [-1O5.0, 165.0]`: "), "{e}");
     // An unknown built-in name or missing file.
     let e = fails(&d, &["validate", "nosuch", "ident.csv"]);
     assert_eq!(

@@ -83,7 +83,16 @@ impl Ctx<'_> {
     pub(super) fn toml_error(&self, e: &toml::de::Error) -> IoError {
         let message = e.message().trim().replace('\n', "; ");
         match e.span() {
-            Some(s) => self.at(&s, message),
+            // The line itself, so that the reader sees what the parser could not read.
+            Some(s) => {
+                let start = self.text[..s.start.min(self.text.len())].rfind('\n').map_or(0, |i| i + 1);
+                let end = self.text[start..].find('\n').map_or(self.text.len(), |i| start + i);
+                let line = self.text[start..end].trim();
+                match line.is_empty() || line.chars().count() > 120 {
+                    true => self.at(&s, message),
+                    false => self.at(&s, format!("`{line}`: {message}")),
+                }
+            }
             None => IoError::Invalid {
                 path: self.path.to_path_buf(),
                 message,
