@@ -26,6 +26,16 @@ impl Unit {
             Unit::Dimensionless => "",
         }
     }
+
+    /// The factor from kinecal's unit to the one files and reports show, and that unit's symbol:
+    /// `(180/π, "deg")` for angles, `(1, "mm")` for lengths, `(1, "")` for pure numbers.
+    pub fn display(self) -> (f64, &'static str) {
+        match self {
+            Unit::Length => (1.0, "mm"),
+            Unit::Angle => (180.0 / std::f64::consts::PI, "deg"),
+            Unit::Dimensionless => (1.0, ""),
+        }
+    }
 }
 
 /// One error parameter of a mechanism.

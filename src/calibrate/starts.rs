@@ -8,7 +8,6 @@ use crate::io::model_file::Tolerances;
 use crate::io::IoError;
 use crate::measure::Measurement;
 use crate::model::Mechanism;
-use crate::params::Unit;
 
 /// A random perturbation of the free, non-frame geometric parameters: uniform within a third of
 /// the tolerance of each parameter's unit (lengths in mm, angles in rad).
@@ -21,11 +20,7 @@ fn perturbation(model: &dyn Mechanism, free: &[usize], tol: &Tolerances, seed: u
         if params[i].group.ends_with(" frame") {
             continue;
         }
-        let s = match params[i].unit {
-            Unit::Length => tol.length_mm / 3.0,
-            Unit::Angle => tol.angle_deg.to_radians() / 3.0,
-            _ => 0.0,
-        };
+        let s = tol.of(params[i].unit).map_or(0.0, |t| t / 3.0);
         d[i] = rng.random_range(-s..=s);
     }
     d

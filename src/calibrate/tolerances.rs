@@ -19,7 +19,6 @@
 use crate::identify::Identification;
 use crate::io::model_file::Tolerances;
 use crate::model::Mechanism;
-use crate::params::Unit;
 use crate::report::{Beyond, ToleranceCheck};
 use nalgebra::{DMatrix, DVector};
 
@@ -35,15 +34,10 @@ const LAWSON_ITERATIONS: usize = 60;
 /// (a group ending in `" frame"`) and dimensionless ones are not limited.
 pub fn tolerance_check<M: Mechanism>(id: &Identification<M>, free: &[usize], tolerances: &Tolerances) -> ToleranceCheck {
     let params = id.model.params();
-    let limit = |i: usize| -> Option<f64> {
-        if params[i].group.ends_with(" frame") {
-            return None;
-        }
-        match params[i].unit {
-            Unit::Length => Some(tolerances.length_mm),
-            Unit::Angle => Some(tolerances.angle_deg.to_radians()),
-            Unit::Dimensionless => None,
-        }
+    let limit = |i: usize| {
+        (!params[i].group.ends_with(" frame"))
+            .then(|| tolerances.of(params[i].unit))
+            .flatten()
     };
     let null = null_space(&id.information, free, id.identifiability.rank);
     // Rows: the tolerance-limited free parameters, scaled by their tolerance.
@@ -68,10 +62,7 @@ pub fn tolerance_check<M: Mechanism>(id: &Identification<M>, free: &[usize], tol
         .zip(&excess)
         .filter(|(_, e)| **e > 1.0)
         .map(|((&(_, i, t), r), e)| {
-            let (f, unit) = match params[i].unit {
-                Unit::Angle => (180.0 / std::f64::consts::PI, "deg"),
-                _ => (1.0, "mm"),
-            };
+            let (f, unit) = params[i].unit.display();
             Beyond {
                 name: params[i].name.clone(),
                 value: r * t * f,

@@ -264,6 +264,18 @@ pub struct Tolerances {
     pub angle_deg: f64,
 }
 
+impl Tolerances {
+    /// The tolerance of a parameter of this unit in kinecal's units (mm, rad); `None` for a pure
+    /// number, which has none.
+    pub fn of(&self, unit: Unit) -> Option<f64> {
+        match unit {
+            Unit::Length => Some(self.length_mm),
+            Unit::Angle => Some(self.angle_deg.to_radians()),
+            Unit::Dimensionless => None,
+        }
+    }
+}
+
 impl Default for Tolerances {
     fn default() -> Self {
         Tolerances {

@@ -221,11 +221,7 @@ impl CalibrationReport {
             .iter()
             .enumerate()
             .map(|(i, p)| {
-                let (f, unit) = match p.unit {
-                    Unit::Length => (1.0, "mm"),
-                    Unit::Angle => (180.0 / std::f64::consts::PI, "deg"),
-                    Unit::Dimensionless => (1.0, ""),
-                };
+                let (f, unit) = p.unit.display();
                 let status = if id.identifiable.contains(&i) {
                     ParamStatus::Identified
                 } else if id.redundant.contains(&i) {
@@ -248,11 +244,7 @@ impl CalibrationReport {
             })
             .collect();
         let names = |v: &[usize]| v.iter().map(|&i| params[i].name.clone()).collect::<Vec<_>>();
-        let display = |i: usize| match params[i].unit {
-            Unit::Angle => (180.0 / std::f64::consts::PI, "deg"),
-            Unit::Length => (1.0, "mm"),
-            Unit::Dimensionless => (1.0, ""),
-        };
+        let display = |i: usize| params[i].unit.display();
         let covariance = ParamCovariance {
             params: names(&id.identifiable),
             units: id.identifiable.iter().map(|&i| display(i).1.to_string()).collect(),
