@@ -255,6 +255,29 @@ fn announce(progress: Option<PlanProgress>, space: &SampledSpace, samples: usize
     }
 }
 
+/// The candidates `generate` keeps of `samples` points of `space` (announced first), timed:
+/// `generate` returns them, their report and, for a platform box, their condition range.
+fn generated(
+    progress: Option<PlanProgress>,
+    space: SampledSpace,
+    samples: usize,
+    max_condition: Option<f64>,
+    generate: impl FnOnce() -> Result<(Vec<Candidate>, GenerationReport, Option<(f64, f64)>), CalibError>,
+) -> Result<Candidates, CalibError> {
+    announce(progress, &space, samples, max_condition);
+    let t = Instant::now();
+    let (candidates, report, condition) = generate()?;
+    Ok(Candidates {
+        candidates,
+        space,
+        samples,
+        max_condition,
+        report,
+        condition,
+        seconds: t.elapsed().as_secs_f64(),
+    })
+}
+
 /// Candidates of a 5-DOF machine in its platform-coordinate box.
 fn platform_candidates(
     mech: &ClosedLoop<Pm5>,
@@ -285,17 +308,10 @@ fn platform_candidates(
     };
     let samples = points.len(6)?;
     let space = SampledSpace::Platform { min, max, parasitic: true };
-    announce(progress, &space, samples, filter.max_condition);
-    let t = Instant::now();
-    let (candidates, gen) = super::candidates_in_platform_box(mech, &PlatformBox { min, max }, &points, &filter, Some(&done(progress)))?;
-    Ok(Candidates {
-        candidates,
-        space,
-        samples,
-        max_condition: filter.max_condition,
-        report: gen.report,
-        condition: Some((gen.condition_min, gen.condition_max)),
-        seconds: t.elapsed().as_secs_f64(),
+    generated(progress, space, samples, filter.max_condition, || {
+        let (candidates, gen) =
+            super::candidates_in_platform_box(mech, &PlatformBox { min, max }, &points, &filter, Some(&done(progress)))?;
+        Ok((candidates, gen.report, Some((gen.condition_min, gen.condition_max))))
     })
 }
 
@@ -358,17 +374,9 @@ fn tool_pose_candidates(
     let points = sampling_of(&sampling.points, None)?;
     let samples = points.len(6)?;
     let space = SampledSpace::ToolPoses(ws.clone());
-    announce(progress, &space, samples, filter.max_condition);
-    let t = Instant::now();
-    let (candidates, report) = super::candidates_in_workspace(mech, &ws, &points, Some(&start), &filter, Some(&done(progress)))?;
-    Ok(Candidates {
-        candidates,
-        space,
-        samples,
-        max_condition: filter.max_condition,
-        report,
-        condition: None,
-        seconds: t.elapsed().as_secs_f64(),
+    generated(progress, space, samples, filter.max_condition, || {
+        let (candidates, report) = super::candidates_in_workspace(mech, &ws, &points, Some(&start), &filter, Some(&done(progress)))?;
+        Ok((candidates, report, None))
     })
 }
 
@@ -392,17 +400,9 @@ fn input_candidates(
         lower: lower.to_vec(),
         upper: upper.to_vec(),
     };
-    announce(progress, &space, samples, filter.max_condition);
-    let t = Instant::now();
-    let (candidates, report) = super::candidates_in_input_box(mech, lower, upper, &points, &filter, Some(&done(progress)))?;
-    Ok(Candidates {
-        candidates,
-        space,
-        samples,
-        max_condition: filter.max_condition,
-        report,
-        condition: None,
-        seconds: t.elapsed().as_secs_f64(),
+    generated(progress, space, samples, filter.max_condition, || {
+        let (candidates, report) = super::candidates_in_input_box(mech, lower, upper, &points, &filter, Some(&done(progress)))?;
+        Ok((candidates, report, None))
     })
 }
 
