@@ -632,7 +632,7 @@ fn plan<'py>(
     noise_mm: f64,
     noise_deg: f64,
 ) -> PyResult<(Vec<usize>, String)> {
-    use kinecal::design::{self, Candidate, PlanOptions, SelectOptions};
+    use kinecal::design::{self, Candidate, SelectOptions};
     let rows = rows_2d(&candidates, model.mech.input_names().len(), "candidates")?;
     let cands = rows
         .into_iter()
@@ -642,28 +642,17 @@ fn plan<'py>(
             Ok(Candidate { q, target })
         })
         .collect::<PyResult<Vec<_>>>()?;
-    if !(noise_mm > 0.0 && noise_deg > 0.0 && noise_mm.is_finite() && noise_deg.is_finite()) {
-        return Err(err("noise_mm / noise_deg: must be finite and > 0"));
-    }
-    let opts = PlanOptions {
-        observe: match observe {
-            "pose" => kinecal::simulate::ObservationKind::Pose,
-            "position" => kinecal::simulate::ObservationKind::Position,
-            o => return Err(err(format!("observe: '{o}' is not one of pose, position"))),
-        },
-        noise: Noise {
-            position: noise_mm,
-            orientation: noise_deg.to_radians(),
-            ..Noise::default()
-        },
-        method: method.parse().map_err(err)?,
-        select: SelectOptions {
-            n,
-            criterion: criterion.parse().map_err(err)?,
-            ..Default::default()
-        },
-        ..Default::default()
-    };
+    let defaults = SelectOptions::default();
+    let opts = plan_options(
+        n,
+        criterion,
+        method,
+        observe,
+        noise_mm,
+        noise_deg,
+        defaults.pool,
+        defaults.shortlist,
+    )?;
     let planned = design::plan(&*model.mech, &cands, &opts, None, &mut |_| {}).map_err(err)?;
     let ix = &planned.selection.indices;
     let json = serde_json::to_string(&serde_json::json!({
@@ -672,6 +661,40 @@ fn plan<'py>(
     }))
     .map_err(err)?;
     Ok((planned.selection.selected.clone(), json))
+}
+
+/// The planning options of `plan` and `plan_sampled`, their Python arguments checked.
+#[allow(clippy::too_many_arguments)]
+fn plan_options(
+    n: usize,
+    criterion: &str,
+    method: &str,
+    observe: &str,
+    noise_mm: f64,
+    noise_deg: f64,
+    pool: usize,
+    shortlist: usize,
+) -> PyResult<kinecal::design::PlanOptions> {
+    if !(noise_mm > 0.0 && noise_deg > 0.0 && noise_mm.is_finite() && noise_deg.is_finite()) {
+        return Err(err("noise_mm / noise_deg: must be finite and > 0"));
+    }
+    Ok(kinecal::design::PlanOptions {
+        observe: observe.parse().map_err(|e| err(format!("observe: {e}")))?,
+        noise: Noise {
+            position: noise_mm,
+            orientation: noise_deg.to_radians(),
+            ..Noise::default()
+        },
+        method: method.parse().map_err(err)?,
+        select: kinecal::design::SelectOptions {
+            n,
+            criterion: criterion.parse().map_err(err)?,
+            pool,
+            shortlist,
+            ..Default::default()
+        },
+        ..Default::default()
+    })
 }
 
 /// A range argument: a number (a fixed value) or a pair (min, max), times `unit`.
@@ -721,7 +744,7 @@ fn plan_sampled(
     pool: usize,
     shortlist: usize,
 ) -> PyResult<(Vec<usize>, String, String)> {
-    use kinecal::design::{self, CandidateSampling, PlanOptions, Points, PoseRanges, Region, SelectOptions};
+    use kinecal::design::{self, CandidateSampling, Points, PoseRanges, Region};
     let deg = 1f64.to_radians();
     let region = match joint_range_deg {
         Some(r) => {
@@ -756,23 +779,7 @@ fn plan_sampled(
         points,
         max_condition,
     };
-    let opts = PlanOptions {
-        observe: observe.parse().map_err(|e| err(format!("observe: {e}")))?,
-        noise: Noise {
-            position: noise_mm,
-            orientation: noise_deg.to_radians(),
-            ..Noise::default()
-        },
-        method: method.parse().map_err(err)?,
-        select: SelectOptions {
-            n,
-            criterion: criterion.parse().map_err(err)?,
-            pool,
-            shortlist,
-            ..Default::default()
-        },
-        ..Default::default()
-    };
+    let opts = plan_options(n, criterion, method, observe, noise_mm, noise_deg, pool, shortlist)?;
     let planned = design::plan_sampled(&model.file, &sampling, &opts, None).map_err(err)?;
     let mut summary = planned.summary();
     summary["generation"] = serde_json::to_value(planned.candidates.report).map_err(err)?;
