@@ -110,8 +110,9 @@ pub enum Loss {
     /// Huber's loss on the per-pose RMS residual `s_i` (in units of the stated noise): quadratic
     /// up to `k` robust standard deviations of the set (1.4826 × the median of `s_i`, re-estimated
     /// at every linearisation, and never below the stated noise: a pose within `k` stated
-    /// standard deviations is no blunder, however exactly the others fit), linear beyond. A blunder of millimetres then pulls on the fit like
-    /// a residual of `k` standard deviations, not like its square.
+    /// standard deviations is no blunder, however exactly the others fit), linear beyond. A
+    /// blunder of millimetres then pulls on the fit like a residual of `k` standard deviations,
+    /// not like its square.
     Huber {
         /// Threshold in robust standard deviations (5 keeps Gaussian data untouched).
         k: f64,

@@ -70,7 +70,6 @@ pub struct SimulateArgs {
     /// Where to write the true (perturbed) model (TOML).
     #[arg(long)]
     pub truth: PathBuf,
-    /// Also write an independent validation set with this many poses (needs --validation-out).
     /// An ISO 9283 test run instead of a data file: the robot goes `N` times through the
     /// configurations of `--at` (the commands `kinecal compensate` writes: their `id` is the test
     /// pose), and `--out` gets the attained poses (`pose,cycle,x_mm,…,yaw_deg`) for `kinecal
@@ -84,6 +83,7 @@ pub struct SimulateArgs {
     /// Repeatability of its orientation: standard deviation per axis (degrees)
     #[arg(long, default_value_t = 0.0)]
     pub repeatability_deg: f64,
+    /// Also write an independent validation set with this many poses (needs --validation-out).
     #[arg(long, default_value_t = 0, requires = "validation_out")]
     pub validation_poses: usize,
     /// Validation data file to write (CSV).

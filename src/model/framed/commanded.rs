@@ -144,8 +144,9 @@ pub(super) fn inverse<M: Mechanism>(inner: &M, tool: &Pose, goal: &Pose, seed: O
             s *= 0.5;
         }
         let Some((trial, qt, rt)) = next else { break };
-        let fast = rt.amax() < 0.1 * norm && s == 1.0;
-        (platform, q, r, norm) = (trial, qt, rt.clone(), rt.amax());
+        let reached = rt.amax();
+        let fast = reached < 0.1 * norm && s == 1.0;
+        (platform, q, r, norm) = (trial, qt, rt, reached);
         // The chord method while it converges fast (the Jacobian hardly changes near the goal).
         if fast {
             jacobian = Some(lu);
