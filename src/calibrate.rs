@@ -172,8 +172,17 @@ pub fn calibrate(
     opts: &CalibrationOptions,
 ) -> Result<Calibration, CalibrateError> {
     checks::plausible_angles(model, data)?;
+    let raw = data;
+    let instrument = InstrumentData::of(data, validation)?;
+    let (data, validation) = match &instrument {
+        Some(i) => (&i.data, i.validation.as_ref()),
+        None => (data, validation),
+    };
     let measurements = fitted_measurements(data, opts)?;
-    let (start, free, registration) = starting_model(model, data, &measurements, opts)?;
+    let (start, free, registration) = match &instrument {
+        Some(i) => instrument_start(model, i)?,
+        None => starting_model(model, data, &measurements, opts)?,
+    };
     let id_opts = Options {
         method: opts.method,
         noise: opts.noise,
@@ -213,7 +222,10 @@ pub fn calibrate(
         outcomes: &outcomes,
         start_tolerance_mm,
     };
-    let report = judge(model, data, validation, opts, &judged)?;
+    let mut report = judge(model, data, validation, opts, &judged)?;
+    if opts.compare_terms && instrument.is_none() {
+        report.variants = variants::variants(model, raw, validation, opts);
+    }
     Ok(Calibration {
         blunders,
         model_file: calibrated,
@@ -266,6 +278,82 @@ fn starting_model(
             Ok((Box::new(framed), free, Some(reg)))
         }
     }
+}
+
+/// Instrument data (seats, distances) with each row's artifact point appended to its inputs
+/// ([`crate::instrument::index_points`]); the validation set indexed on the same points.
+struct InstrumentData {
+    points: Vec<crate::instrument::ArtifactPoint>,
+    data: DataSet,
+    validation: Option<DataSet>,
+}
+
+impl InstrumentData {
+    /// `None` for tracker data.
+    fn of(data: &DataSet, validation: Option<&DataSet>) -> Result<Option<InstrumentData>, IoError> {
+        let Some((points, indexed)) = crate::instrument::index_points(&data.measurements).map_err(|e| data.locate(e))? else {
+            return Ok(None);
+        };
+        let validation = match validation {
+            None => None,
+            Some(v) => {
+                let (vpoints, vindexed) = crate::instrument::index_points(&v.measurements)
+                    .map_err(|e| v.locate(e))?
+                    .ok_or_else(|| IoError::Invalid {
+                        path: v.path.clone(),
+                        message:
+                            "the identification data are an instrument's (seats or distances); the validation data must be the same kind"
+                                .into(),
+                    })?;
+                let mut measurements = vindexed;
+                for m in &mut measurements {
+                    let at = m.q.pop().expect("indexed") as usize;
+                    let p = &vpoints[at];
+                    let k = points
+                        .iter()
+                        .position(|x| x.kind == p.kind && x.id == p.id)
+                        .ok_or_else(|| IoError::Invalid {
+                            path: v.path.clone(),
+                            message: format!(
+                                "{} {} is not in the identification data: held-out rows must use the seats and pivots placed there",
+                                p.kind.name(),
+                                p.id
+                            ),
+                        })?;
+                    m.q.push(k as f64);
+                }
+                Some(DataSet { measurements, ..v.clone() })
+            }
+        };
+        Ok(Some(InstrumentData {
+            points,
+            data: DataSet {
+                measurements: indexed,
+                ..data.clone()
+            },
+            validation,
+        }))
+    }
+}
+
+/// The starting model for instrument data: the nominal mechanism with its tool-point offset
+/// and the artifact points started from the data ([`crate::instrument::start_points`]); free:
+/// the tool point's offset, the model's free parameters and the artifact points. The base is not
+/// placed (no instrument here sees it): the measurement frame stays the identity.
+fn instrument_start(model: &ModelFile, i: &InstrumentData) -> Result<StartingModel, IoError> {
+    let inner = model.mechanism.build();
+    let inner_free = select_params(&inner.params(), &model.free, &model.fixed).map_err(|pat| IoError::Invalid {
+        path: format!("model '{}'", model.name).into(),
+        message: format!("calibration pattern '{pat}' matches no parameter"),
+    })?;
+    let tool_guess = model.frames.map_or(Pose::identity(), |f| f.tool);
+    let framed = Framed::new(inner, Pose::identity(), tool_guess);
+    let artifact = crate::instrument::start_points(framed, i.points.clone(), &i.data.measurements).map_err(|e| i.data.locate(e))?;
+    let p_inner = FRAME_PARAMS + artifact.inner.inner.n_params();
+    let mut free: Vec<usize> = vec![6, 7, 8];
+    free.extend(inner_free.iter().map(|k| k + FRAME_PARAMS));
+    free.extend(p_inner..p_inner + 3 * artifact.points.len());
+    Ok((Box::new(artifact), free, None))
 }
 
 /// The starting model (nominal geometry, in the registered frames when they are estimated), its
@@ -323,9 +411,6 @@ fn judge<M: Mechanism + Clone>(
             j.start_tolerance_mm,
             sigmas.join(" / ")
         ));
-    }
-    if opts.compare_terms {
-        report.variants = variants::variants(model, data, validation, opts);
     }
     Ok(report)
 }

@@ -91,7 +91,8 @@ pub struct Options {
 /// Predictions of a known solution, for [`Options::agree_with`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct Agreement {
-    /// The tool position the known solution predicts at each measurement (mm, measurement frame).
+    /// The point the known solution predicts at each measurement ([`measure::compared_point`]:
+    /// the tool position, mm, measurement frame; a distance's length).
     pub positions: Vec<nalgebra::Vector3<f64>>,
     /// Largest distance (mm) at which the fit agrees.
     pub tolerance_mm: f64,
@@ -561,7 +562,8 @@ fn gauss_newton<M: Mechanism + Clone>(
                     && poses
                         .iter()
                         .zip(&a.positions)
-                        .all(|(t, p)| (t.translation.vector - p).norm() <= a.tolerance_mm)
+                        .zip(data)
+                        .all(|((t, p), m)| (measure::compared_point(&m.obs, t) - p).norm() <= a.tolerance_mm)
             });
         let ends = agrees || tiny || (negligible && (stalls >= 1 || !accepted_now || contracting));
         previous_pred = Some(pred);

@@ -50,6 +50,7 @@ pub mod design;
 pub mod error;
 pub mod identifiability;
 pub mod identify;
+pub mod instrument;
 pub mod io;
 pub mod measure;
 pub mod model;

@@ -7,6 +7,15 @@
 //! * [`Observation::Position`]: the position of the tool-frame origin (one reflector whose centre
 //!   *is* the tool point). Residual `p_meas − p`, 3 rows in mm.
 //!
+//! * [`Observation::Seat`]: the tool point sat in a fixed seat (cone, socket, nest) whose centre
+//!   is an unknown of the instrument ([`crate::instrument`]). Residual `c − p`, 3 rows in mm.
+//! * [`Observation::Distance`]: a ballbar's or draw-wire sensor's length between the tool point
+//!   and a fixed pivot, whose centre is an unknown of the instrument. Residual `L − |p − c|`,
+//!   1 row in mm.
+//!
+//! For the two instrument kinds the predicted pose is the tool frame *relative to* the artifact
+//! point (its centre subtracted), which is what [`crate::instrument::Artifact`] predicts.
+//!
 //! Rows are weighted by the measurement noise ([`Noise`]): dividing each residual by its standard
 //! deviation makes the least-squares solution the maximum-likelihood estimate under Gaussian
 //! noise and puts millimetres and radians on one dimensionless scale.
@@ -24,6 +33,16 @@ pub enum Observation {
     /// Positions of several points rigidly attached to the tool (e.g. tracker reflectors):
     /// `(point in the tool frame, measured position)` pairs, mm.
     Points(Vec<(Vector3<f64>, Vector3<f64>)>),
+    /// The tool point sat in seat number `.0` of the instrument (its centre unknown).
+    Seat(usize),
+    /// The length (mm) measured between the tool point and pivot number `pivot` (its centre
+    /// unknown): a ballbar's or a draw-wire sensor's reading.
+    Distance {
+        /// Pivot number.
+        pivot: usize,
+        /// Measured length (mm).
+        length: f64,
+    },
 }
 
 impl Observation {
@@ -33,6 +52,36 @@ impl Observation {
             Observation::Pose(_) => 6,
             Observation::Position(_) => 3,
             Observation::Points(p) => 3 * p.len(),
+            Observation::Seat(_) => 3,
+            Observation::Distance { .. } => 1,
+        }
+    }
+
+    /// The artifact point (seat or pivot) an instrument observation refers to, with its kind.
+    pub fn artifact_point(&self) -> Option<(PointKind, usize)> {
+        match self {
+            Observation::Seat(k) => Some((PointKind::Seat, *k)),
+            Observation::Distance { pivot, .. } => Some((PointKind::Pivot, *pivot)),
+            _ => None,
+        }
+    }
+}
+
+/// What an artifact point is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, serde::Serialize)]
+pub enum PointKind {
+    /// A seat: the tool point sits at its centre ([`Observation::Seat`]).
+    Seat,
+    /// A pivot: a length is measured from its centre ([`Observation::Distance`]).
+    Pivot,
+}
+
+impl PointKind {
+    /// `"seat"` or `"pivot"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            PointKind::Seat => "seat",
+            PointKind::Pivot => "pivot",
         }
     }
 }
@@ -96,6 +145,8 @@ pub fn residual(obs: &Observation, predicted: &Pose) -> Vec<f64> {
             .iter()
             .flat_map(|(r, m)| (m - predicted.transform_point(&(*r).into()).coords).as_slice().to_vec())
             .collect(),
+        Observation::Seat(_) => (-predicted.translation.vector).as_slice().to_vec(),
+        Observation::Distance { length, .. } => vec![length - predicted.translation.vector.norm()],
     }
 }
 
@@ -109,9 +160,15 @@ pub fn residual_jacobian(obs: &Observation, predicted: &Pose, jac: &Matrix6xX<f6
             let full = se3::mul6(&se3::spatial_to_pose_error(&predicted.translation.vector), jac);
             DMatrix::from_iterator(6, jac.ncols(), full.iter().copied())
         }
-        Observation::Position(_) => {
+        Observation::Position(_) | Observation::Seat(_) => {
             let full = se3::mul6(&se3::spatial_to_pose_error(&predicted.translation.vector), jac);
             DMatrix::from_fn(3, jac.ncols(), |i, j| full[(i, j)])
+        }
+        Observation::Distance { .. } => {
+            let p = predicted.translation.vector;
+            let full = se3::mul6(&se3::spatial_to_pose_error(&p), jac);
+            let u = p.try_normalize(1e-12).unwrap_or_else(Vector3::zeros);
+            DMatrix::from_fn(1, jac.ncols(), |_, j| u.dot(&full.fixed_view::<3, 1>(0, j)))
         }
         Observation::Points(pts) => {
             let mut out = DMatrix::zeros(3 * pts.len(), jac.ncols());
@@ -122,6 +179,16 @@ pub fn residual_jacobian(obs: &Observation, predicted: &Pose, jac: &Matrix6xX<f6
             }
             out
         }
+    }
+}
+
+/// The point two solutions are compared at (the extra starts of [`crate::calibrate`]): the
+/// predicted tool point, or for a distance its length along x (a ballbar does not see the
+/// direction, and solutions that differ by where the unplaced base stands predict it alike).
+pub fn compared_point(obs: &Observation, predicted: &Pose) -> Vector3<f64> {
+    match obs {
+        Observation::Distance { .. } => Vector3::x() * predicted.translation.vector.norm(),
+        _ => predicted.translation.vector,
     }
 }
 
@@ -159,6 +226,8 @@ pub fn errors(obs: &Observation, predicted: &Pose) -> (f64, Option<f64>) {
             (se3::lin(&e).norm(), Some(se3::ang(&e).norm()))
         }
         Observation::Position(p) => ((p - predicted.translation.vector).norm(), None),
+        Observation::Seat(_) => (predicted.translation.vector.norm(), None),
+        Observation::Distance { length, .. } => ((length - predicted.translation.vector.norm()).abs(), None),
         Observation::Points(pts) => {
             // RMS over the points of their position errors.
             let s: f64 = pts

@@ -58,6 +58,23 @@ impl Param {
             group: group.into(),
         }
     }
+
+    /// Whether the parameter places something outside the machine (a frame, a group ending in
+    /// `" frame"`, or an instrument's artifact point, [`ARTIFACT_GROUP`]):
+    /// where it happens to stand, not limited by the machine's tolerances.
+    pub fn is_placement(&self) -> bool {
+        is_placement_group(&self.group)
+    }
+}
+
+/// The parameter group of an instrument's artifact points' coordinates
+/// ([`crate::instrument::Artifact`]): not limited by the machine's tolerances, not perturbed by
+/// the extra starts — like the frames, they are where the artifact happens to stand.
+pub const ARTIFACT_GROUP: &str = "artifact";
+
+/// Whether a parameter group places something outside the machine ([`Param::is_placement`]).
+pub fn is_placement_group(group: &str) -> bool {
+    group.ends_with(" frame") || group == ARTIFACT_GROUP
 }
 
 /// Index of the parameter called `name`, if any.

@@ -17,7 +17,7 @@ fn perturbation(model: &dyn Mechanism, free: &[usize], tol: &Tolerances, seed: u
     let params = model.params();
     let mut d = nalgebra::DVector::zeros(params.len());
     for &i in free {
-        if params[i].group.ends_with(" frame") {
+        if params[i].is_placement() {
             continue;
         }
         let s = tol.of(params[i].unit).map_or(0.0, |t| t / 3.0);
@@ -30,7 +30,7 @@ fn perturbation(model: &dyn Mechanism, free: &[usize], tol: &Tolerances, seed: u
 fn max_prediction_difference(a: &dyn Mechanism, b: &dyn Mechanism, data: &[Measurement]) -> f64 {
     data.iter()
         .map(|m| match (a.forward(&m.q), b.forward(&m.q)) {
-            (Ok(x), Ok(y)) => (x.translation.vector - y.translation.vector).norm(),
+            (Ok(x), Ok(y)) => (crate::measure::compared_point(&m.obs, &x) - crate::measure::compared_point(&m.obs, &y)).norm(),
             _ => f64::INFINITY,
         })
         .fold(0.0, f64::max)
@@ -81,7 +81,7 @@ pub fn other_starts(
             .then(|| -> Option<Agreement> {
                 let positions = subset
                     .iter()
-                    .map(|m| fit.model.forward(&m.q).ok().map(|t| t.translation.vector))
+                    .map(|m| fit.model.forward(&m.q).ok().map(|t| crate::measure::compared_point(&m.obs, &t)))
                     .collect::<Option<Vec<_>>>()?;
                 Some(Agreement {
                     positions,

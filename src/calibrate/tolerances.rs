@@ -31,14 +31,11 @@ const LAWSON_ITERATIONS: usize = 60;
 
 /// Judge the corrections of `id` (free parameters `free`) against `tolerances` in the gauge that
 /// keeps them smallest relative to their tolerances (see the module docs). Parameters of frames
-/// (a group ending in `" frame"`) and dimensionless ones are not limited.
+/// and artifact points ([`crate::params::Param::is_placement`]) and dimensionless ones are not
+/// limited.
 pub fn tolerance_check<M: Mechanism>(id: &Identification<M>, free: &[usize], tolerances: &Tolerances) -> ToleranceCheck {
     let params = id.model.params();
-    let limit = |i: usize| {
-        (!params[i].group.ends_with(" frame"))
-            .then(|| tolerances.of(params[i].unit))
-            .flatten()
-    };
+    let limit = |i: usize| (!params[i].is_placement()).then(|| tolerances.of(params[i].unit)).flatten();
     let null = null_space(&id.information, free, id.identifiability.rank);
     // Rows: the tolerance-limited free parameters, scaled by their tolerance.
     let limited: Vec<(usize, usize, f64)> = free

@@ -258,7 +258,7 @@ pub(crate) fn factor<M: Mechanism + ?Sized>(
             match &d.obs {
                 // Pose and position rows straight from the spatial Jacobian: (v − p × ω, ω) per
                 // column, weighted, without an intermediate matrix per pose.
-                Observation::Pose(_) | Observation::Position(_) => {
+                Observation::Pose(_) | Observation::Position(_) | Observation::Seat(_) => {
                     let pt = pose.translation.vector;
                     let nrows = if matches!(d.obs, Observation::Pose(_)) { 6 } else { 3 };
                     let (wp, wo) = (lw / noise.position, lw / noise.orientation);
@@ -279,7 +279,7 @@ pub(crate) fn factor<M: Mechanism + ?Sized>(
                         m[(r0 + k, p)] = ev.residual[ev.offsets[i] + k];
                     }
                 }
-                Observation::Points(_) => {
+                Observation::Points(_) | Observation::Distance { .. } => {
                     let a = measure::residual_jacobian(&d.obs, &pose, &jac);
                     let w = measure::row_weights(&d.obs, noise);
                     for (k, wk) in w.iter().enumerate() {

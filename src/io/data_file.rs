@@ -20,6 +20,8 @@
 //!   - a position: `x_mm, y_mm, z_mm` alone (the tool-frame origin);
 //!   - three reflector centres `m1x_mm … m3z_mm`, turned into the tool frame by
 //!     [`frame_from_reflectors`] (the model's tool frame must be that reflector frame);
+//!   - `seat`: the number of the fixed seat the tool point sat in ([`crate::instrument`]);
+//!   - `pivot, length_mm`: a ballbar's or draw-wire sensor's length from pivot number `pivot`;
 //! * optionally `id` (a pose number, kept for messages and written back).
 //!
 //! Blank lines and `#` comments are skipped. Any other column, a missing one, a wrong unit
@@ -47,6 +49,10 @@ pub enum MeasurementFormat {
     Position,
     /// `m1x … m3z`.
     Reflectors,
+    /// `seat`: the tool point in a fixed seat ([`Observation::Seat`]).
+    Seat,
+    /// `pivot, length`: a ballbar's or draw-wire sensor's length ([`Observation::Distance`]).
+    Distance,
 }
 
 impl MeasurementFormat {
@@ -57,6 +63,8 @@ impl MeasurementFormat {
             MeasurementFormat::PoseRpy => "pose (x,y,z + roll,pitch,yaw)",
             MeasurementFormat::Position => "position (x,y,z)",
             MeasurementFormat::Reflectors => "three reflector centres (m1..m3)",
+            MeasurementFormat::Seat => "seat numbers (the tool point in a fixed seat)",
+            MeasurementFormat::Distance => "distances (pivot, length)",
         }
     }
 }
@@ -428,53 +436,7 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
             }
         }
     }
-    let n_pos = has(&|s| matches!(s, Slot::Pos(_)));
-    let n_quat = has(&|s| matches!(s, Slot::Quat(_)));
-    let n_rpy = has(&|s| matches!(s, Slot::Rpy(_)));
-    let n_refl = has(&|s| matches!(s, Slot::Reflector(..)));
-    let format = if n_refl > 0 {
-        if n_pos + n_quat + n_rpy > 0 {
-            return Err(at_header(
-                "give either reflector columns m1x..m3z or x,y,z (+ orientation), not both".into(),
-            ));
-        }
-        for r in 1..=3 {
-            for a in ["x", "y", "z"] {
-                if !table.columns.iter().any(|c| split_unit(c).0 == format!("m{r}{a}")) {
-                    return Err(missing(format!("m{r}{a}_mm")));
-                }
-            }
-        }
-        MeasurementFormat::Reflectors
-    } else {
-        for a in ["x", "y", "z"] {
-            if !table.columns.iter().any(|c| split_unit(c).0 == a) {
-                return Err(missing(format!("{a}_mm")));
-            }
-        }
-        match (n_quat > 0, n_rpy > 0) {
-            (true, true) => {
-                return Err(at_header(
-                    "give the orientation as qw,qx,qy,qz or as roll,pitch,yaw, not both".into(),
-                ))
-            }
-            (true, false) => {
-                for c in ["qw", "qx", "qy", "qz"] {
-                    table.column(c)?;
-                }
-                MeasurementFormat::PoseQuaternion
-            }
-            (false, true) => {
-                for c in ["roll", "pitch", "yaw"] {
-                    if !table.columns.iter().any(|x| split_unit(x).0 == c) {
-                        return Err(missing(format!("{c}_deg")));
-                    }
-                }
-                MeasurementFormat::PoseRpy
-            }
-            (false, false) => MeasurementFormat::Position,
-        }
-    };
+    let format = columns::measurement_format(table, &slots)?;
 
     if table.is_empty() {
         return Err(IoError::Invalid {
@@ -526,7 +488,7 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
         let mut lost = false;
         let mut all_zero = true;
         for ((slot, _), (v, col)) in slots.iter().zip(row.iter().zip(&table.columns)) {
-            let measured = !matches!(slot, Slot::Id | Slot::Input(_));
+            let measured = !matches!(slot, Slot::Id | Slot::Input(_) | Slot::Seat | Slot::Pivot);
             if v.is_nan() {
                 if !measured {
                     return Err(IoError::AtLine {
@@ -540,7 +502,12 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
                 all_zero = false;
             }
         }
-        if lost || (all_zero && slots.iter().any(|(s, _)| !matches!(s, Slot::Id | Slot::Input(_)))) {
+        if lost
+            || (all_zero
+                && slots
+                    .iter()
+                    .any(|(s, _)| !matches!(s, Slot::Id | Slot::Input(_) | Slot::Seat | Slot::Pivot)))
+        {
             dropped.push(line);
             continue;
         }
@@ -550,6 +517,7 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
         let (mut p, mut quat, mut rpy) = (Vector3::zeros(), [0.0; 4], [0.0; 3]);
         let mut refl = [Vector3::zeros(); 3];
         let mut id = r as i64;
+        let (mut point, mut length) = (0usize, 0.0);
         for (((slot, f), v), col) in slots.iter().zip(row).zip(&table.columns) {
             let v = v * f;
             if matches!(slot, Slot::Pos(_) | Slot::Reflector(..)) && v.abs() > MAX_COORDINATE_MM {
@@ -578,6 +546,8 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
                 Slot::Quat(i) => quat[i] = v,
                 Slot::Rpy(i) => rpy[i] = v,
                 Slot::Reflector(m, a) => refl[m][a] = v,
+                Slot::Seat | Slot::Pivot => point = columns::point_number(path, line, col, v)?,
+                Slot::Length => length = v,
             }
         }
         if let Some(first) = first_line_of_id.insert(id, line) {
@@ -599,6 +569,8 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
         }
         let obs = match format {
             MeasurementFormat::Position => Observation::Position(p),
+            MeasurementFormat::Seat => Observation::Seat(point),
+            MeasurementFormat::Distance => Observation::Distance { pivot: point, length },
             MeasurementFormat::PoseQuaternion => {
                 let qn = Quaternion::new(quat[0], quat[1], quat[2], quat[3]);
                 if (qn.norm() - 1.0).abs() > 1e-3 {
@@ -678,7 +650,7 @@ fn check_limits(path: &Path, line: usize, inputs: &[InputSpec], q: &[f64]) -> Re
 mod columns;
 mod write;
 pub use columns::expected_columns;
-use columns::{classify, split_unit, Slot};
+use columns::{classify, Slot};
 pub use write::{csv_text, data_text, header_of, input_headers, input_values_for_file, write_csv, write_data};
 
 #[cfg(test)]

@@ -214,7 +214,7 @@ impl CalibrationReport {
         let reported: Vec<Beyond> = self
             .params
             .iter()
-            .filter(|p| p.status == ParamStatus::Identified && !p.group.ends_with(" frame"))
+            .filter(|p| p.status == ParamStatus::Identified && !crate::params::is_placement_group(&p.group))
             .filter_map(|p| {
                 let t = match p.unit.as_str() {
                     "mm" => tolerances.length_mm,

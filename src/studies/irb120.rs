@@ -208,6 +208,8 @@ pub fn initial_model(nominal: &SerialChain, data: &[Measurement]) -> Result<(Ser
             Observation::Pose(t) => t.translation.vector,
             Observation::Position(p) => *p,
             Observation::Points(pts) => pts.iter().map(|(_, m)| *m).sum::<Vector3<f64>>() / pts.len().max(1) as f64,
+            // The study's data are the tracker's: no instrument rows reach here.
+            Observation::Seat(_) | Observation::Distance { .. } => Vector3::from_element(f64::NAN),
         })
         .collect();
     let reg = register(nominal, &q, &points)?;

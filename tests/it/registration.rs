@@ -315,7 +315,7 @@ fn with_blunders_of(poses: usize, kind: Kind, blunders: usize) -> (f64, Vec<i64>
         match &mut data.measurements[i].obs {
             Observation::Pose(t) => t.translation.vector += dir * size,
             Observation::Position(p) => *p += dir * size,
-            Observation::Points(_) => unreachable!(),
+            _ => unreachable!("tracker data"),
         }
         moved.push(data.ids[i]);
     }

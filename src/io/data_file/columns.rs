@@ -35,7 +35,7 @@ pub fn expected_columns(inputs: &[InputSpec]) -> String {
             Unit::Length => format!("{}_mm|_m", i.name),
         })
         .collect();
-    v.push("x_mm,y_mm,z_mm (+ qw,qx,qy,qz or roll_deg,pitch_deg,yaw_deg) or m1x_mm..m3z_mm; optional id".into());
+    v.push("x_mm,y_mm,z_mm (+ qw,qx,qy,qz or roll_deg,pitch_deg,yaw_deg) or m1x_mm..m3z_mm or seat or pivot,length_mm; optional id".into());
     v.join(", ")
 }
 
@@ -48,6 +48,12 @@ pub(super) enum Slot {
     Quat(usize),
     Rpy(usize),
     Reflector(usize, usize),
+    /// The seat number of an instrument row.
+    Seat,
+    /// The pivot number of a distance row.
+    Pivot,
+    /// The length of a distance row.
+    Length,
 }
 
 /// What a column holds and its factor to mm / rad; errors name the file (line 1) and column.
@@ -60,6 +66,19 @@ pub(super) fn classify(path: &Path, col: &str, inputs: &[InputSpec]) -> Result<(
     let (base, unit) = split_unit(col);
     let slot = if col == "id" {
         (Slot::Id, 1.0)
+    } else if col == "seat" {
+        (Slot::Seat, 1.0)
+    } else if col == "pivot" {
+        (Slot::Pivot, 1.0)
+    } else if base == "length" {
+        match unit.and_then(length_factor) {
+            Some(f) => (Slot::Length, f),
+            None => {
+                return Err(at_header(format!(
+                    "column '{col}': a length needs a length unit (length_mm or length_m)"
+                )))
+            }
+        }
     } else if let Some(k) = inputs.iter().position(|i| i.name == base) {
         let inp = &inputs[k];
         let (factor, want) = match inp.unit {
@@ -124,4 +143,103 @@ fn reflector_column(base: &str) -> Option<(usize, usize)> {
         return Some(((b[1] - b'1') as usize, a));
     }
     None
+}
+
+/// The measurement format the columns hold (each kind's columns complete, kinds not mixed).
+pub(super) fn measurement_format(table: &Table, slots: &[(Slot, f64)]) -> Result<MeasurementFormat, IoError> {
+    let path = &table.path;
+    let at_header = |message: String| IoError::AtLine {
+        path: path.clone(),
+        line: 1,
+        message,
+    };
+    let missing = |column: String| IoError::MissingColumn {
+        path: path.clone(),
+        column,
+        header: table.columns.join(","),
+    };
+    let has = |pred: &dyn Fn(&Slot) -> bool| slots.iter().filter(|(s, _)| pred(s)).count();
+    let n_seat = has(&|s: &Slot| matches!(s, Slot::Seat));
+    let n_pivot = has(&|s: &Slot| matches!(s, Slot::Pivot));
+    let n_length = has(&|s: &Slot| matches!(s, Slot::Length));
+    let n_other = has(&|s: &Slot| matches!(s, Slot::Pos(_) | Slot::Quat(_) | Slot::Rpy(_) | Slot::Reflector(..)));
+    if n_seat + n_pivot + n_length > 0 {
+        if n_other > 0 || (n_seat > 0 && n_pivot + n_length > 0) {
+            return Err(at_header(
+                "give one kind of measurement per file: 'seat' alone, 'pivot' with 'length_mm', or tracker columns (x_mm … / m1x_mm …)"
+                    .into(),
+            ));
+        }
+        if n_seat > 0 {
+            return Ok(MeasurementFormat::Seat);
+        }
+        if n_pivot == 0 {
+            return Err(missing("pivot".into()));
+        }
+        if n_length == 0 {
+            return Err(missing("length_mm".into()));
+        }
+        return Ok(MeasurementFormat::Distance);
+    }
+    let n_pos = has(&|s: &Slot| matches!(s, Slot::Pos(_)));
+    let n_quat = has(&|s: &Slot| matches!(s, Slot::Quat(_)));
+    let n_rpy = has(&|s: &Slot| matches!(s, Slot::Rpy(_)));
+    let n_refl = has(&|s: &Slot| matches!(s, Slot::Reflector(..)));
+    let format = if n_refl > 0 {
+        if n_pos + n_quat + n_rpy > 0 {
+            return Err(at_header(
+                "give either reflector columns m1x..m3z or x,y,z (+ orientation), not both".into(),
+            ));
+        }
+        for r in 1..=3 {
+            for a in ["x", "y", "z"] {
+                if !table.columns.iter().any(|c| split_unit(c).0 == format!("m{r}{a}")) {
+                    return Err(missing(format!("m{r}{a}_mm")));
+                }
+            }
+        }
+        MeasurementFormat::Reflectors
+    } else {
+        for a in ["x", "y", "z"] {
+            if !table.columns.iter().any(|c| split_unit(c).0 == a) {
+                return Err(missing(format!("{a}_mm")));
+            }
+        }
+        match (n_quat > 0, n_rpy > 0) {
+            (true, true) => {
+                return Err(at_header(
+                    "give the orientation as qw,qx,qy,qz or as roll,pitch,yaw, not both".into(),
+                ))
+            }
+            (true, false) => {
+                for c in ["qw", "qx", "qy", "qz"] {
+                    table.column(c)?;
+                }
+                MeasurementFormat::PoseQuaternion
+            }
+            (false, true) => {
+                for c in ["roll", "pitch", "yaw"] {
+                    if !table.columns.iter().any(|x| split_unit(x).0 == c) {
+                        return Err(missing(format!("{c}_deg")));
+                    }
+                }
+                MeasurementFormat::PoseRpy
+            }
+            (false, false) => MeasurementFormat::Position,
+        }
+    };
+
+    Ok(format)
+}
+
+/// A seat or pivot number: a non-negative integer.
+pub(super) fn point_number(path: &Path, line: usize, col: &str, v: f64) -> Result<usize, IoError> {
+    if v < 0.0 || v.fract() != 0.0 || v > 1e9 {
+        return Err(IoError::AtLine {
+            path: path.to_path_buf(),
+            line,
+            message: format!("column '{col}': '{v}' is not a {col} number (a non-negative integer)"),
+        });
+    }
+    Ok(v as usize)
 }

@@ -60,7 +60,12 @@ pub fn data_text(
         header.extend(input_headers(observed));
     }
     let pose = matches!(measurements.first().map(|m| &m.obs), Some(Observation::Pose(_)));
-    if reflectors.is_some() {
+    let first = measurements.first().map(|m| &m.obs);
+    if let Some(Observation::Seat(_)) = first {
+        header.push("seat".into());
+    } else if let Some(Observation::Distance { .. }) = first {
+        header.extend(["pivot", "length_mm"].map(String::from));
+    } else if reflectors.is_some() {
         for r in 1..=3 {
             for a in ["x", "y", "z"] {
                 header.push(format!("m{r}{a}_mm"));
@@ -99,6 +104,18 @@ pub fn data_text(
                 row.extend([v.x, v.y, v.z, q.w, q.i, q.j, q.k]);
             }
             (None, Observation::Position(v)) => row.extend([v.x, v.y, v.z]),
+            (None, Observation::Seat(s)) if matches!(first, Some(Observation::Seat(_))) => row.push(*s as f64),
+            (None, Observation::Distance { pivot, length }) if matches!(first, Some(Observation::Distance { .. })) => {
+                row.extend([*pivot as f64, *length])
+            }
+            (None, Observation::Seat(_) | Observation::Distance { .. }) => {
+                return Err(IoError::Invalid {
+                    path: path.to_path_buf(),
+                    message: format!(
+                        "pose {k}: one data file holds one kind of measurement (seat rows and distance rows go to separate files)"
+                    ),
+                })
+            }
             (None, Observation::Points(_)) => {
                 return Err(IoError::Invalid {
                     path: path.to_path_buf(),

@@ -1,0 +1,547 @@
+//! Instruments without a laser tracker: a fixed **seat** (cone, socket, magnetic nest) the tool
+//! ball is placed in from many orientations, and a **distance** (ballbar, draw-wire sensor)
+//! between the tool point and a fixed pivot.
+//!
+//! Both bring unknowns of their own: the centre of every seat and every pivot (the *artifact
+//! points*, in the mechanism's base frame). [`Artifact`] wraps a mechanism and appends them to its
+//! parameters, three per point, so that identification estimates them with the geometry and
+//! reports their σ like any parameter ([`ARTIFACT_GROUP`]). A measurement says which point it
+//! refers to through one extra input, the point's index ([`index_points`] appends it), and the
+//! wrapper predicts the tool frame *relative to* that point: a seat's residual is then `c − p`,
+//! a distance's `L − |p − c|` ([`crate::measure::residual`]).
+//!
+//! The points are started from the data, not from a guess ([`start_points`]): the seats and the
+//! tool offset together by the linear pivot calibration (`R_i·t − c_s = −p_i` over every row of
+//! every seat), each pivot by a sphere fit of the nominal tool points to the measured lengths.
+//!
+//! What an instrument cannot see: where the machine stands (no instrument here places its base:
+//! the artifact is somewhere unknown, so the mechanism's base placement and the points move
+//! together), and, with seats alone, the scale of a machine of revolute joints (every length and
+//! every seat scaled alike leave each ball in its seat). Identification removes such directions
+//! by its rank analysis (minimum-norm steps on the identifiable directions only); the report
+//! names the parameters that are redundant.
+use crate::error::{CalibError, KinError};
+use crate::measure::{Measurement, Observation};
+use crate::model::framed::Framed;
+use crate::model::{ForwardAndObserved, Mechanism, Task};
+use crate::params::{Param, Unit};
+use crate::se3::Pose;
+use nalgebra::{DMatrix, DVector, Matrix6xX, Translation3, Vector3};
+use std::collections::BTreeMap;
+
+pub mod simulate;
+
+pub use crate::measure::PointKind;
+pub use crate::params::ARTIFACT_GROUP;
+
+/// Rows a seat needs at least: one row places the seat and tells nothing about the machine.
+pub const MIN_SEAT_ROWS: usize = 2;
+
+/// Rows a pivot needs at least: three lengths place a pivot (up to a mirror image), the fourth
+/// is the first that tells something about the machine.
+pub const MIN_PIVOT_ROWS: usize = 4;
+
+/// One artifact point: a seat's or a pivot's centre (mm, the mechanism's base frame).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct ArtifactPoint {
+    /// Seat or pivot.
+    pub kind: PointKind,
+    /// Its number in the data (`seat` or `pivot` column).
+    pub id: usize,
+    /// Its centre (mm).
+    pub centre: Vector3<f64>,
+}
+
+/// A mechanism with the artifact points of its instrument as extra parameters (module docs).
+/// Its inputs are the mechanism's, then the index of the artifact point the measurement refers
+/// to; its tool pose is the mechanism's relative to that point.
+#[derive(Debug, Clone)]
+pub struct Artifact<M> {
+    /// The mechanism (usually seen through its frames, [`Framed`]: the tool offset).
+    pub inner: M,
+    /// The artifact points, in index order.
+    pub points: Vec<ArtifactPoint>,
+}
+
+/// The artifact points of a data set and its measurements with their point index appended.
+pub type Indexed = (Vec<ArtifactPoint>, Vec<Measurement>);
+
+/// The artifact points the measurements refer to (sorted by kind, then number) and the
+/// measurements with each one's point index appended to its inputs; `None` when no measurement
+/// is an instrument's. Mixing instrument and tracker observations in one set is an error.
+pub fn index_points(measurements: &[Measurement]) -> Result<Option<Indexed>, CalibError> {
+    let with_point = measurements.iter().filter(|m| m.obs.artifact_point().is_some()).count();
+    if with_point == 0 {
+        return Ok(None);
+    }
+    if with_point < measurements.len() {
+        return Err(CalibError::InvalidOption(
+            "the data mix instrument rows (seat or pivot) with tracker rows; give one kind per data set".into(),
+        ));
+    }
+    let mut counts: BTreeMap<(PointKind, usize), usize> = BTreeMap::new();
+    for m in measurements {
+        *counts.entry(m.obs.artifact_point().expect("counted above")).or_default() += 1;
+    }
+    for (&(kind, id), &n) in &counts {
+        let least = if kind == PointKind::Seat { MIN_SEAT_ROWS } else { MIN_PIVOT_ROWS };
+        if n < least {
+            return Err(CalibError::InvalidOption(format!(
+                "{} {id} has {n} row{}; at least {least} are needed to place it and learn from it (add rows, or remove that {})",
+                kind.name(),
+                if n == 1 { "" } else { "s" },
+                kind.name()
+            )));
+        }
+    }
+    let points: Vec<ArtifactPoint> = counts
+        .keys()
+        .map(|&(kind, id)| ArtifactPoint {
+            kind,
+            id,
+            centre: Vector3::zeros(),
+        })
+        .collect();
+    let index: BTreeMap<(PointKind, usize), usize> = counts.keys().enumerate().map(|(k, &key)| (key, k)).collect();
+    let indexed = measurements
+        .iter()
+        .map(|m| {
+            let mut q = m.q.clone();
+            q.push(index[&m.obs.artifact_point().expect("counted above")] as f64);
+            Measurement { q, ..m.clone() }
+        })
+        .collect();
+    Ok(Some((points, indexed)))
+}
+
+/// Start the tool offset of `framed` and the centres of `points` from `indexed` measurements
+/// ([`index_points`]) at the nominal geometry (module docs): the seats and the tool-point offset
+/// together by linear least squares over every seat row, then each pivot by a sphere fit.
+/// Returns the framed mechanism with its tool offset moved, and the points placed.
+pub fn start_points<M: Mechanism + Clone + 'static>(
+    mut framed: Framed<M>,
+    mut points: Vec<ArtifactPoint>,
+    indexed: &[Measurement],
+) -> Result<Artifact<Framed<M>>, CalibError> {
+    let n_q = framed.inner.input_names().len();
+    let poses: Vec<(usize, Pose)> = indexed
+        .iter()
+        .enumerate()
+        .map(|(i, m)| {
+            let pose = framed
+                .forward(&m.q[..n_q])
+                .map_err(|source| CalibError::Kinematics { pose: i, source })?;
+            Ok((m.q[n_q] as usize, pose))
+        })
+        .collect::<Result<_, CalibError>>()?;
+    let seats: Vec<usize> = (0..points.len()).filter(|&k| points[k].kind == PointKind::Seat).collect();
+    // The tool-point offset found from the seats (tool frame), zero without seats.
+    let mut t = Vector3::zeros();
+    if !seats.is_empty() {
+        // Unknowns: the tool-point offset t (tool frame), then each seat's centre.
+        let col = |k: usize| 3 + 3 * seats.iter().position(|&s| s == k).expect("a seat");
+        let rows: Vec<&(usize, Pose)> = poses.iter().filter(|(k, _)| points[*k].kind == PointKind::Seat).collect();
+        let mut a = DMatrix::zeros(3 * rows.len(), 3 + 3 * seats.len());
+        let mut b = DVector::zeros(3 * rows.len());
+        for (r, (k, pose)) in rows.iter().enumerate() {
+            let rot = pose.rotation.to_rotation_matrix();
+            a.view_mut((3 * r, 0), (3, 3)).copy_from(rot.matrix());
+            for i in 0..3 {
+                a[(3 * r + i, col(*k) + i)] = -1.0;
+                b[3 * r + i] = -pose.translation.vector[i];
+            }
+        }
+        let x = a
+            .svd(true, true)
+            .solve(&b, 1e-10)
+            .map_err(|e| CalibError::Numerical(format!("placing the seats: {e}")))?;
+        t = Vector3::new(x[0], x[1], x[2]);
+        framed.tool *= Translation3::from(t);
+        for &k in &seats {
+            let c = col(k);
+            points[k].centre = Vector3::new(x[c], x[c + 1], x[c + 2]);
+        }
+    }
+    let pivots: Vec<usize> = (0..points.len()).filter(|&k| points[k].kind == PointKind::Pivot).collect();
+    if !pivots.is_empty() {
+        let rows: Vec<(usize, Pose, f64)> = poses
+            .iter()
+            .zip(indexed)
+            .filter_map(|((k, pose), m)| match m.obs {
+                Observation::Distance { length, .. } => Some((*k, *pose, length)),
+                _ => None,
+            })
+            .collect();
+        for &k in &pivots {
+            let sphere: Vec<(Vector3<f64>, f64)> = rows
+                .iter()
+                .filter(|(j, ..)| *j == k)
+                .map(|(_, pose, l)| (pose.translation.vector + pose.rotation * t, *l))
+                .collect();
+            points[k].centre = sphere_centre(&sphere).ok_or_else(|| {
+                CalibError::InvalidOption(format!(
+                    "pivot {}: its rows do not place it (the tool points lie in a plane or on a line); measure from more spread poses",
+                    points[k].id
+                ))
+            })?;
+        }
+        // Without seats the tool-point offset is found with the pivots: Gauss–Newton on the
+        // lengths over the offset and every pivot's centre.
+        if seats.is_empty() {
+            t = fit_offset_and_pivots(&rows, t, &mut points);
+            framed.tool *= Translation3::from(t);
+        }
+    }
+    Ok(Artifact { inner: framed, points })
+}
+
+/// Levenberg–Marquardt on `L_i − |p_i + R_i·t − c_k|` over the tool-point offset `t` and the
+/// pivots' centres (rows: pivot index, flange pose, length); returns the offset, moves the
+/// centres. Stops where the cost no longer falls.
+fn fit_offset_and_pivots(rows: &[(usize, Pose, f64)], t0: Vector3<f64>, points: &mut [ArtifactPoint]) -> Vector3<f64> {
+    let n = 3 + 3 * points.len();
+    let residual = |x: &DVector<f64>| -> DVector<f64> {
+        let t = Vector3::new(x[0], x[1], x[2]);
+        DVector::from_iterator(
+            rows.len(),
+            rows.iter().map(|(k, pose, l)| {
+                let c = x.fixed_rows::<3>(3 + 3 * k).into_owned();
+                l - (pose.translation.vector + pose.rotation * t - c).norm()
+            }),
+        )
+    };
+    let mut x = DVector::zeros(n);
+    x.fixed_rows_mut::<3>(0).copy_from(&t0);
+    for (k, p) in points.iter().enumerate() {
+        x.fixed_rows_mut::<3>(3 + 3 * k).copy_from(&p.centre);
+    }
+    let mut r = residual(&x);
+    let mut lambda = 1e-3;
+    for _ in 0..200 {
+        let t = Vector3::new(x[0], x[1], x[2]);
+        let mut j = DMatrix::zeros(rows.len(), n);
+        for (i, (k, pose, _)) in rows.iter().enumerate() {
+            let c = x.fixed_rows::<3>(3 + 3 * k).into_owned();
+            let d = pose.translation.vector + pose.rotation * t - c;
+            let u = d.try_normalize(1e-12).unwrap_or_else(Vector3::zeros);
+            let dt = pose.rotation.to_rotation_matrix().matrix().transpose() * u;
+            for a in 0..3 {
+                j[(i, a)] = -dt[a];
+                j[(i, 3 + 3 * k + a)] = u[a];
+            }
+        }
+        let jtj = j.transpose() * &j;
+        let g = j.transpose() * &r;
+        let cost = r.norm_squared();
+        let mut improved = false;
+        for _ in 0..20 {
+            let mut m = jtj.clone();
+            for d in 0..n {
+                m[(d, d)] += lambda * jtj[(d, d)].max(1e-12);
+            }
+            let Some(step) = m.cholesky().map(|c| c.solve(&(-&g))) else {
+                lambda *= 10.0;
+                continue;
+            };
+            let trial = &x + &step;
+            let rt = residual(&trial);
+            if rt.norm_squared() < cost {
+                x = trial;
+                r = rt;
+                lambda = (lambda / 3.0).max(1e-12);
+                improved = true;
+                break;
+            }
+            lambda *= 10.0;
+        }
+        if !improved || cost - r.norm_squared() <= 1e-15 * (1.0 + cost) {
+            break;
+        }
+    }
+    for (k, p) in points.iter_mut().enumerate() {
+        if p.kind == PointKind::Pivot {
+            p.centre = x.fixed_rows::<3>(3 + 3 * k).into_owned();
+        }
+    }
+    Vector3::new(x[0], x[1], x[2])
+}
+
+/// The centre `c` of the sphere on which points `p_i` lie at distances `L_i` (least squares:
+/// the linear solution of `2·p_i·c − |c|² = |p_i|² − L_i²`, then Gauss–Newton on `L_i − |p_i − c|`).
+pub fn sphere_centre(rows: &[(Vector3<f64>, f64)]) -> Option<Vector3<f64>> {
+    let n = rows.len();
+    let mut a = DMatrix::zeros(n, 4);
+    let mut b = DVector::zeros(n);
+    for (r, (p, l)) in rows.iter().enumerate() {
+        for i in 0..3 {
+            a[(r, i)] = 2.0 * p[i];
+        }
+        a[(r, 3)] = -1.0;
+        b[r] = p.norm_squared() - l * l;
+    }
+    let svd = a.svd(true, true);
+    let smax = svd.singular_values.max();
+    if svd.singular_values.min() <= 1e-9 * smax {
+        return None;
+    }
+    let x = svd.solve(&b, 0.0).ok()?;
+    let mut c = Vector3::new(x[0], x[1], x[2]);
+    for _ in 0..20 {
+        let mut j = DMatrix::zeros(n, 3);
+        let mut r = DVector::zeros(n);
+        for (k, (p, l)) in rows.iter().enumerate() {
+            let d = p - c;
+            let u = d.try_normalize(1e-12)?;
+            r[k] = l - d.norm();
+            for i in 0..3 {
+                j[(k, i)] = -u[i];
+            }
+        }
+        let step = j.svd(true, true).solve(&r, 1e-12).ok()?;
+        c -= Vector3::new(step[0], step[1], step[2]);
+        if step.norm() < 1e-13 * (1.0 + c.norm()) {
+            break;
+        }
+    }
+    c.iter().all(|v| v.is_finite()).then_some(c)
+}
+
+impl<M: Mechanism> Artifact<M> {
+    /// The inner inputs and the artifact point of inputs `q`.
+    fn split<'q>(&self, q: &'q [f64]) -> Result<(&'q [f64], usize), KinError> {
+        let n = self.inner.input_names().len();
+        crate::model::check_inputs(q, n + 1)?;
+        let k = q[n];
+        if !(k >= 0.0 && k.fract() == 0.0 && (k as usize) < self.points.len()) {
+            return Err(KinError::OutOfWorkspace(format!(
+                "artifact point index {k} (the data refer to {} points)",
+                self.points.len()
+            )));
+        }
+        Ok((&q[..n], k as usize))
+    }
+
+    /// The pose relative to point `k` and the Jacobian with the points' columns appended.
+    fn relative(&self, k: usize, (pose, jac): (Pose, Matrix6xX<f64>)) -> (Pose, Matrix6xX<f64>) {
+        let p = jac.ncols();
+        let shift = self.shift(k);
+        let mut out = Matrix6xX::zeros(p + 3 * self.points.len());
+        // The inner twists are about the base origin; relative to the point they are seen through
+        // the shift's adjoint.
+        out.columns_mut(0, p)
+            .copy_from(&crate::se3::mul6(&crate::se3::adjoint(&shift), &jac));
+        for i in 0..3 {
+            // Moving the point by δc moves the relative pose by −δc (a translation: ω = 0).
+            out[(i, p + 3 * k + i)] = -1.0;
+        }
+        (shift * pose, out)
+    }
+
+    /// The translation by minus point `k`'s centre.
+    fn shift(&self, k: usize) -> Pose {
+        Pose::from_parts(Translation3::from(-self.points[k].centre), nalgebra::UnitQuaternion::identity())
+    }
+}
+
+impl<M: Mechanism + Clone + 'static> Mechanism for Artifact<M> {
+    fn name(&self) -> &str {
+        self.inner.name()
+    }
+    fn input_names(&self) -> Vec<String> {
+        let mut out = self.inner.input_names();
+        out.push("artifact point".into());
+        out
+    }
+    fn params(&self) -> Vec<Param> {
+        let mut out = self.inner.params();
+        for p in &self.points {
+            for a in ["x", "y", "z"] {
+                out.push(Param::new(format!("{}{}.{a}", p.kind.name(), p.id), Unit::Length, ARTIFACT_GROUP));
+            }
+        }
+        out
+    }
+    fn n_params(&self) -> usize {
+        self.inner.n_params() + 3 * self.points.len()
+    }
+    fn forward(&self, q: &[f64]) -> Result<Pose, KinError> {
+        let (qi, k) = self.split(q)?;
+        Ok(self.shift(k) * self.inner.forward(qi)?)
+    }
+    fn forward_with_jacobian(&self, q: &[f64]) -> Result<(Pose, Matrix6xX<f64>), KinError> {
+        let (qi, k) = self.split(q)?;
+        Ok(self.relative(k, self.inner.forward_with_jacobian(qi)?))
+    }
+    fn forward_with_jacobian_near(&self, q: &[f64], near: &Pose) -> Result<(Pose, Matrix6xX<f64>), KinError> {
+        let (qi, k) = self.split(q)?;
+        let inner_near = self.shift(k).inverse() * near;
+        Ok(self.relative(k, self.inner.forward_with_jacobian_near(qi, &inner_near)?))
+    }
+    fn retract(&mut self, delta: &DVector<f64>) {
+        let p = self.inner.n_params();
+        self.inner.retract(&delta.rows(0, p).into_owned());
+        for (k, point) in self.points.iter_mut().enumerate() {
+            point.centre += delta.fixed_rows::<3>(p + 3 * k);
+        }
+    }
+    /// Not defined: an artifact point is no target (command the mechanism itself).
+    fn inverse(&self, _target: &Pose, _seed: Option<&[f64]>) -> Result<Vec<f64>, KinError> {
+        Err(KinError::Unreachable(
+            "inverse kinematics relative to an instrument's artifact point; compensate with the calibrated model file instead".into(),
+        ))
+    }
+    fn box_clone(&self) -> Box<dyn Mechanism> {
+        Box::new(self.clone())
+    }
+    fn geometry(&self) -> Option<Vec<f64>> {
+        self.inner.geometry()
+    }
+    fn frames(&self) -> Option<(Pose, Pose)> {
+        self.inner.frames()
+    }
+    fn task(&self) -> Task {
+        self.inner.task()
+    }
+    fn observed_joints(&self) -> Vec<(String, Unit)> {
+        self.inner.observed_joints()
+    }
+    fn observed_joint_values(&self, q: &[f64]) -> Result<Vec<f64>, KinError> {
+        self.inner.observed_joint_values(self.split(q)?.0)
+    }
+    fn observed_joints_with_jacobian(&self, q: &[f64]) -> Result<(Vec<f64>, DMatrix<f64>), KinError> {
+        let (values, rows) = self.inner.observed_joints_with_jacobian(self.split(q)?.0)?;
+        let mut out = DMatrix::zeros(rows.nrows(), self.n_params());
+        out.columns_mut(0, rows.ncols()).copy_from(&rows);
+        Ok((values, out))
+    }
+    fn forward_with_jacobian_and_observed(&self, q: &[f64], near: Option<&Pose>) -> Result<ForwardAndObserved, KinError> {
+        let (qi, k) = self.split(q)?;
+        let inner_near = near.map(|n| self.shift(k).inverse() * n);
+        let (pose, jac, values, rows) = self.inner.forward_with_jacobian_and_observed(qi, inner_near.as_ref())?;
+        let (pose, jac) = self.relative(k, (pose, jac));
+        let mut out = DMatrix::zeros(rows.nrows(), self.n_params());
+        out.columns_mut(0, rows.ncols()).copy_from(&rows);
+        Ok((pose, jac, values, out))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::measure::{residual, residual_jacobian};
+    use crate::model::builtin::irb120;
+    use crate::se3;
+
+    fn artifact() -> Artifact<Framed<crate::model::chain::SerialChain>> {
+        let framed = Framed::new(
+            irb120(),
+            Pose::identity(),
+            se3::pose_from_parts(Vector3::new(15.0, -10.0, 120.0), Vector3::new(0.1, 0.2, -0.3)),
+        );
+        let points = vec![
+            ArtifactPoint {
+                kind: PointKind::Seat,
+                id: 0,
+                centre: Vector3::new(400.0, 50.0, 200.0),
+            },
+            ArtifactPoint {
+                kind: PointKind::Pivot,
+                id: 3,
+                centre: Vector3::new(350.0, -80.0, 150.0),
+            },
+        ];
+        Artifact { inner: framed, points }
+    }
+
+    /// The relative pose's spatial Jacobian, and the seat and distance residual rows built from
+    /// it, against central differences of the retraction (every column: the machine's, the
+    /// frames', the points').
+    #[test]
+    fn jacobians_match_finite_differences() {
+        let m = artifact();
+        let h = 1e-6;
+        for (k, obs) in [
+            (0.0, Observation::Seat(0)),
+            (1.0, Observation::Distance { pivot: 3, length: 250.0 }),
+        ] {
+            let q = [0.3, -0.4, 0.5, 0.9, -1.1, 0.7, k];
+            let (t, jac) = m.forward_with_jacobian(&q).unwrap();
+            let rows = residual_jacobian(&obs, &t, &jac);
+            for c in 0..m.n_params() {
+                let mut d = DVector::zeros(m.n_params());
+                d[c] = h;
+                let mut plus = m.clone();
+                plus.retract(&d);
+                d[c] = -h;
+                let mut minus = m.clone();
+                minus.retract(&d);
+                let (tp, tm) = (plus.forward(&q).unwrap(), minus.forward(&q).unwrap());
+                let fd = (se3::log(&(tp * t.inverse())) - se3::log(&(tm * t.inverse()))) / (2.0 * h);
+                let err = (fd - jac.column(c)).norm();
+                assert!(err < 1e-5 * (1.0 + jac.column(c).norm()), "point {k}, column {c}: {err:e}");
+                // Residual = measured − predicted: its derivative is minus the rows.
+                let (rp, rm) = (residual(&obs, &tp), residual(&obs, &tm));
+                for r in 0..rows.nrows() {
+                    let fd_row = -(rp[r] - rm[r]) / (2.0 * h);
+                    let err = (fd_row - rows[(r, c)]).abs();
+                    assert!(err < 1e-5 * (1.0 + rows[(r, c)].abs()), "point {k}, row {r}, column {c}: {err:e}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_seat_with_one_row_and_an_unknown_point_index_are_clear_errors() {
+        let row = |obs| Measurement {
+            q: vec![0.0; 6],
+            obs,
+            joints: Vec::new(),
+        };
+        let e = index_points(&[row(Observation::Seat(2)), row(Observation::Seat(4)), row(Observation::Seat(4))]).unwrap_err();
+        assert!(e.to_string().contains("seat 2 has 1 row"), "{e}");
+        let e = index_points(&[row(Observation::Seat(0)), row(Observation::Position(Vector3::zeros()))]).unwrap_err();
+        assert!(e.to_string().contains("mix"), "{e}");
+        let m = artifact();
+        let e = m.forward(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 7.0]).unwrap_err();
+        assert!(e.to_string().contains("artifact point index 7"), "{e}");
+        let (points, indexed) = index_points(&[row(Observation::Seat(5)), row(Observation::Seat(5))])
+            .unwrap()
+            .unwrap();
+        assert_eq!((points.len(), indexed[1].q.len()), (1, 7));
+    }
+
+    /// The sphere fit finds a centre from exact lengths, and the offset fit finds the tool
+    /// point's offset and the pivot from a start 120 mm off.
+    #[test]
+    fn pivots_and_the_tool_offset_start_from_the_lengths() {
+        let truth = artifact();
+        let c = truth.points[1].centre;
+        let rows: Vec<(usize, Pose, f64)> = (0..30)
+            .map(|i| {
+                let f = i as f64;
+                let q = [
+                    0.2 * f.sin(),
+                    -0.3 + 0.1 * f.cos(),
+                    0.4,
+                    0.5 * (2.0 * f).sin(),
+                    -1.0 + 0.2 * f.cos(),
+                    0.3 * f,
+                ];
+                let flange = truth.inner.inner.forward(&q).unwrap();
+                let tip = (flange * truth.inner.tool).translation.vector;
+                (1, flange, (tip - c).norm())
+            })
+            .collect();
+        let sphere: Vec<(Vector3<f64>, f64)> = rows
+            .iter()
+            .map(|(_, p, _)| (p * truth.inner.tool).translation.vector)
+            .zip(rows.iter().map(|r| r.2))
+            .collect();
+        assert!((sphere_centre(&sphere).unwrap() - c).norm() < 1e-8);
+        let mut points = truth.points.clone();
+        points[1].centre += Vector3::new(30.0, -20.0, 10.0);
+        let t = fit_offset_and_pivots(&rows, Vector3::zeros(), &mut points);
+        assert!((t - truth.inner.tool.translation.vector).norm() < 1e-6, "{t:?}");
+        assert!((points[1].centre - c).norm() < 1e-6);
+    }
+}
