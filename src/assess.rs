@@ -28,6 +28,9 @@
 //! differences, but free of the angles' singularities (a tool pointing down sits at a pitch of
 //! ±90°, where a and c alone swing by degrees for a rotation of micro-radians) and of the ±180°
 //! seam.
+pub mod cube;
+
+pub use cube::{iso9283_commands, CubeRequest, Iso9283Plan, PlacementError};
 use nalgebra::Vector3;
 use serde::Serialize;
 use std::collections::BTreeMap;

@@ -3,10 +3,12 @@
 //! Commanded: `pose,x_mm,y_mm,z_mm` and optionally `roll_deg,pitch_deg,yaw_deg` (the rotations
 //! `a, b, c` about x, y, z), one row per test pose. Attained: `pose,cycle,x_mm,y_mm,z_mm` and
 //! optionally the same three angles, one row per pose reached; both in the same frame (the
-//! robot's base, as a registered tracker gives them). [`attained_text`] writes an attained file.
+//! robot's base, as a registered tracker gives them). [`attained_text`] writes an attained file,
+//! [`test_poses_text`] the test poses of `kinecal plan --iso9283`.
 use super::table::{read_table, Table};
 use super::IoError;
-use crate::assess::{Attained, TestPose};
+use crate::assess::{Attained, Iso9283Plan, TestPose};
+use crate::model::kind::InputSpec;
 use nalgebra::Vector3;
 use std::path::Path;
 
@@ -101,4 +103,27 @@ pub fn attained_text(rows: &[Attained]) -> String {
         ));
     }
     out
+}
+
+/// The test poses of an ISO 9283 plan with their commands, one row per test pose:
+/// `id,x_mm,y_mm,z_mm,roll_deg,pitch_deg,yaw_deg` and the input columns (degrees for angles, mm
+/// for lengths). `kinecal assess --commanded` reads it as the commanded poses, `kinecal simulate
+/// --at` as the commands, `kinecal compensate` as targets seeded with these commands.
+pub fn test_poses_text(plan: &Iso9283Plan, inputs: &[InputSpec]) -> String {
+    let mut header: Vec<String> = ["id", "x_mm", "y_mm", "z_mm", "roll_deg", "pitch_deg", "yaw_deg"]
+        .map(String::from)
+        .to_vec();
+    header.extend(super::data_file::input_headers(inputs));
+    let rows: Vec<Vec<f64>> = plan
+        .poses
+        .iter()
+        .zip(&plan.commands)
+        .map(|(p, q)| {
+            let mut row = vec![p.pose as f64, p.position.x, p.position.y, p.position.z];
+            row.extend(p.angles.unwrap_or([0.0; 3]));
+            row.extend(super::data_file::input_values_for_file(inputs, q));
+            row
+        })
+        .collect();
+    super::data_file::csv_text(&header, &rows)
 }

@@ -119,3 +119,93 @@ fn a_test_run_before_and_after_calibration_through_the_commands() {
     );
     assert!(e.contains("at least 2 cycles"), "{e}");
 }
+
+/// `plan --iso9283` places P1–P5 in a given region of pm5 (all of it reachable: the cube is the
+/// region's largest, P1 its centre, P2–P5 a tenth of the diagonal from the corners) and writes
+/// one file that `simulate --at … --cycles` runs and `assess --commanded` reads: a perfect
+/// prototype repeating to 1 µm attains the test poses within a few µm. The same search without a
+/// region, on the IRB 120, finds a cube whose commands reach every test pose; a region out of
+/// reach is one line.
+#[test]
+fn plan_iso9283_places_the_test_poses_and_writes_what_simulate_and_assess_read() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    ok(d, &["model", "export", "pm5", "--out", "pm5.toml"]);
+    let region = [
+        "--x-mm",
+        "-30,30",
+        "--y-mm",
+        "-30,30",
+        "--z-mm",
+        "470,530",
+        "--orientation-deg",
+        "0,0,0",
+    ];
+    let mut args = vec!["plan", "--iso9283", "--model", "pm5.toml", "--output", "iso.csv"];
+    args.extend(region);
+    let v = json(d, &args);
+    assert!((v["side_mm"].as_f64().unwrap() - 60.0).abs() < 1e-9, "{v}");
+    let p = |k: usize, c: usize| v["poses"][k]["position_mm"][c].as_f64().unwrap();
+    assert_eq!([p(0, 0), p(0, 1), p(0, 2)], [0.0, 0.0, 500.0]);
+    assert!((p(1, 0) + 24.0).abs() < 1e-9 && (p(1, 2) - 476.0).abs() < 1e-9 && (p(3, 2) - 524.0).abs() < 1e-9);
+    let sim = [
+        "simulate",
+        "pm5.toml",
+        "--error-mm",
+        "0",
+        "--error-deg",
+        "0",
+        "--noise-mm",
+        "0",
+        "--noise-deg",
+        "0",
+        "--at",
+        "iso.csv",
+        "--cycles",
+        "3",
+        "--repeatability-mm",
+        "0.001",
+        "--out",
+        "att.csv",
+        "--truth",
+        "t.toml",
+    ];
+    ok(d, &sim);
+    let a = json(d, &["assess", "--commanded", "iso.csv", "att.csv"]);
+    for k in 0..5 {
+        let ap = a[0]["iso9283"]["poses"][k]["ap_p"].as_f64().unwrap();
+        assert!(ap < 0.005, "P{}: AP_P {ap}", k + 1);
+    }
+    let irb = json(d, &["plan", "--iso9283", "--model", "irb120", "--output", "irb.csv"]);
+    assert!(irb["side_mm"].as_f64().unwrap() > 200.0, "{irb}");
+    let file = kinecal::io::builtin::model_file("irb120").unwrap();
+    let model = file.build();
+    let (_, qs) = kinecal::io::data_file::read_commands(&d.join("irb.csv"), &file.inputs()).unwrap();
+    for (k, q) in qs.iter().enumerate() {
+        let t = model.forward(q).unwrap().translation.vector;
+        let target = [0, 1, 2].map(|c| irb["poses"][k]["position_mm"][c].as_f64().unwrap());
+        assert!(
+            (0..3).all(|c| (t[c] - target[c]).abs() < 1e-6),
+            "P{}: {t:?} against {target:?}",
+            k + 1
+        );
+    }
+    let e = fails(
+        d,
+        &[
+            "plan",
+            "--iso9283",
+            "--model",
+            "pm5.toml",
+            "--x-mm",
+            "1000,1100",
+            "--y-mm",
+            "0,60",
+            "--z-mm",
+            "470,530",
+            "--output",
+            "x.csv",
+        ],
+    );
+    assert!(e.contains("no cube: 0 of") && e.trim_end().lines().count() == 1, "{e}");
+}
