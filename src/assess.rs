@@ -1,4 +1,5 @@
-//! Accuracy as the standards state it: ISO 9283 pose and distance characteristics.
+//! Accuracy as the standards state it: ISO 9283 pose and distance characteristics; the test poses
+//! in a model's workspace ([`cube`]); ISO 230-4 circular tests ([`circle`]).
 //!
 //! A robot is accepted on the figures of ISO 9283, not on an RMS: at a few **test poses** (P1–P5
 //! in a cube of the workspace) the robot is commanded `n` times (**cycles**) and the attained
@@ -28,8 +29,10 @@
 //! differences, but free of the angles' singularities (a tool pointing down sits at a pitch of
 //! ±90°, where a and c alone swing by degrees for a rotation of micro-radians) and of the ±180°
 //! seam.
+pub mod circle;
 pub mod cube;
 
+pub use circle::{iso230_4, CircleError, CircularTest, Plane};
 pub use cube::{iso9283_commands, CubeRequest, Iso9283Plan, PlacementError};
 use nalgebra::Vector3;
 use serde::Serialize;

@@ -209,3 +209,68 @@ fn plan_iso9283_places_the_test_poses_and_writes_what_simulate_and_assess_read()
     );
     assert!(e.contains("no cube: 0 of") && e.trim_end().lines().count() == 1, "{e}");
 }
+
+/// ISO 230-4 through `assess --circle`: the hand-worked ellipse of the library's tests as ballbar
+/// deviations (R = 100: +10, −10, +10, −10 µm at 0°, 90°, 180°, 270°: G = 0.02, F = ±0.01, centre
+/// on the nominal one), the off-centre circle as points in the yz plane about (5, 10, 20): centre
+/// offset (0.01, 0), G = 0, F = ±0.01; the report holds the table and the polar plot; mistakes
+/// are one line.
+#[test]
+fn assess_circle_gives_the_iso_230_4_figures_of_hand_worked_circles() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let write = |name: &str, text: &str| std::fs::write(d.join(name), text).unwrap();
+    write("bb.csv", "angle_deg,deviation_mm\n0,0.01\n90,-0.01\n180,0.01\n270,-0.01\n");
+    write("pts.csv", "x_mm,y_mm,z_mm\n5,110.01,20\n5,10.01,120\n5,-89.99,20\n5,10.01,-80\n");
+    let v = json(d, &["assess", "--circle", "bb.csv", "--radius-mm", "100", "--report", "r.html"]);
+    let t = &v[0]["iso230_4"];
+    let f = |k: &str| t[k].as_f64().unwrap();
+    assert!((f("circular_deviation_g_mm") - 0.02).abs() < 1e-9, "{t}");
+    assert!(
+        (f("radial_deviation_f_max_mm") - 0.01).abs() < 1e-9 && (f("radial_deviation_f_min_mm") + 0.01).abs() < 1e-9,
+        "{t}"
+    );
+    let html = std::fs::read_to_string(d.join("r.html")).unwrap();
+    assert!(
+        html.contains("ISO 230-4 circular test: bb.csv") && html.contains("<td>0.0200</td>") && html.contains("<svg"),
+        "{html}"
+    );
+    let text = ok(
+        d,
+        &[
+            "assess",
+            "--circle",
+            "pts.csv",
+            "--radius-mm",
+            "100",
+            "--plane",
+            "yz",
+            "--centre-mm",
+            "5,10,20",
+        ],
+    );
+    assert!(
+        text.contains("G 0.0000 mm, F_max +0.0100 mm, F_min -0.0100 mm, centre offset (0.0100, 0.0000) mm"),
+        "{text}"
+    );
+    write("two.csv", "angle_deg,radius_mm\n0,100\n90,100\n");
+    write("cols.csv", "a,b\n1,2\n");
+    let cases: [(&[&str], &str); 3] = [
+        (
+            &["assess", "--circle", "two.csv", "--radius-mm", "100"],
+            "two.csv: a circle needs at least 3 measured points, got 2",
+        ),
+        (
+            &["assess", "--circle", "cols.csv", "--radius-mm", "100"],
+            "a circle file holds angle_deg with radius_mm or deviation_mm",
+        ),
+        (
+            &["assess", "--circle", "bb.csv", "--radius-mm", "-1"],
+            "the nominal radius must be positive",
+        ),
+    ];
+    for (args, expect) in cases {
+        let e = fails(d, args);
+        assert!(e.contains(expect) && e.trim_end().lines().count() == 1, "{args:?}: {e}");
+    }
+}
