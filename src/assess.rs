@@ -82,6 +82,12 @@ pub enum AssessError {
         /// The commanded ids.
         known: String,
     },
+    /// A commanded test pose that no attained pose names.
+    #[error("test pose {pose} was commanded but never attained: the attained file has no row with pose {pose}")]
+    NotAttained {
+        /// Its id.
+        pose: i64,
+    },
     /// A commanded test pose was measured fewer than twice (repeatability needs n ≥ 2).
     #[error("test pose {pose} has {cycles} attained pose(s): ISO 9283 needs at least 2 cycles per test pose (30 in the standard)")]
     TooFewCycles {
@@ -269,6 +275,9 @@ pub fn iso9283(commanded: &[TestPose], attained: &[Attained], distances: &[(i64,
     }
     let mut poses = Vec::new();
     for (&id, group) in &groups {
+        if group.is_empty() {
+            return Err(AssessError::NotAttained { pose: id });
+        }
         if group.len() < 2 {
             return Err(AssessError::TooFewCycles {
                 pose: id,
@@ -529,9 +538,6 @@ mod tests {
         assert_eq!(e.to_string(), "line 7: test pose 9 is not among the commanded poses (1, 2)");
         assert!(matches!(iso9283(&c, &[], &[]), Err(AssessError::Empty)));
         let never = [at(1, 1, 0.0, 0.0, 0.0), at(1, 2, 0.0, 0.0, 0.0)];
-        assert!(matches!(
-            iso9283(&c, &never, &[]),
-            Err(AssessError::TooFewCycles { pose: 2, cycles: 0 })
-        ));
+        assert!(matches!(iso9283(&c, &never, &[]), Err(AssessError::NotAttained { pose: 2 })));
     }
 }

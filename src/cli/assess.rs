@@ -13,11 +13,10 @@ use std::path::{Path, PathBuf};
 pub struct AssessArgs {
     /// The commanded test poses (CSV: pose,x_mm,y_mm,z_mm[,roll_deg,pitch_deg,yaw_deg]; a file of
     /// `plan --iso9283` or a targets file of `compensate`, its `id` the pose).
-    #[arg(long, requires = "attained")]
+    #[arg(long)]
     pub commanded: Option<PathBuf>,
     /// The attained poses, measured (CSV: pose,cycle,x_mm,y_mm,z_mm[,roll_deg,pitch_deg,yaw_deg]),
     /// in the same frame as the commanded ones.
-    #[arg(requires = "commanded", required_unless_present = "circle")]
     pub attained: Option<PathBuf>,
     /// A second test run (e.g. with compensated commands), assessed beside the first.
     pub after: Option<PathBuf>,
@@ -26,7 +25,7 @@ pub struct AssessArgs {
     pub distance: Vec<String>,
     /// An ISO 230-4 circular test (CSV): ballbar readings angle_deg with radius_mm or deviation_mm,
     /// or measured points x_mm,y_mm,z_mm.
-    #[arg(long, requires = "radius_mm")]
+    #[arg(long)]
     pub circle: Option<PathBuf>,
     /// The circle's nominal radius (mm).
     #[arg(long, requires = "circle", allow_hyphen_values = true)]
@@ -68,14 +67,17 @@ fn circle(a: &AssessArgs) -> anyhow::Result<Option<CircularTest>> {
     ))
 }
 
-/// The figures of one attained file, its mistakes named with the file and line.
-fn assess_file(commanded: &[kinecal::assess::TestPose], path: &Path, distances: &[(i64, i64)]) -> anyhow::Result<Iso9283> {
+/// The figures of one attained file, its mistakes named with the file and line (a pose commanded
+/// twice with the commanded file).
+fn assess_file(commanded: (&Path, &[kinecal::assess::TestPose]), path: &Path, distances: &[(i64, i64)]) -> anyhow::Result<Iso9283> {
     let attained = read_attained(path)?;
+    let (commanded_path, commanded) = commanded;
     iso9283(commanded, &attained, distances).map_err(|e| match e {
         AssessError::UnknownPose { pose, line, known } => anyhow::anyhow!(
             "{}:{line}: test pose {pose} is not among the commanded poses ({known}): check the pose column or the commanded file",
             path.display()
         ),
+        e @ AssessError::DuplicateCommand { .. } => anyhow::anyhow!("{}: {e}", commanded_path.display()),
         e => anyhow::anyhow!("{}: {e}", path.display()),
     })
 }
@@ -91,6 +93,17 @@ pub fn run(a: AssessArgs) -> anyhow::Result<()> {
         })
         .collect::<anyhow::Result<Vec<_>>>()
         .map_err(|e: anyhow::Error| anyhow::anyhow!("{e:#}"))?;
+    // Checked here rather than by clap, so that each mistake is one line.
+    match (&a.commanded, &a.attained, &a.circle, a.radius_mm) {
+        (Some(_), None, ..) => anyhow::bail!("--commanded: give the attained poses too (kinecal assess --commanded C ATTAINED [AFTER])"),
+        (None, Some(_), ..) => anyhow::bail!("ATTAINED: give the commanded test poses too (--commanded C)"),
+        (None, None, None, _) => {
+            anyhow::bail!("nothing to assess: give ATTAINED with --commanded C (ISO 9283), or --circle FILE --radius-mm R (ISO 230-4)")
+        }
+        (_, _, Some(_), None) => anyhow::bail!("--circle: give the nominal radius too (--radius-mm R)"),
+        (_, _, None, Some(_)) => anyhow::bail!("--radius-mm: give the circle's file too (--circle FILE)"),
+        _ => {}
+    }
     let mut outputs = Outputs::new(a.force);
     for p in a.commanded.iter().chain(&a.attained).chain(&a.after).chain(&a.circle) {
         outputs.input(p);
@@ -103,7 +116,7 @@ pub fn run(a: AssessArgs) -> anyhow::Result<()> {
             let commanded = read_commanded(c)?;
             std::iter::once(first)
                 .chain(a.after.as_ref())
-                .map(|p| Ok((p.display().to_string(), assess_file(&commanded, p, &distances)?)))
+                .map(|p| Ok((p.display().to_string(), assess_file((c, &commanded), p, &distances)?)))
                 .collect::<anyhow::Result<_>>()?
         }
         _ => Vec::new(),

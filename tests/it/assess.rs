@@ -33,7 +33,24 @@ fn assess_names_each_mistake_on_one_line() {
     write("nocycle.csv", "pose,x_mm,y_mm,z_mm\n1,0,0,0\n");
     write("half.csv", "pose,cycle,x_mm,y_mm,z_mm,roll_deg\n1,1,0,0,0,0\n");
     write("frac.csv", "pose,cycle,x_mm,y_mm,z_mm\n1.5,1,0,0,0\n");
-    let cases: [(&[&str], &str); 6] = [
+    write("never.csv", "pose,cycle,x_mm,y_mm,z_mm\n1,1,0,0,0\n1,2,0,0,0\n");
+    write("twice.csv", "pose,x_mm,y_mm,z_mm\n1,0,0,0\n1,10,0,0\n");
+    let cases: [(&[&str], &str); 12] = [
+        (
+            &["assess", "--commanded", "c.csv", "never.csv"],
+            "never.csv: test pose 2 was commanded but never attained",
+        ),
+        (
+            &["assess", "--commanded", "twice.csv", "never.csv"],
+            "twice.csv: test pose 1 is commanded twice",
+        ),
+        (
+            &["assess", "one.csv"],
+            "ATTAINED: give the commanded test poses too (--commanded C)",
+        ),
+        (&["assess", "--commanded", "c.csv"], "--commanded: give the attained poses too"),
+        (&["assess"], "nothing to assess"),
+        (&["assess", "--circle", "one.csv"], "--circle: give the nominal radius too"),
         (&["assess", "--commanded", "c.csv", "one.csv"], "test pose 2 has 1 attained pose(s)"),
         (
             &["assess", "--commanded", "c.csv", "unknown.csv"],
