@@ -291,3 +291,65 @@ fn assess_circle_gives_the_iso_230_4_figures_of_hand_worked_circles() {
         assert!(e.contains(expect) && e.trim_end().lines().count() == 1, "{args:?}: {e}");
     }
 }
+
+/// A circular test on a pm5 virtual prototype through the commands: 36 targets on a 40 mm circle
+/// at z = 500, commanded with the nominal model and with a calibrated one, measured with 1 µm
+/// of noise. Before: the prototype's error moves the circle (centre offset and F of tenths of a
+/// mm); after: centre offset and F within a few hundredths, G no larger.
+#[test]
+fn a_circular_test_before_and_after_calibration_through_the_commands() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    ok(d, &["model", "export", "pm5", "--out", "pm5.toml"]);
+    crate::cli::simulate(d, "pm5.toml", 40, 1, 1, 0.02, &["--error-mm", "0.2", "--error-deg", "0.02"]);
+    ok(d, &["identify", "pm5.toml", "d.csv", "--frames", "model", "--out", "cal.toml"]);
+    let mut targets = String::from("id,x_mm,y_mm,z_mm,roll_deg,pitch_deg,yaw_deg\n");
+    for k in 0..36 {
+        let a = (10.0 * k as f64).to_radians();
+        targets.push_str(&format!("{k},{},{},500,0,0,0\n", 40.0 * a.cos(), 40.0 * a.sin()));
+    }
+    std::fs::write(d.join("circle.csv"), targets).unwrap();
+    ok(d, &["compensate", "pm5.toml", "circle.csv", "--out", "nom.csv"]);
+    ok(
+        d,
+        &["compensate", "cal.toml", "circle.csv", "--nominal", "pm5.toml", "--out", "cmp.csv"],
+    );
+    let mut figures = Vec::new();
+    for (commands, out) in [("nom.csv", "before.csv"), ("cmp.csv", "after.csv")] {
+        let zero = [
+            "--error-mm",
+            "0",
+            "--error-deg",
+            "0",
+            "--noise-mm",
+            "0.001",
+            "--noise-deg",
+            "0",
+            "--measure",
+            "position",
+        ];
+        let mut args = vec![
+            "simulate", "t.toml", "--at", commands, "--out", out, "--truth", "t2.toml", "--force",
+        ];
+        args.extend(zero);
+        ok(d, &args);
+        let v = json(d, &["assess", "--circle", out, "--radius-mm", "40", "--centre-mm", "0,0,500"]);
+        let t = &v[0]["iso230_4"];
+        let f = |k: &str| t[k].as_f64().unwrap();
+        let offset = t["centre_offset_mm"][0]
+            .as_f64()
+            .unwrap()
+            .hypot(t["centre_offset_mm"][1].as_f64().unwrap());
+        figures.push((
+            offset,
+            f("radial_deviation_f_max_mm") - f("radial_deviation_f_min_mm"),
+            f("circular_deviation_g_mm"),
+        ));
+    }
+    let ((o0, f0, g0), (o1, f1, g1)) = (figures[0], figures[1]);
+    assert!(o0 > 0.1 && f0 > 0.2, "before: offset {o0}, F range {f0}");
+    assert!(
+        o1 < 0.03 && f1 < 0.06 && g1 <= g0 * 1.2,
+        "after: offset {o1}, F range {f1}, G {g1} (before {g0})"
+    );
+}
