@@ -20,7 +20,7 @@ fn nice_above(v: f64) -> f64 {
 
 /// The polar error plot of a circular test, as ballbar software draws it: the radial deviation
 /// `|p_i| − R` about the nominal centre, magnified, around the nominal circle (bold ring); dashed
-/// rings at ± one scale step (labelled in µm). An inline SVG.
+/// rings at ± one scale step (labelled in µm, or mm from a step of 0.1 mm). An inline SVG.
 pub fn polar_plot(title: &str, t: &CircularTest) -> String {
     let (size, cx, cy, r0, band) = (440.0, 220.0, 240.0, 120.0, 50.0);
     let peak = t.radial.iter().map(|p| p[1].abs()).fold(0.0, f64::max);
@@ -52,7 +52,14 @@ pub fn polar_plot(title: &str, t: &CircularTest) -> String {
             ty + 4.0
         );
     }
-    let label = |dev: f64| format!("{:+} µm", (dev * 1000.0 * 1e6).round() / 1e6);
+    // µm up to a step of 50 µm, mm beyond.
+    let label = |dev: f64| {
+        if step < 0.1 {
+            format!("{:+} µm", (dev * 1000.0 * 1e6).round() / 1e6)
+        } else {
+            format!("{:+} mm", (dev * 1e6).round() / 1e6)
+        }
+    };
     for dev in [-step, 0.0, step] {
         let (x, y) = at(45.0, dev);
         let text = if dev == 0.0 {
