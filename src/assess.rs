@@ -1,4 +1,5 @@
-//! Accuracy as the standards state it: ISO 9283 pose and distance characteristics.
+//! Accuracy as the standards state it: ISO 9283 pose and distance characteristics; the test poses
+//! in a model's workspace ([`cube`]); ISO 230-4 circular tests ([`circle`]).
 //!
 //! A robot is accepted on the figures of ISO 9283, not on an RMS: at a few **test poses** (P1–P5
 //! in a cube of the workspace) the robot is commanded `n` times (**cycles**) and the attained
@@ -28,6 +29,11 @@
 //! differences, but free of the angles' singularities (a tool pointing down sits at a pitch of
 //! ±90°, where a and c alone swing by degrees for a rotation of micro-radians) and of the ±180°
 //! seam.
+pub mod circle;
+pub mod cube;
+
+pub use circle::{iso230_4, CircleError, CircularTest, Plane};
+pub use cube::{iso9283_commands, CubeRequest, Iso9283Plan, PlacementError};
 use nalgebra::Vector3;
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -75,6 +81,12 @@ pub enum AssessError {
         line: usize,
         /// The commanded ids.
         known: String,
+    },
+    /// A commanded test pose that no attained pose names.
+    #[error("test pose {pose} was commanded but never attained: the attained file has no row with pose {pose}")]
+    NotAttained {
+        /// Its id.
+        pose: i64,
     },
     /// A commanded test pose was measured fewer than twice (repeatability needs n ≥ 2).
     #[error("test pose {pose} has {cycles} attained pose(s): ISO 9283 needs at least 2 cycles per test pose (30 in the standard)")]
@@ -263,6 +275,9 @@ pub fn iso9283(commanded: &[TestPose], attained: &[Attained], distances: &[(i64,
     }
     let mut poses = Vec::new();
     for (&id, group) in &groups {
+        if group.is_empty() {
+            return Err(AssessError::NotAttained { pose: id });
+        }
         if group.len() < 2 {
             return Err(AssessError::TooFewCycles {
                 pose: id,
@@ -523,9 +538,6 @@ mod tests {
         assert_eq!(e.to_string(), "line 7: test pose 9 is not among the commanded poses (1, 2)");
         assert!(matches!(iso9283(&c, &[], &[]), Err(AssessError::Empty)));
         let never = [at(1, 1, 0.0, 0.0, 0.0), at(1, 2, 0.0, 0.0, 0.0)];
-        assert!(matches!(
-            iso9283(&c, &never, &[]),
-            Err(AssessError::TooFewCycles { pose: 2, cycles: 0 })
-        ));
+        assert!(matches!(iso9283(&c, &never, &[]), Err(AssessError::NotAttained { pose: 2 })));
     }
 }

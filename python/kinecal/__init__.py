@@ -24,6 +24,8 @@ from . import _kinecal
 from ._kinecal import Data, KinecalError, Model, __version__
 
 __all__ = [
+    "assess_circle",
+    "plan_iso9283",
     "Model",
     "Data",
     "Calibration",
@@ -192,6 +194,34 @@ def assess(commanded: str, attained: str, distances: Optional[List[Tuple[int, in
     accuracy (``distances``) of an attained test file against the commanded test poses
     (``kinecal assess --json``; docs/assess.md)."""
     return json.loads(_kinecal.assess(commanded, attained, list(distances or [])))
+
+
+def assess_circle(
+    circle: str, radius: float, centre: Tuple[float, float, float] = (0.0, 0.0, 0.0), plane: str = "xy"
+) -> Dict[str, Any]:
+    """ISO 230-4 circular test (``kinecal assess --circle --json``): circular deviation G about the
+    least-squares centre, radial deviation F_max / F_min about the nominal centre, centre offset
+    (mm), from ballbar readings (angle_deg with radius_mm or deviation_mm) or points
+    (x_mm,y_mm,z_mm about ``centre`` in ``plane``)."""
+    return json.loads(_kinecal.assess_circle(circle, radius, list(centre), plane))
+
+
+def plan_iso9283(
+    model: Model,
+    orientation_deg: Optional[Tuple[float, float, float]] = None,
+    region: Optional[Tuple[Tuple[float, float, float], Tuple[float, float, float]]] = None,
+    *,
+    grid: int = 10,
+    samples: int = 500,
+    seed: int = 1,
+) -> Tuple[Dict[str, Any], np.ndarray]:
+    """The ISO 9283 test poses P1–P5 in ``model``'s workspace (``kinecal plan --iso9283``): a summary
+    (``side_mm``, ``cube_min_mm``, ``poses`` with positions and angles) and the commands (5, inputs)
+    in rad / mm that reach them (docs/assess.md)."""
+    o = None if orientation_deg is None else list(orientation_deg)
+    r = None if region is None else (list(region[0]), list(region[1]))
+    summary, commands = _kinecal.plan_iso9283(model, o, r, grid, samples, seed)
+    return json.loads(summary), commands
 
 
 def compensate(model: Model, targets: np.ndarray, seeds: Optional[np.ndarray] = None) -> np.ndarray:

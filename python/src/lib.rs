@@ -509,7 +509,6 @@ fn validate<'py>(
     Ok((json, pos, ori))
 }
 
-/// Rank, identifiable and redundant parameters of `model` on `data` (as JSON).
 /// ISO 9283 figures of an attained test file against a commanded one (`kinecal assess --json`),
 /// with distance figures between the `(from, to)` test poses of `distances`.
 #[pyfunction]
@@ -521,6 +520,54 @@ fn assess(commanded: &str, attained: &str, distances: Vec<(i64, i64)>) -> PyResu
     let r = kinecal::assess::iso9283(&c, &a, &distances).map_err(|e| err(format!("{attained}: {e}")))?;
     serde_json::to_string(&r).map_err(err)
 }
+
+/// ISO 230-4 figures of a circular test file (`kinecal assess --circle --json`): ballbar
+/// readings or points about `centre` (mm) in `plane` ("xy", "yz", "zx"), nominal `radius` (mm).
+#[pyfunction]
+#[pyo3(signature = (circle, radius, centre = [0.0, 0.0, 0.0], plane = "xy"))]
+fn assess_circle(circle: &str, radius: f64, centre: [f64; 3], plane: &str) -> PyResult<String> {
+    let plane: kinecal::assess::Plane = plane.parse().map_err(err)?;
+    let points = kinecal::io::test_poses::read_circle(std::path::Path::new(circle), plane, &centre.into(), radius).map_err(err)?;
+    let t = kinecal::assess::iso230_4(&points, radius).map_err(|e| err(format!("{circle}: {e}")))?;
+    serde_json::to_string(&t).map_err(err)
+}
+
+/// The ISO 9283 test poses in `model`'s workspace (`kinecal plan --iso9283`): a JSON summary
+/// (cube, poses) and the commands (5, inputs) in rad / mm. `orientation_deg`: roll, pitch, yaw of
+/// the tool; `region`: ((xmin, ymin, zmin), (xmax, ymax, zmax)) mm.
+#[pyfunction]
+#[pyo3(signature = (model, orientation_deg = None, region = None, grid = 10, samples = 500, seed = 1))]
+fn plan_iso9283<'py>(
+    py: Python<'py>,
+    model: &Model,
+    orientation_deg: Option<[f64; 3]>,
+    region: Option<([f64; 3], [f64; 3])>,
+    grid: usize,
+    samples: usize,
+    seed: u64,
+) -> PyResult<(String, Bound<'py, PyArray2<f64>>)> {
+    let request = kinecal::assess::CubeRequest {
+        region: region.map(|(lo, hi)| (lo.into(), hi.into())),
+        rotation: orientation_deg
+            .map(|[r, p, y]| nalgebra::UnitQuaternion::from_euler_angles(r.to_radians(), p.to_radians(), y.to_radians())),
+        grid,
+        samples,
+        seed,
+    };
+    let inputs = model.file.inputs();
+    let plan = kinecal::assess::iso9283_commands(&*model.mech, &inputs, &request).map_err(err)?;
+    let poses: Vec<_> = plan
+        .poses
+        .iter()
+        .map(|p| serde_json::json!({"pose": p.pose, "position_mm": p.position.as_slice(), "angles_deg": p.angles}))
+        .collect();
+    let summary = serde_json::json!({"cube_min_mm": plan.cube_min.as_slice(), "side_mm": plan.side,
+        "region_mm": [plan.region.0.as_slice(), plan.region.1.as_slice()], "grid_reachable": plan.reachable.0,
+        "grid_points": plan.reachable.1, "poses": poses});
+    Ok((summary.to_string(), rows_array(py, &plan.commands, inputs.len())))
+}
+
+/// Rank, identifiable and redundant parameters of `model` on `data` (as JSON).
 
 #[pyfunction]
 #[pyo3(signature = (model, data, tolerance = 1e-8))]
@@ -804,6 +851,8 @@ fn _kinecal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(validate, m)?)?;
     m.add_function(wrap_pyfunction!(identifiability, m)?)?;
     m.add_function(wrap_pyfunction!(assess, m)?)?;
+    m.add_function(wrap_pyfunction!(assess_circle, m)?)?;
+    m.add_function(wrap_pyfunction!(plan_iso9283, m)?)?;
     m.add_function(wrap_pyfunction!(compensate, m)?)?;
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
     m.add_function(wrap_pyfunction!(plan, m)?)?;

@@ -241,3 +241,18 @@ def test_assess_gives_the_iso_9283_figures(tmp_path):
     (tmp_path / "u.csv").write_text("pose,cycle,x_mm,y_mm,z_mm\n1,1,0,0,0\n1,2,0,0,0\n3,1,1,0,0\n")
     with pytest.raises(kinecal.KinecalError, match="test pose 3 is not among the commanded poses"):
         kinecal.assess(str(tmp_path / "c.csv"), str(tmp_path / "u.csv"))
+
+
+def test_assess_circle_and_plan_iso9283(tmp_path):
+    """ISO 230-4 by hand (an ellipse of radii 100.01 / 99.99: G = 0.02, F = +-0.01) and the ISO 9283
+    test poses in a region of pm5 that is all reachable (the cube is the region's, P1 its centre)."""
+    (tmp_path / "bb.csv").write_text("angle_deg,deviation_mm\n0,0.01\n90,-0.01\n180,0.01\n270,-0.01\n")
+    t = kinecal.assess_circle(str(tmp_path / "bb.csv"), 100.0)
+    assert abs(t["circular_deviation_g_mm"] - 0.02) < 1e-9
+    assert abs(t["radial_deviation_f_max_mm"] - 0.01) < 1e-9
+    summary, commands = kinecal.plan_iso9283(
+        kinecal.Model.load("pm5"), (0.0, 0.0, 0.0), ((-30.0, -30.0, 470.0), (30.0, 30.0, 530.0))
+    )
+    assert abs(summary["side_mm"] - 60.0) < 1e-9
+    assert summary["poses"][0]["position_mm"] == [0.0, 0.0, 500.0]
+    assert commands.shape[0] == 5

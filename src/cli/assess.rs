@@ -1,38 +1,83 @@
 //! `kinecal assess --commanded C ATTAINED [AFTER]`: ISO 9283 pose accuracy and repeatability
-//! (and distance accuracy) of measured test runs, before and after calibration side by side.
+//! (and distance accuracy) of measured test runs, before and after calibration side by side;
+//! `--circle FILE --radius-mm R`: an ISO 230-4 circular test; `--report` an HTML page of both.
 use anyhow::Context;
 use clap::Args;
-use kinecal::assess::{iso9283, AssessError, Iso9283};
-use kinecal::io::test_poses::{read_attained, read_commanded};
+use kinecal::assess::{iso230_4, iso9283, AssessError, CircularTest, Iso9283, Plane};
+use kinecal::io::output::Outputs;
+use kinecal::io::test_poses::{read_attained, read_circle, read_commanded};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `kinecal assess`.
 #[derive(Args, Debug)]
 pub struct AssessArgs {
-    /// The commanded test poses (CSV: pose,x_mm,y_mm,z_mm[,roll_deg,pitch_deg,yaw_deg]).
+    /// The commanded test poses (CSV: pose,x_mm,y_mm,z_mm[,roll_deg,pitch_deg,yaw_deg]; a file of
+    /// `plan --iso9283` or a targets file of `compensate`, its `id` the pose).
     #[arg(long)]
-    pub commanded: PathBuf,
+    pub commanded: Option<PathBuf>,
     /// The attained poses, measured (CSV: pose,cycle,x_mm,y_mm,z_mm[,roll_deg,pitch_deg,yaw_deg]),
     /// in the same frame as the commanded ones.
-    pub attained: PathBuf,
+    pub attained: Option<PathBuf>,
     /// A second test run (e.g. with compensated commands), assessed beside the first.
     pub after: Option<PathBuf>,
     /// Distance accuracy between two test poses, `FROM:TO` (e.g. `2:4`); repeatable.
     #[arg(long, value_name = "FROM:TO")]
     pub distance: Vec<String>,
+    /// An ISO 230-4 circular test (CSV): ballbar readings angle_deg with radius_mm or deviation_mm,
+    /// or measured points x_mm,y_mm,z_mm.
+    #[arg(long)]
+    pub circle: Option<PathBuf>,
+    /// The circle's nominal radius (mm).
+    #[arg(long, requires = "circle", allow_hyphen_values = true)]
+    pub radius_mm: Option<f64>,
+    /// The circle's nominal centre "X,Y,Z" (mm), about which measured points are taken.
+    #[arg(long, requires = "circle", default_value = "0,0,0", allow_hyphen_values = true, value_parser = xyz)]
+    pub centre_mm: [f64; 3],
+    /// The circle's plane: xy, yz or zx (angles from its first axis towards its second).
+    #[arg(long, requires = "circle", default_value = "xy")]
+    pub plane: Plane,
+    /// Write an HTML report (the standard's tables, the circle's polar plot).
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// Replace an existing report.
+    #[arg(long)]
+    pub force: bool,
     /// Print JSON instead of text.
     #[arg(long)]
     pub json: bool,
 }
 
-/// The figures of one attained file, its mistakes named with the file and line.
-fn assess_file(commanded: &[kinecal::assess::TestPose], path: &Path, distances: &[(i64, i64)]) -> anyhow::Result<Iso9283> {
+/// "X,Y,Z".
+fn xyz(text: &str) -> Result<[f64; 3], String> {
+    let v: Result<Vec<f64>, _> = text.split(',').map(|t| t.trim().parse::<f64>()).collect();
+    match v.as_deref() {
+        Ok(&[a, b, c]) if [a, b, c].iter().all(|x| x.is_finite()) => Ok([a, b, c]),
+        _ => Err(format!("expected X,Y,Z in mm, got '{text}'")),
+    }
+}
+
+/// The circular test of the arguments, if any.
+fn circle(a: &AssessArgs) -> anyhow::Result<Option<CircularTest>> {
+    let (Some(path), Some(radius)) = (&a.circle, a.radius_mm) else {
+        return Ok(None);
+    };
+    let points = read_circle(path, a.plane, &a.centre_mm.into(), radius)?;
+    Ok(Some(
+        iso230_4(&points, radius).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?,
+    ))
+}
+
+/// The figures of one attained file, its mistakes named with the file and line (a pose commanded
+/// twice with the commanded file).
+fn assess_file(commanded: (&Path, &[kinecal::assess::TestPose]), path: &Path, distances: &[(i64, i64)]) -> anyhow::Result<Iso9283> {
     let attained = read_attained(path)?;
+    let (commanded_path, commanded) = commanded;
     iso9283(commanded, &attained, distances).map_err(|e| match e {
         AssessError::UnknownPose { pose, line, known } => anyhow::anyhow!(
             "{}:{line}: test pose {pose} is not among the commanded poses ({known}): check the pose column or the commanded file",
             path.display()
         ),
+        e @ AssessError::DuplicateCommand { .. } => anyhow::anyhow!("{}: {e}", commanded_path.display()),
         e => anyhow::anyhow!("{}: {e}", path.display()),
     })
 }
@@ -48,17 +93,70 @@ pub fn run(a: AssessArgs) -> anyhow::Result<()> {
         })
         .collect::<anyhow::Result<Vec<_>>>()
         .map_err(|e: anyhow::Error| anyhow::anyhow!("{e:#}"))?;
-    let commanded = read_commanded(&a.commanded)?;
-    let runs: Vec<(String, Iso9283)> = std::iter::once(&a.attained)
-        .chain(a.after.as_ref())
-        .map(|p| Ok((p.display().to_string(), assess_file(&commanded, p, &distances)?)))
-        .collect::<anyhow::Result<_>>()?;
+    // Checked here rather than by clap, so that each mistake is one line.
+    match (&a.commanded, &a.attained, &a.circle, a.radius_mm) {
+        (Some(_), None, ..) => anyhow::bail!("--commanded: give the attained poses too (kinecal assess --commanded C ATTAINED [AFTER])"),
+        (None, Some(_), ..) => anyhow::bail!("ATTAINED: give the commanded test poses too (--commanded C)"),
+        (None, None, None, _) => {
+            anyhow::bail!("nothing to assess: give ATTAINED with --commanded C (ISO 9283), or --circle FILE --radius-mm R (ISO 230-4)")
+        }
+        (_, _, Some(_), None) => anyhow::bail!("--circle: give the nominal radius too (--radius-mm R)"),
+        (_, _, None, Some(_)) => anyhow::bail!("--radius-mm: give the circle's file too (--circle FILE)"),
+        _ => {}
+    }
+    let mut outputs = Outputs::new(a.force);
+    for p in a.commanded.iter().chain(&a.attained).chain(&a.after).chain(&a.circle) {
+        outputs.input(p);
+    }
+    if let Some(r) = &a.report {
+        outputs.output(r)?;
+    }
+    let runs: Vec<(String, Iso9283)> = match (&a.commanded, &a.attained) {
+        (Some(c), Some(first)) => {
+            let commanded = read_commanded(c)?;
+            std::iter::once(first)
+                .chain(a.after.as_ref())
+                .map(|p| Ok((p.display().to_string(), assess_file((c, &commanded), p, &distances)?)))
+                .collect::<anyhow::Result<_>>()?
+        }
+        _ => Vec::new(),
+    };
+    let circular = circle(&a)?;
+    let circle_name = a.circle.as_ref().map(|p| p.display().to_string()).unwrap_or_default();
+    if let Some(r) = &a.report {
+        let title = format!(
+            "kinecal assess: {}",
+            runs.iter()
+                .map(|(f, _)| f.as_str())
+                .chain(a.circle.as_ref().map(|_| circle_name.as_str()))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+        let html = kinecal::report::assess::assess_html(&title, &runs, circular.as_ref().map(|t| (circle_name.as_str(), t)));
+        outputs.stage(r, html.as_bytes())?;
+        outputs.commit()?;
+    }
     if a.json {
-        let v: Vec<_> = runs.iter().map(|(f, r)| serde_json::json!({"attained": f, "iso9283": r})).collect();
+        let mut v: Vec<_> = runs.iter().map(|(f, r)| serde_json::json!({"attained": f, "iso9283": r})).collect();
+        v.extend(circular.iter().map(|t| serde_json::json!({"circle": circle_name, "iso230_4": t})));
         println!("{}", serde_json::to_string_pretty(&v)?);
         return Ok(());
     }
-    println!("ISO 9283 pose characteristics (mm, deg), commanded poses {}", a.commanded.display());
+    if let Some(t) = &circular {
+        println!(
+            "ISO 230-4 circular test {circle_name} ({} plane, R {} mm, {} points): G {:.4} mm, F_max {:+.4} mm, F_min {:+.4} mm, centre offset ({:.4}, {:.4}) mm, least-squares radius {:.4} mm",
+            format!("{:?}", a.plane).to_lowercase(), t.nominal_radius_mm, t.points, t.circular_deviation_g_mm, t.radial_deviation_f_max_mm, t.radial_deviation_f_min_mm,
+            t.centre_offset_mm[0], t.centre_offset_mm[1], t.lsq_radius_mm
+        );
+    }
+    if let Some(r) = &a.report {
+        println!("wrote {}", r.display());
+    }
+    if runs.is_empty() {
+        return Ok(());
+    }
+    let commanded = a.commanded.as_ref().map(|c| c.display().to_string()).unwrap_or_default();
+    println!("ISO 9283 pose characteristics (mm, deg), commanded poses {commanded}");
     for (file, r) in &runs {
         println!("\n{file}");
         println!(

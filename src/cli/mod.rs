@@ -5,6 +5,7 @@ pub mod data;
 pub mod identifiability;
 pub mod identify;
 pub mod irb120;
+pub mod iso_plan;
 pub mod model;
 pub mod plan;
 pub mod progress;

@@ -1,11 +1,8 @@
 //! `kinecal plan`: choose measurement configurations (issue #5) and write them as CSV. One call,
 //! [`design::plan_sampled`], makes the candidates and chooses among them; this module parses the
-//! arguments (the sampling ones in [`super::sampling`]), shows the call's events as progress bars
-//! and prints.
-//!
-//! The mechanism: `--preset NAME` (a built-in model, never a file), `--model NAME|FILE` (as for
-//! `kinecal identify`), or neither: a seeded random revolute serial chain (`--joints`,
-//! `--chain-seed`) sampled in joint space (a self-contained demonstration, used by the tests).
+//! arguments (the sampling ones in [`super::sampling`]), shows progress and prints. The mechanism:
+//! `--preset NAME` (built-in), `--model NAME|FILE` (as for `identify`), or neither: a seeded random
+//! revolute serial chain (`--joints`, `--chain-seed`) sampled in joint space. `--iso9283`: [`super::iso_plan`].
 use crate::cli::{progress, sampling::SamplingArgs};
 use anyhow::Context;
 use clap::Args;
@@ -31,6 +28,9 @@ pub struct PlanArgs {
     /// Where and how candidates are sampled.
     #[command(flatten)]
     pub sampling: SamplingArgs,
+    /// The ISO 9283 test poses instead ([`super::iso_plan`]).
+    #[command(flatten)]
+    pub iso: super::iso_plan::IsoArgs,
     /// Revolute joints of the built-in random serial chain.
     #[arg(long, default_value_t = 6)]
     pub joints: usize,
@@ -73,7 +73,7 @@ pub struct PlanArgs {
 }
 
 /// The model file of the arguments, and whether it is the joint-space demonstration chain.
-fn model(args: &PlanArgs) -> anyhow::Result<(ModelFile, bool)> {
+pub(crate) fn model(args: &PlanArgs) -> anyhow::Result<(ModelFile, bool)> {
     if let Some(p) = &args.preset {
         let names: Vec<&str> = builtin::list().into_iter().map(|(n, _)| n).collect();
         let unknown = || anyhow::anyhow!("--preset: unknown preset '{p}' (available: {})", names.join(", "));
@@ -100,10 +100,9 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         }
     };
     let observe: ObservationKind = args.observe.parse().map_err(|e| anyhow::anyhow!("--observe {e}"))?;
-    let orientation = args.noise_orientation_deg.to_radians();
     let noise = Noise {
         position: args.noise_position_mm,
-        orientation,
+        orientation: args.noise_orientation_deg.to_radians(),
         ..Noise::default()
     };
     let select = SelectOptions {

@@ -251,7 +251,7 @@ fn test_run(
         cycles >= 2,
         "--cycles: ISO 9283 needs at least 2 cycles (30 in the standard), got {cycles}"
     );
-    let (ids, qs) = kinecal::io::data_file::read_inputs(at, inputs)?;
+    let (ids, qs) = kinecal::io::data_file::read_commands(at, inputs)?;
     anyhow::ensure!(!qs.is_empty(), "{}: no configuration in the file", at.display());
     let commands: Vec<(i64, Vec<f64>)> = ids.into_iter().zip(qs).collect();
     let repeat = kinecal::assess::Repeatability {

@@ -300,6 +300,14 @@ pub fn read_data(path: &Path, inputs: &[InputSpec], input_columns: InputColumns)
 /// file (its measurement columns are not read) or an inputs-only file such as the commands of
 /// `kinecal compensate`. Inputs in mm / rad, one per row.
 pub fn read_configurations(path: &Path, inputs: &[InputSpec]) -> Result<Vec<Vec<f64>>, IoError> {
+    Ok(read_commands(path, inputs)?.1)
+}
+
+/// The ids and inputs (mm / rad) of a file that holds the inputs of each row, as
+/// [`read_configurations`] reads it: also a targets file holding the commands (the test poses of
+/// `kinecal plan --iso9283`: `id`, pose and input columns). Ids: the file's (row numbers from 0
+/// without an `id` column).
+pub fn read_commands(path: &Path, inputs: &[InputSpec]) -> Result<(Vec<i64>, Vec<Vec<f64>>), IoError> {
     let text = super::read_text(path)?;
     let table = super::table::parse_table_with_gaps(path, &text)?;
     let inputs_only = table
@@ -308,10 +316,10 @@ pub fn read_configurations(path: &Path, inputs: &[InputSpec]) -> Result<Vec<Vec<
         .all(|c| matches!(classify(path, c, inputs), Ok((Slot::Id | Slot::Input(_), _))));
     if inputs_only {
         // Read as `read_inputs` reads it: an empty cell is an error, not a lost measurement.
-        return Ok(inputs_from_table(path, &super::table::parse_table(path, &text)?, inputs)?.1);
+        return inputs_from_table(path, &super::table::parse_table(path, &text)?, inputs);
     }
     let data = data_from_table(&table, inputs, InputColumns::Required)?;
-    Ok(data.measurements.into_iter().map(|m| m.q).collect())
+    Ok((data.ids, data.measurements.into_iter().map(|m| m.q).collect()))
 }
 
 /// Read an inputs-only file (an optional `id` column and one column per input, with unit

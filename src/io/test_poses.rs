@@ -3,10 +3,13 @@
 //! Commanded: `pose,x_mm,y_mm,z_mm` and optionally `roll_deg,pitch_deg,yaw_deg` (the rotations
 //! `a, b, c` about x, y, z), one row per test pose. Attained: `pose,cycle,x_mm,y_mm,z_mm` and
 //! optionally the same three angles, one row per pose reached; both in the same frame (the
-//! robot's base, as a registered tracker gives them). [`attained_text`] writes an attained file.
+//! robot's base, as a registered tracker gives them). [`attained_text`] writes an attained file,
+//! [`test_poses_text`] the test poses of `kinecal plan --iso9283`; [`read_circle`] reads an
+//! ISO 230-4 circular test.
 use super::table::{read_table, Table};
 use super::IoError;
-use crate::assess::{Attained, TestPose};
+use crate::assess::{Attained, Iso9283Plan, TestPose};
+use crate::model::kind::InputSpec;
 use nalgebra::Vector3;
 use std::path::Path;
 
@@ -101,4 +104,73 @@ pub fn attained_text(rows: &[Attained]) -> String {
         ));
     }
     out
+}
+
+/// The test poses of an ISO 9283 plan with their commands, one row per test pose:
+/// `id,x_mm,y_mm,z_mm,roll_deg,pitch_deg,yaw_deg` and the input columns (degrees for angles, mm
+/// for lengths). `kinecal assess --commanded` reads it as the commanded poses, `kinecal simulate
+/// --at` as the commands, `kinecal compensate` as targets seeded with these commands.
+pub fn test_poses_text(plan: &Iso9283Plan, inputs: &[InputSpec]) -> String {
+    let mut header: Vec<String> = ["id", "x_mm", "y_mm", "z_mm", "roll_deg", "pitch_deg", "yaw_deg"]
+        .map(String::from)
+        .to_vec();
+    header.extend(super::data_file::input_headers(inputs));
+    let rows: Vec<Vec<f64>> = plan
+        .poses
+        .iter()
+        .zip(&plan.commands)
+        .map(|(p, q)| {
+            let mut row = vec![p.pose as f64, p.position.x, p.position.y, p.position.z];
+            row.extend(p.angles.unwrap_or([0.0; 3]));
+            row.extend(super::data_file::input_values_for_file(inputs, q));
+            row
+        })
+        .collect();
+    super::data_file::csv_text(&header, &rows)
+}
+
+/// The measured points of an ISO 230-4 circular test ([`crate::assess::circle`]) in the plane's
+/// coordinates about the nominal centre (mm). The file holds either ballbar readings, `angle_deg`
+/// with `radius_mm` (the distance from the pivot) or `deviation_mm` (that distance less the
+/// nominal `radius`), or measured points `x_mm,y_mm,z_mm` (a coordinate across the plane may be
+/// left out), taken about `centre` in `plane`.
+pub fn read_circle(path: &Path, plane: crate::assess::Plane, centre: &Vector3<f64>, radius: f64) -> Result<Vec<[f64; 2]>, IoError> {
+    let t = read_table(path)?;
+    let col = |n: &str| t.columns.iter().position(|c| c == n);
+    if let Some(a) = col("angle_deg") {
+        let (r, offset) = match (col("radius_mm"), col("deviation_mm")) {
+            (Some(r), None) => (r, 0.0),
+            (None, Some(d)) => (d, radius),
+            _ => {
+                return Err(IoError::Invalid {
+                    path: t.path.clone(),
+                    message: "ballbar readings: angle_deg with one of radius_mm or deviation_mm".into(),
+                })
+            }
+        };
+        let readings: Vec<[f64; 2]> = t.rows.iter().map(|row| [row[a], row[r] + offset]).collect();
+        return Ok(crate::assess::circle::points_from_radii(&readings));
+    }
+    let xyz = ["x_mm", "y_mm", "z_mm"].map(col);
+    let across = match plane {
+        crate::assess::Plane::Xy => 2,
+        crate::assess::Plane::Yz => 0,
+        crate::assess::Plane::Zx => 1,
+    };
+    if (0..3).any(|k| k != across && xyz[k].is_none()) {
+        return Err(IoError::Invalid {
+            path: t.path.clone(),
+            message: format!(
+                "a circle file holds angle_deg with radius_mm or deviation_mm (ballbar readings), or the points' x_mm, y_mm, z_mm (columns: {})",
+                t.columns.join(",")
+            ),
+        });
+    }
+    Ok(t.rows
+        .iter()
+        .map(|row| {
+            let p = Vector3::from_fn(|k, _| xyz[k].map_or(centre[k], |c| row[c]));
+            plane.coordinates(&(p - centre))
+        })
+        .collect())
 }

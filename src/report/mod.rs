@@ -1,6 +1,7 @@
 //! The calibration report: everything an identification produced, as data ([`CalibrationReport`],
 //! serialisable to JSON) and as one self-contained HTML file with inline SVG plots
 //! ([`CalibrationReport::to_html`]).
+pub mod assess;
 mod html;
 pub mod plot;
 mod verdict;

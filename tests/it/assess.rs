@@ -33,7 +33,24 @@ fn assess_names_each_mistake_on_one_line() {
     write("nocycle.csv", "pose,x_mm,y_mm,z_mm\n1,0,0,0\n");
     write("half.csv", "pose,cycle,x_mm,y_mm,z_mm,roll_deg\n1,1,0,0,0,0\n");
     write("frac.csv", "pose,cycle,x_mm,y_mm,z_mm\n1.5,1,0,0,0\n");
-    let cases: [(&[&str], &str); 6] = [
+    write("never.csv", "pose,cycle,x_mm,y_mm,z_mm\n1,1,0,0,0\n1,2,0,0,0\n");
+    write("twice.csv", "pose,x_mm,y_mm,z_mm\n1,0,0,0\n1,10,0,0\n");
+    let cases: [(&[&str], &str); 12] = [
+        (
+            &["assess", "--commanded", "c.csv", "never.csv"],
+            "never.csv: test pose 2 was commanded but never attained",
+        ),
+        (
+            &["assess", "--commanded", "twice.csv", "never.csv"],
+            "twice.csv: test pose 1 is commanded twice",
+        ),
+        (
+            &["assess", "one.csv"],
+            "ATTAINED: give the commanded test poses too (--commanded C)",
+        ),
+        (&["assess", "--commanded", "c.csv"], "--commanded: give the attained poses too"),
+        (&["assess"], "nothing to assess"),
+        (&["assess", "--circle", "one.csv"], "--circle: give the nominal radius too"),
         (&["assess", "--commanded", "c.csv", "one.csv"], "test pose 2 has 1 attained pose(s)"),
         (
             &["assess", "--commanded", "c.csv", "unknown.csv"],
@@ -118,4 +135,221 @@ fn a_test_run_before_and_after_calibration_through_the_commands() {
         ],
     );
     assert!(e.contains("at least 2 cycles"), "{e}");
+}
+
+/// `plan --iso9283` places P1–P5 in a given region of pm5 (all of it reachable: the cube is the
+/// region's largest, P1 its centre, P2–P5 a tenth of the diagonal from the corners) and writes
+/// one file that `simulate --at … --cycles` runs and `assess --commanded` reads: a perfect
+/// prototype repeating to 1 µm attains the test poses within a few µm. The same search without a
+/// region, on the IRB 120, finds a cube whose commands reach every test pose; a region out of
+/// reach is one line.
+#[test]
+fn plan_iso9283_places_the_test_poses_and_writes_what_simulate_and_assess_read() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    ok(d, &["model", "export", "pm5", "--out", "pm5.toml"]);
+    let region = [
+        "--x-mm",
+        "-30,30",
+        "--y-mm",
+        "-30,30",
+        "--z-mm",
+        "470,530",
+        "--orientation-deg",
+        "0,0,0",
+    ];
+    let mut args = vec!["plan", "--iso9283", "--model", "pm5.toml", "--output", "iso.csv"];
+    args.extend(region);
+    let v = json(d, &args);
+    assert!((v["side_mm"].as_f64().unwrap() - 60.0).abs() < 1e-9, "{v}");
+    let p = |k: usize, c: usize| v["poses"][k]["position_mm"][c].as_f64().unwrap();
+    assert_eq!([p(0, 0), p(0, 1), p(0, 2)], [0.0, 0.0, 500.0]);
+    assert!((p(1, 0) + 24.0).abs() < 1e-9 && (p(1, 2) - 476.0).abs() < 1e-9 && (p(3, 2) - 524.0).abs() < 1e-9);
+    let sim = [
+        "simulate",
+        "pm5.toml",
+        "--error-mm",
+        "0",
+        "--error-deg",
+        "0",
+        "--noise-mm",
+        "0",
+        "--noise-deg",
+        "0",
+        "--at",
+        "iso.csv",
+        "--cycles",
+        "3",
+        "--repeatability-mm",
+        "0.001",
+        "--out",
+        "att.csv",
+        "--truth",
+        "t.toml",
+    ];
+    ok(d, &sim);
+    let a = json(d, &["assess", "--commanded", "iso.csv", "att.csv"]);
+    for k in 0..5 {
+        let ap = a[0]["iso9283"]["poses"][k]["ap_p"].as_f64().unwrap();
+        assert!(ap < 0.005, "P{}: AP_P {ap}", k + 1);
+    }
+    let irb = json(d, &["plan", "--iso9283", "--model", "irb120", "--output", "irb.csv"]);
+    assert!(irb["side_mm"].as_f64().unwrap() > 200.0, "{irb}");
+    let file = kinecal::io::builtin::model_file("irb120").unwrap();
+    let model = file.build();
+    let (_, qs) = kinecal::io::data_file::read_commands(&d.join("irb.csv"), &file.inputs()).unwrap();
+    for (k, q) in qs.iter().enumerate() {
+        let t = model.forward(q).unwrap().translation.vector;
+        let target = [0, 1, 2].map(|c| irb["poses"][k]["position_mm"][c].as_f64().unwrap());
+        assert!(
+            (0..3).all(|c| (t[c] - target[c]).abs() < 1e-6),
+            "P{}: {t:?} against {target:?}",
+            k + 1
+        );
+    }
+    let e = fails(
+        d,
+        &[
+            "plan",
+            "--iso9283",
+            "--model",
+            "pm5.toml",
+            "--x-mm",
+            "1000,1100",
+            "--y-mm",
+            "0,60",
+            "--z-mm",
+            "470,530",
+            "--output",
+            "x.csv",
+        ],
+    );
+    assert!(e.contains("no cube: 0 of") && e.trim_end().lines().count() == 1, "{e}");
+}
+
+/// ISO 230-4 through `assess --circle`: the hand-worked ellipse of the library's tests as ballbar
+/// deviations (R = 100: +10, −10, +10, −10 µm at 0°, 90°, 180°, 270°: G = 0.02, F = ±0.01, centre
+/// on the nominal one), the off-centre circle as points in the yz plane about (5, 10, 20): centre
+/// offset (0.01, 0), G = 0, F = ±0.01; the report holds the table and the polar plot; mistakes
+/// are one line.
+#[test]
+fn assess_circle_gives_the_iso_230_4_figures_of_hand_worked_circles() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let write = |name: &str, text: &str| std::fs::write(d.join(name), text).unwrap();
+    write("bb.csv", "angle_deg,deviation_mm\n0,0.01\n90,-0.01\n180,0.01\n270,-0.01\n");
+    write("pts.csv", "x_mm,y_mm,z_mm\n5,110.01,20\n5,10.01,120\n5,-89.99,20\n5,10.01,-80\n");
+    let v = json(d, &["assess", "--circle", "bb.csv", "--radius-mm", "100", "--report", "r.html"]);
+    let t = &v[0]["iso230_4"];
+    let f = |k: &str| t[k].as_f64().unwrap();
+    assert!((f("circular_deviation_g_mm") - 0.02).abs() < 1e-9, "{t}");
+    assert!(
+        (f("radial_deviation_f_max_mm") - 0.01).abs() < 1e-9 && (f("radial_deviation_f_min_mm") + 0.01).abs() < 1e-9,
+        "{t}"
+    );
+    let html = std::fs::read_to_string(d.join("r.html")).unwrap();
+    assert!(
+        html.contains("ISO 230-4 circular test: bb.csv") && html.contains("<td>0.0200</td>") && html.contains("<svg"),
+        "{html}"
+    );
+    let text = ok(
+        d,
+        &[
+            "assess",
+            "--circle",
+            "pts.csv",
+            "--radius-mm",
+            "100",
+            "--plane",
+            "yz",
+            "--centre-mm",
+            "5,10,20",
+        ],
+    );
+    assert!(
+        text.contains("G 0.0000 mm, F_max +0.0100 mm, F_min -0.0100 mm, centre offset (0.0100, 0.0000) mm"),
+        "{text}"
+    );
+    write("two.csv", "angle_deg,radius_mm\n0,100\n90,100\n");
+    write("cols.csv", "a,b\n1,2\n");
+    let cases: [(&[&str], &str); 3] = [
+        (
+            &["assess", "--circle", "two.csv", "--radius-mm", "100"],
+            "two.csv: a circle needs at least 3 measured points, got 2",
+        ),
+        (
+            &["assess", "--circle", "cols.csv", "--radius-mm", "100"],
+            "a circle file holds angle_deg with radius_mm or deviation_mm",
+        ),
+        (
+            &["assess", "--circle", "bb.csv", "--radius-mm", "-1"],
+            "the nominal radius must be positive",
+        ),
+    ];
+    for (args, expect) in cases {
+        let e = fails(d, args);
+        assert!(e.contains(expect) && e.trim_end().lines().count() == 1, "{args:?}: {e}");
+    }
+}
+
+/// A circular test on a pm5 virtual prototype through the commands: 36 targets on a 40 mm circle
+/// at z = 500, commanded with the nominal model and with a calibrated one, measured with 1 µm
+/// of noise. Before: the prototype's error moves the circle (centre offset and F of tenths of a
+/// mm); after: centre offset and F within a few hundredths, G no larger.
+#[test]
+fn a_circular_test_before_and_after_calibration_through_the_commands() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    ok(d, &["model", "export", "pm5", "--out", "pm5.toml"]);
+    crate::cli::simulate(d, "pm5.toml", 40, 1, 1, 0.02, &["--error-mm", "0.2", "--error-deg", "0.02"]);
+    ok(d, &["identify", "pm5.toml", "d.csv", "--frames", "model", "--out", "cal.toml"]);
+    let mut targets = String::from("id,x_mm,y_mm,z_mm,roll_deg,pitch_deg,yaw_deg\n");
+    for k in 0..36 {
+        let a = (10.0 * k as f64).to_radians();
+        targets.push_str(&format!("{k},{},{},500,0,0,0\n", 40.0 * a.cos(), 40.0 * a.sin()));
+    }
+    std::fs::write(d.join("circle.csv"), targets).unwrap();
+    ok(d, &["compensate", "pm5.toml", "circle.csv", "--out", "nom.csv"]);
+    ok(
+        d,
+        &["compensate", "cal.toml", "circle.csv", "--nominal", "pm5.toml", "--out", "cmp.csv"],
+    );
+    let mut figures = Vec::new();
+    for (commands, out) in [("nom.csv", "before.csv"), ("cmp.csv", "after.csv")] {
+        let zero = [
+            "--error-mm",
+            "0",
+            "--error-deg",
+            "0",
+            "--noise-mm",
+            "0.001",
+            "--noise-deg",
+            "0",
+            "--measure",
+            "position",
+        ];
+        let mut args = vec![
+            "simulate", "t.toml", "--at", commands, "--out", out, "--truth", "t2.toml", "--force",
+        ];
+        args.extend(zero);
+        ok(d, &args);
+        let v = json(d, &["assess", "--circle", out, "--radius-mm", "40", "--centre-mm", "0,0,500"]);
+        let t = &v[0]["iso230_4"];
+        let f = |k: &str| t[k].as_f64().unwrap();
+        let offset = t["centre_offset_mm"][0]
+            .as_f64()
+            .unwrap()
+            .hypot(t["centre_offset_mm"][1].as_f64().unwrap());
+        figures.push((
+            offset,
+            f("radial_deviation_f_max_mm") - f("radial_deviation_f_min_mm"),
+            f("circular_deviation_g_mm"),
+        ));
+    }
+    let ((o0, f0, g0), (o1, f1, g1)) = (figures[0], figures[1]);
+    assert!(o0 > 0.1 && f0 > 0.2, "before: offset {o0}, F range {f0}");
+    assert!(
+        o1 < 0.03 && f1 < 0.06 && g1 <= g0 * 1.2,
+        "after: offset {o1}, F range {f1}, G {g1} (before {g0})"
+    );
 }

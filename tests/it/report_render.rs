@@ -129,3 +129,45 @@ fn report_renders_in_a_browser_with_its_verdict_and_flags() {
     check(&dom, &log, "FAILED");
     assert!(dom.contains("beyond the model"), "the failure reason is not shown");
 }
+
+/// `assess --report` renders: the ISO 9283 table, the circular test's table and its polar plot
+/// (an SVG with the path), no NaN, no console error.
+#[test]
+fn assess_report_renders_in_a_browser() {
+    let Some(browser) = chromium() else {
+        eprintln!("report_render: no Chromium on this machine; browser check skipped");
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    std::fs::write(d.join("c.csv"), "pose,x_mm,y_mm,z_mm\n1,0,0,0\n").unwrap();
+    std::fs::write(d.join("a.csv"), "pose,cycle,x_mm,y_mm,z_mm\n1,1,1,0,0\n1,2,1,2,0\n1,3,1,0,2\n").unwrap();
+    std::fs::write(d.join("bb.csv"), "angle_deg,deviation_mm\n0,0.01\n90,-0.01\n180,0.01\n270,-0.01\n").unwrap();
+    ok(
+        d,
+        &[
+            "assess",
+            "--commanded",
+            "c.csv",
+            "a.csv",
+            "--circle",
+            "bb.csv",
+            "--radius-mm",
+            "100",
+            "--report",
+            "r.html",
+        ],
+    );
+    let (dom, log) = render(browser, &d.join("r.html"), &d.join("profile"));
+    assert!(
+        dom.contains("ISO 9283 pose characteristics") && dom.contains("<td>1.3744</td>"),
+        "{dom}"
+    );
+    assert!(
+        dom.contains("ISO 230-4 circular test: bb.csv") && dom.contains("<path d=\"M"),
+        "{dom}"
+    );
+    assert!(!dom.contains("NaN") && !dom.contains(">inf<"), "NaN or inf on the page");
+    let console_errors: Vec<&str> = log.lines().filter(|l| l.contains("CONSOLE") && l.contains("rror")).collect();
+    assert!(console_errors.is_empty(), "console errors: {console_errors:?}");
+}
