@@ -94,6 +94,8 @@ pub struct CalibrationOptions {
     /// For a model with joint terms: fit the geometric model alone and each kind of term alone
     /// too, for the report's comparison ([`crate::report::CalibrationReport::variants`]).
     pub compare_terms: bool,
+    /// Known distances between seats (seat data only): the scale seats alone do not give.
+    pub seat_distances: Vec<crate::instrument::SeatDistance>,
 }
 
 impl Default for CalibrationOptions {
@@ -108,6 +110,7 @@ impl Default for CalibrationOptions {
             seed: 1,
             reflectors: ReflectorFit::Frame,
             compare_terms: true,
+            seat_distances: Vec::new(),
         }
     }
 }
@@ -173,7 +176,7 @@ pub fn calibrate(
 ) -> Result<Calibration, CalibrateError> {
     checks::plausible_angles(model, data)?;
     let raw = data;
-    let instrument = InstrumentData::of(data, validation)?;
+    let instrument = InstrumentData::of(data, validation, &opts.seat_distances)?;
     let (data, validation) = match &instrument {
         Some(i) => (&i.data, i.validation.as_ref()),
         None => (data, validation),
@@ -284,20 +287,28 @@ fn starting_model(
 /// ([`crate::instrument::index_points`]); the validation set indexed on the same points.
 struct InstrumentData {
     points: Vec<crate::instrument::ArtifactPoint>,
+    pairs: Vec<(usize, usize)>,
     data: DataSet,
     validation: Option<DataSet>,
 }
 
 impl InstrumentData {
     /// `None` for tracker data.
-    fn of(data: &DataSet, validation: Option<&DataSet>) -> Result<Option<InstrumentData>, IoError> {
-        let Some((points, indexed)) = crate::instrument::index_points(&data.measurements).map_err(|e| data.locate(e))? else {
+    fn of(data: &DataSet, validation: Option<&DataSet>, distances: &[crate::instrument::SeatDistance]) -> Result<Option<InstrumentData>, IoError> {
+        let Some((points, pairs, indexed)) = crate::instrument::index_points(&data.measurements, distances).map_err(|e| data.locate(e))? else {
             return Ok(None);
         };
+        // The known distances' rows: ids −1, −2, … after the file's rows.
+        let mut ids = data.ids.clone();
+        let mut lines = data.lines.clone();
+        for k in 0..pairs.len() {
+            ids.push(-(k as i64) - 1);
+            lines.push(0);
+        }
         let validation = match validation {
             None => None,
             Some(v) => {
-                let (vpoints, vindexed) = crate::instrument::index_points(&v.measurements)
+                let (vpoints, _, vindexed) = crate::instrument::index_points(&v.measurements, &[])
                     .map_err(|e| v.locate(e))?
                     .ok_or_else(|| IoError::Invalid {
                         path: v.path.clone(),
@@ -327,8 +338,11 @@ impl InstrumentData {
         };
         Ok(Some(InstrumentData {
             points,
+            pairs,
             data: DataSet {
                 measurements: indexed,
+                ids,
+                lines,
                 ..data.clone()
             },
             validation,
@@ -348,7 +362,7 @@ fn instrument_start(model: &ModelFile, i: &InstrumentData) -> Result<StartingMod
     })?;
     let tool_guess = model.frames.map_or(Pose::identity(), |f| f.tool);
     let framed = Framed::new(inner, Pose::identity(), tool_guess);
-    let artifact = crate::instrument::start_points(framed, i.points.clone(), &i.data.measurements).map_err(|e| i.data.locate(e))?;
+    let artifact = crate::instrument::start_points(framed, i.points.clone(), i.pairs.clone(), &i.data.measurements).map_err(|e| i.data.locate(e))?;
     let p_inner = FRAME_PARAMS + artifact.inner.inner.n_params();
     let mut free: Vec<usize> = vec![6, 7, 8];
     free.extend(inner_free.iter().map(|k| k + FRAME_PARAMS));

@@ -41,6 +41,33 @@ pub const MIN_SEAT_ROWS: usize = 2;
 /// is the first that tells something about the machine.
 pub const MIN_PIVOT_ROWS: usize = 4;
 
+/// A known distance between two seats of one artifact (a certified bar with several seats, a
+/// printed tool with two sockets): it gives the scale that seats alone do not.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct SeatDistance {
+    /// One seat's number.
+    pub a: usize,
+    /// The other seat's number.
+    pub b: usize,
+    /// Their centres' distance (mm).
+    pub length: f64,
+}
+
+impl std::str::FromStr for SeatDistance {
+    type Err = String;
+    /// `A:B:MM`, e.g. `0:1:50`.
+    fn from_str(s: &str) -> Result<Self, String> {
+        let parts: Vec<&str> = s.split(':').map(str::trim).collect();
+        let bad = || format!("'{s}': a seat distance is A:B:MM (two seat numbers and the distance in mm, e.g. 0:1:50)");
+        let [a, b, l] = parts.as_slice() else { return Err(bad()) };
+        let (a, b, length) = (a.parse().map_err(|_| bad())?, b.parse().map_err(|_| bad())?, l.parse::<f64>().map_err(|_| bad())?);
+        if a == b || !(length.is_finite() && length > 0.0) {
+            return Err(bad());
+        }
+        Ok(SeatDistance { a, b, length })
+    }
+}
+
 /// One artifact point: a seat's or a pivot's centre (mm, the mechanism's base frame).
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct ArtifactPoint {
@@ -61,15 +88,21 @@ pub struct Artifact<M> {
     pub inner: M,
     /// The artifact points, in index order.
     pub points: Vec<ArtifactPoint>,
+    /// Pairs of points (indices) whose known distance is a row of the data: the input index
+    /// `points.len() + k` refers to pair `k`, whose "tool pose" is the translation between them.
+    pub pairs: Vec<(usize, usize)>,
 }
 
-/// The artifact points of a data set and its measurements with their point index appended.
-pub type Indexed = (Vec<ArtifactPoint>, Vec<Measurement>);
+/// The artifact points of a data set, the pairs of known distances, and its measurements with
+/// their point index appended (a known distance's row last).
+pub type Indexed = (Vec<ArtifactPoint>, Vec<(usize, usize)>, Vec<Measurement>);
 
 /// The artifact points the measurements refer to (sorted by kind, then number) and the
-/// measurements with each one's point index appended to its inputs; `None` when no measurement
-/// is an instrument's. Mixing instrument and tracker observations in one set is an error.
-pub fn index_points(measurements: &[Measurement]) -> Result<Option<Indexed>, CalibError> {
+/// measurements with each one's point index appended to its inputs, then one row per known
+/// seat distance (inputs zero, the pair's index, [`Observation::Distance`]); `None` when no
+/// measurement is an instrument's. Mixing instrument and tracker observations in one set, or a
+/// distance between seats the data do not hold, is an error.
+pub fn index_points(measurements: &[Measurement], distances: &[SeatDistance]) -> Result<Option<Indexed>, CalibError> {
     let with_point = measurements.iter().filter(|m| m.obs.artifact_point().is_some()).count();
     if with_point == 0 {
         return Ok(None);
@@ -103,7 +136,7 @@ pub fn index_points(measurements: &[Measurement]) -> Result<Option<Indexed>, Cal
         })
         .collect();
     let index: BTreeMap<(PointKind, usize), usize> = counts.keys().enumerate().map(|(k, &key)| (key, k)).collect();
-    let indexed = measurements
+    let mut indexed: Vec<Measurement> = measurements
         .iter()
         .map(|m| {
             let mut q = m.q.clone();
@@ -111,7 +144,28 @@ pub fn index_points(measurements: &[Measurement]) -> Result<Option<Indexed>, Cal
             Measurement { q, ..m.clone() }
         })
         .collect();
-    Ok(Some((points, indexed)))
+    let mut pairs = Vec::new();
+    let n_inputs = measurements[0].q.len();
+    for d in distances {
+        let seat = |id: usize| {
+            index.get(&(PointKind::Seat, id)).copied().ok_or_else(|| {
+                CalibError::InvalidOption(format!("seat distance {}:{}:{}: the data hold no seat {id}", d.a, d.b, d.length))
+            })
+        };
+        let (a, b) = (seat(d.a)?, seat(d.b)?);
+        let mut q = vec![0.0; n_inputs];
+        q.push((points.len() + pairs.len()) as f64);
+        pairs.push((a, b));
+        indexed.push(Measurement {
+            q,
+            obs: Observation::Distance {
+                pivot: usize::MAX,
+                length: d.length,
+            },
+            joints: Vec::new(),
+        });
+    }
+    Ok(Some((points, pairs, indexed)))
 }
 
 /// Start the tool offset of `framed` and the centres of `points` from `indexed` measurements
@@ -121,9 +175,12 @@ pub fn index_points(measurements: &[Measurement]) -> Result<Option<Indexed>, Cal
 pub fn start_points<M: Mechanism + Clone + 'static>(
     mut framed: Framed<M>,
     mut points: Vec<ArtifactPoint>,
+    pairs: Vec<(usize, usize)>,
     indexed: &[Measurement],
 ) -> Result<Artifact<Framed<M>>, CalibError> {
     let n_q = framed.inner.input_names().len();
+    // The rows of the machine (not the known distances between seats, last).
+    let indexed = &indexed[..indexed.len() - pairs.len()];
     let poses: Vec<(usize, Pose)> = indexed
         .iter()
         .enumerate()
@@ -192,7 +249,7 @@ pub fn start_points<M: Mechanism + Clone + 'static>(
             framed.tool *= Translation3::from(t);
         }
     }
-    Ok(Artifact { inner: framed, points })
+    Ok(Artifact { inner: framed, points, pairs })
 }
 
 /// Levenberg–Marquardt on `L_i − |p_i + R_i·t − c_k|` over the tool-point offset `t` and the
@@ -307,18 +364,33 @@ pub fn sphere_centre(rows: &[(Vector3<f64>, f64)]) -> Option<Vector3<f64>> {
 }
 
 impl<M: Mechanism> Artifact<M> {
-    /// The inner inputs and the artifact point of inputs `q`.
+    /// The inner inputs and the artifact point of inputs `q` (an index past the points is a
+    /// known distance's pair: [`Self::pair`]).
     fn split<'q>(&self, q: &'q [f64]) -> Result<(&'q [f64], usize), KinError> {
         let n = self.inner.input_names().len();
         crate::model::check_inputs(q, n + 1)?;
         let k = q[n];
-        if !(k >= 0.0 && k.fract() == 0.0 && (k as usize) < self.points.len()) {
+        if !(k >= 0.0 && k.fract() == 0.0 && (k as usize) < self.points.len() + self.pairs.len()) {
             return Err(KinError::OutOfWorkspace(format!(
                 "artifact point index {k} (the data refer to {} points)",
                 self.points.len()
             )));
         }
         Ok((&q[..n], k as usize))
+    }
+
+    /// For index `k` past the points, the translation from its pair's second seat to its first
+    /// and the Jacobian (the machine's columns zero).
+    fn pair(&self, k: usize) -> Option<(Pose, Matrix6xX<f64>)> {
+        let &(a, b) = self.pairs.get(k.checked_sub(self.points.len())?)?;
+        let p = self.inner.n_params();
+        let mut jac = Matrix6xX::zeros(p + 3 * self.points.len());
+        for i in 0..3 {
+            jac[(i, p + 3 * a + i)] = 1.0;
+            jac[(i, p + 3 * b + i)] = -1.0;
+        }
+        let d = self.points[a].centre - self.points[b].centre;
+        Some((Pose::from_parts(Translation3::from(d), nalgebra::UnitQuaternion::identity()), jac))
     }
 
     /// The pose relative to point `k` and the Jacobian with the points' columns appended.
@@ -366,14 +438,23 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Artifact<M> {
     }
     fn forward(&self, q: &[f64]) -> Result<Pose, KinError> {
         let (qi, k) = self.split(q)?;
+        if let Some((pose, _)) = self.pair(k) {
+            return Ok(pose);
+        }
         Ok(self.shift(k) * self.inner.forward(qi)?)
     }
     fn forward_with_jacobian(&self, q: &[f64]) -> Result<(Pose, Matrix6xX<f64>), KinError> {
         let (qi, k) = self.split(q)?;
+        if let Some(pair) = self.pair(k) {
+            return Ok(pair);
+        }
         Ok(self.relative(k, self.inner.forward_with_jacobian(qi)?))
     }
     fn forward_with_jacobian_near(&self, q: &[f64], near: &Pose) -> Result<(Pose, Matrix6xX<f64>), KinError> {
         let (qi, k) = self.split(q)?;
+        if let Some(pair) = self.pair(k) {
+            return Ok(pair);
+        }
         let inner_near = self.shift(k).inverse() * near;
         Ok(self.relative(k, self.inner.forward_with_jacobian_near(qi, &inner_near)?))
     }
@@ -406,7 +487,11 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Artifact<M> {
         self.inner.observed_joints()
     }
     fn observed_joint_values(&self, q: &[f64]) -> Result<Vec<f64>, KinError> {
-        self.inner.observed_joint_values(self.split(q)?.0)
+        let (qi, k) = self.split(q)?;
+        if self.pair(k).is_some() {
+            return Ok(Vec::new());
+        }
+        self.inner.observed_joint_values(qi)
     }
     fn observed_joints_with_jacobian(&self, q: &[f64]) -> Result<(Vec<f64>, DMatrix<f64>), KinError> {
         let (values, rows) = self.inner.observed_joints_with_jacobian(self.split(q)?.0)?;
@@ -416,6 +501,9 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Artifact<M> {
     }
     fn forward_with_jacobian_and_observed(&self, q: &[f64], near: Option<&Pose>) -> Result<ForwardAndObserved, KinError> {
         let (qi, k) = self.split(q)?;
+        if let Some((pose, jac)) = self.pair(k) {
+            return Ok((pose, jac, Vec::new(), DMatrix::zeros(0, self.n_params())));
+        }
         let inner_near = near.map(|n| self.shift(k).inverse() * n);
         let (pose, jac, values, rows) = self.inner.forward_with_jacobian_and_observed(qi, inner_near.as_ref())?;
         let (pose, jac) = self.relative(k, (pose, jac));
@@ -450,7 +538,7 @@ mod tests {
                 centre: Vector3::new(350.0, -80.0, 150.0),
             },
         ];
-        Artifact { inner: framed, points }
+        Artifact { inner: framed, points, pairs: vec![(0, 1)] }
     }
 
     /// The relative pose's spatial Jacobian, and the seat and distance residual rows built from
@@ -463,6 +551,14 @@ mod tests {
         for (k, obs) in [
             (0.0, Observation::Seat(0)),
             (1.0, Observation::Distance { pivot: 3, length: 250.0 }),
+            // The known distance between the two points (the pair's row).
+            (
+                2.0,
+                Observation::Distance {
+                    pivot: usize::MAX,
+                    length: 60.0,
+                },
+            ),
         ] {
             let q = [0.3, -0.4, 0.5, 0.9, -1.1, 0.7, k];
             let (t, jac) = m.forward_with_jacobian(&q).unwrap();
@@ -497,17 +593,21 @@ mod tests {
             obs,
             joints: Vec::new(),
         };
-        let e = index_points(&[row(Observation::Seat(2)), row(Observation::Seat(4)), row(Observation::Seat(4))]).unwrap_err();
+        let e = index_points(&[row(Observation::Seat(2)), row(Observation::Seat(4)), row(Observation::Seat(4))], &[]).unwrap_err();
         assert!(e.to_string().contains("seat 2 has 1 row"), "{e}");
-        let e = index_points(&[row(Observation::Seat(0)), row(Observation::Position(Vector3::zeros()))]).unwrap_err();
+        let e = index_points(&[row(Observation::Seat(0)), row(Observation::Position(Vector3::zeros()))], &[]).unwrap_err();
         assert!(e.to_string().contains("mix"), "{e}");
         let m = artifact();
         let e = m.forward(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 7.0]).unwrap_err();
         assert!(e.to_string().contains("artifact point index 7"), "{e}");
-        let (points, indexed) = index_points(&[row(Observation::Seat(5)), row(Observation::Seat(5))])
-            .unwrap()
-            .unwrap();
+        let (points, _, indexed) = index_points(&[row(Observation::Seat(5)), row(Observation::Seat(5))], &[]).unwrap().unwrap();
         assert_eq!((points.len(), indexed[1].q.len()), (1, 7));
+        let two = [row(Observation::Seat(5)), row(Observation::Seat(5)), row(Observation::Seat(6)), row(Observation::Seat(6))];
+        let e = index_points(&two, &[SeatDistance { a: 5, b: 9, length: 50.0 }]).unwrap_err();
+        assert!(e.to_string().contains("no seat 9"), "{e}");
+        let (_, pairs, indexed) = index_points(&two, &["6:5:50".parse().unwrap()]).unwrap().unwrap();
+        assert_eq!((pairs, indexed.len(), indexed[4].q[6]), (vec![(1, 0)], 5, 2.0));
+        assert!("5:5:50".parse::<SeatDistance>().is_err() && "5:6".parse::<SeatDistance>().is_err());
     }
 
     /// The sphere fit finds a centre from exact lengths, and the offset fit finds the tool

@@ -106,6 +106,10 @@ pub struct IdentifyArgs {
     /// failed its checks (marked failed in both; the exit code is still 2).
     #[arg(long)]
     pub force: bool,
+    /// A known distance between two seats of one artifact, `A:B:MM` (seat data: the scale that
+    /// seats alone do not give); repeat for more.
+    #[arg(long = "seat-distance", value_name = "A:B:MM")]
+    pub seat_distances: Vec<kinecal::instrument::SeatDistance>,
 }
 
 /// The noise weights, the observed joints' encoders' included (degrees, mm): command line, else
@@ -160,6 +164,7 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
     }
     let opts = CalibrationOptions {
         compare_terms: true,
+        seat_distances: a.seat_distances.clone(),
         method: match a.method {
             MethodArg::GaussNewton => Method::GaussNewton,
             MethodArg::Linear => Method::Linear,
