@@ -686,7 +686,11 @@ fn plan<'py>(
         .enumerate()
         .map(|(i, q)| {
             let target = model.mech.forward(&q).map_err(|e| err(format!("candidates[{i}]: {e}")))?;
-            Ok(Candidate { q, target })
+            Ok(Candidate {
+                q,
+                target,
+                solution: None,
+            })
         })
         .collect::<PyResult<Vec<_>>>()?;
     let defaults = SelectOptions::default();

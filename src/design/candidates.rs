@@ -19,6 +19,11 @@ pub struct Candidate {
     pub q: Vec<f64>,
     /// Nominal tool pose at `q` (world frame).
     pub target: Pose,
+    /// The rest of the forward solution at `q` with `target` its pose
+    /// ([`Mechanism::forward_solution`]), when the candidate's check solved it: its Jacobian block
+    /// ([`super::CandidateJacobians::build`]) is then computed there without solving again.
+    /// `None`: solved again.
+    pub solution: Option<Vec<f64>>,
 }
 
 /// A box of tool poses: positions in an axis-aligned box and orientations
@@ -293,10 +298,19 @@ pub fn input_condition<M: Mechanism + ?Sized>(mech: &M, q: &[f64], step: f64, le
     Some(if lo > 0.0 { hi / lo } else { f64::INFINITY })
 }
 
-fn classify<M: Mechanism + ?Sized>(mech: &M, q: Vec<f64>, mut target: Pose, check_fk: bool, filter: &CandidateFilter) -> Outcome {
+/// `target` is the pose at `q` and `solution` the rest of its forward solution, unless `check_fk`
+/// asks to solve the forward kinematics (then both come from it).
+fn classify<M: Mechanism + ?Sized>(
+    mech: &M,
+    q: Vec<f64>,
+    mut target: Pose,
+    mut solution: Option<Vec<f64>>,
+    check_fk: bool,
+    filter: &CandidateFilter,
+) -> Outcome {
     if check_fk {
-        match mech.forward(&q) {
-            Ok(t) => {
+        match mech.forward_solution(&q) {
+            Ok((t, rest)) => {
                 // Only what the inputs command must match (a 3- or 5-DOF machine's orientation
                 // follows from its constraints); the target is then the pose actually reached.
                 let (dp, dw) = crate::validate::commanded_error(mech.task(), &target, &t);
@@ -304,6 +318,7 @@ fn classify<M: Mechanism + ?Sized>(mech: &M, q: Vec<f64>, mut target: Pose, chec
                     return Outcome::Unreachable;
                 }
                 target = t;
+                solution = Some(rest);
             }
             Err(_) => return Outcome::Unreachable,
         }
@@ -319,7 +334,7 @@ fn classify<M: Mechanism + ?Sized>(mech: &M, q: Vec<f64>, mut target: Pose, chec
             _ => return Outcome::NearSingular,
         }
     }
-    let cand = Candidate { q, target };
+    let cand = Candidate { q, target, solution };
     if let Some(f) = &filter.custom {
         if !f(&cand) {
             return Outcome::Rejected;
@@ -368,7 +383,7 @@ pub fn candidates_in_workspace<M: Mechanism + ?Sized>(
         .map(|c| {
             let target = workspace.pose(&[c[0], c[1], c[2], c[3], c[4], c[5]]);
             let out = match mech.inverse(&target, ik_seed) {
-                Ok(q) => classify(mech, q, target, true, filter),
+                Ok(q) => classify(mech, q, target, None, true, filter),
                 Err(_) => Outcome::Unreachable,
             };
             if let Some(p) = progress {
@@ -403,8 +418,8 @@ pub fn candidates_in_input_box<M: Mechanism + ?Sized>(
         .into_par_iter()
         .with_min_len(256)
         .map(|q| {
-            let out = match mech.forward(&q) {
-                Ok(t) => classify(mech, q, t, false, filter),
+            let out = match mech.forward_solution(&q) {
+                Ok((t, rest)) => classify(mech, q, t, Some(rest), false, filter),
                 Err(_) => Outcome::Unreachable,
             };
             if let Some(p) = progress {

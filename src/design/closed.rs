@@ -91,7 +91,11 @@ fn classify<C: ConstraintSystem>(mech: &ClosedLoop<C>, x: &[f64; 6], filter: &Ca
     if cond.is_nan() || filter.max_condition.is_some_and(|max| cond > max) {
         return Outcome::NearSingular;
     }
-    let cand = Candidate { q, target: reached };
+    let cand = Candidate {
+        q,
+        target: reached,
+        solution: None,
+    };
     if let Some(f) = &filter.custom {
         if !f(&cand) {
             return Outcome::Rejected;

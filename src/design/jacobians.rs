@@ -130,9 +130,11 @@ impl CandidateJacobians {
             .enumerate()
             .with_min_len(256)
             .try_for_each(|(i, (block, cand))| {
-                let (pose, jac) = mech
-                    .forward_with_jacobian_near(&cand.q, &cand.target)
-                    .map_err(|source| CalibError::Kinematics { pose: i, source })?;
+                let solved = match &cand.solution {
+                    Some(rest) => mech.forward_with_jacobian_at(&cand.q, &cand.target, rest),
+                    None => mech.forward_with_jacobian_near(&cand.q, &cand.target),
+                };
+                let (pose, jac) = solved.map_err(|source| CalibError::Kinematics { pose: i, source })?;
                 let obs = match kind {
                     ObservationKind::Pose => Observation::Pose(pose),
                     ObservationKind::Position => Observation::Position(pose.translation.vector),

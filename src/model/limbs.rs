@@ -42,6 +42,7 @@ mod closure;
 mod elimination;
 mod kinematics;
 mod observed;
+mod reach;
 
 /// What a joint's value is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -582,6 +583,16 @@ impl Mechanism for LimbMechanism {
     fn forward_with_jacobian(&self, q: &[f64]) -> Result<(Pose, Matrix6xX<f64>), KinError> {
         let (x, _, fz, fp) = self.linearized(q)?;
         Ok((x, self.platform_rows(&fz, &fp)?))
+    }
+
+    /// The platform pose and the passive joints' values.
+    fn forward_solution(&self, q: &[f64]) -> Result<(Pose, Vec<f64>), KinError> {
+        self.forward_full(q)
+    }
+
+    /// The closure's derivatives at `(pose, rest)` (the passive joints' values), no forward solve.
+    fn forward_with_jacobian_at(&self, q: &[f64], pose: &Pose, rest: &[f64]) -> Result<(Pose, Matrix6xX<f64>), KinError> {
+        self.jacobian_at(q, pose, rest)
     }
 
     fn retract(&mut self, delta: &DVector<f64>) {

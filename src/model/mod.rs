@@ -91,6 +91,19 @@ pub trait Mechanism: Send + Sync {
         let _ = near;
         self.forward_with_jacobian(q)
     }
+    /// [`Mechanism::forward`] and the rest of what its forward kinematics solved for (a limbs
+    /// machine's passive joint values; nothing by default): given back with the pose to
+    /// [`Mechanism::forward_with_jacobian_at`], it linearises there without solving again.
+    fn forward_solution(&self, q: &[f64]) -> Result<(Pose, Vec<f64>), KinError> {
+        Ok((self.forward(q)?, Vec::new()))
+    }
+    /// [`Mechanism::forward_with_jacobian`] at a solution `(pose, rest)` of
+    /// [`Mechanism::forward_solution`] at `q`: the same numbers, without the forward solve where
+    /// the mechanism can (the default solves from `pose`: [`Mechanism::forward_with_jacobian_near`]).
+    fn forward_with_jacobian_at(&self, q: &[f64], pose: &Pose, rest: &[f64]) -> Result<(Pose, Matrix6xX<f64>), KinError> {
+        let _ = rest;
+        self.forward_with_jacobian_near(q, pose)
+    }
     /// Apply an increment of the error coordinates (length p) to the model's geometry.
     fn retract(&mut self, delta: &DVector<f64>);
     /// Inputs that bring the tool to `target` (inverse kinematics); `seed` is a starting guess for
@@ -193,6 +206,12 @@ impl Mechanism for Box<dyn Mechanism> {
     }
     fn forward_with_jacobian_near(&self, q: &[f64], near: &Pose) -> Result<(Pose, Matrix6xX<f64>), KinError> {
         (**self).forward_with_jacobian_near(q, near)
+    }
+    fn forward_solution(&self, q: &[f64]) -> Result<(Pose, Vec<f64>), KinError> {
+        (**self).forward_solution(q)
+    }
+    fn forward_with_jacobian_at(&self, q: &[f64], pose: &Pose, rest: &[f64]) -> Result<(Pose, Matrix6xX<f64>), KinError> {
+        (**self).forward_with_jacobian_at(q, pose, rest)
     }
     fn retract(&mut self, delta: &DVector<f64>) {
         (**self).retract(delta)

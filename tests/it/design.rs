@@ -662,3 +662,35 @@ fn plan_sampled_takes_the_model_s_own_box_and_needs_a_box_otherwise() {
     };
     assert!(design::plan_sampled(&head, &poses(PoseRanges::default()), &bad, None).is_err());
 }
+
+/// A candidate keeps the rest of its forward solution (a limbs machine's passive joints): its
+/// Jacobian block computed there is the block solved again, bit for bit, so a plan does not
+/// depend on whether the candidate check's solution was kept.
+#[test]
+fn blocks_at_a_kept_forward_solution_are_the_blocks_solved_again() {
+    use kinecal::design::{sample_candidates, CandidateSampling, Points, PoseRanges, Region};
+    let hexapod = kinecal::io::builtin::model_file("hexapod-6rus").unwrap();
+    let sampling = CandidateSampling {
+        region: Region::Poses(PoseRanges::default()),
+        points: Points::Halton { n: 400, seed: 5 },
+        max_condition: None,
+    };
+    let (mech, made) = sample_candidates(&hexapod, &sampling, None).unwrap();
+    let kept = made.candidates;
+    // Some of the box is out of reach (given up by the cheap test), the rest kept with a solution.
+    assert!(made.report.unreachable > 0 && kept.len() > 300, "{}", made.report);
+    assert!(kept.iter().all(|c| c.solution.as_ref().is_some_and(|s| s.len() == 12)));
+    let again: Vec<Candidate> = kept
+        .iter()
+        .map(|c| Candidate {
+            solution: None,
+            ..c.clone()
+        })
+        .collect();
+    let noise = Noise::default();
+    let tolerance = kinecal::identifiability::DEFAULT_RANK_TOLERANCE;
+    let columns = design::identifiable_columns(&*mech, &kept, ObservationKind::Pose, &noise, None, 100, tolerance).unwrap();
+    let a = CandidateJacobians::build(&*mech, &kept, ObservationKind::Pose, &noise, &columns, None).unwrap();
+    let b = CandidateJacobians::build(&*mech, &again, ObservationKind::Pose, &noise, &columns, None).unwrap();
+    assert_eq!(a.data(), b.data());
+}

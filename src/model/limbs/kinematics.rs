@@ -167,7 +167,12 @@ impl LimbMechanism {
         if self.task == Task::Full && !self.linked() {
             let mut solved = Vec::with_capacity(self.limbs.len());
             for i in 0..self.limbs.len() {
-                solved.push(self.limb_along_path(i, target).map_err(|res| {
+                // A limb clearly out of reach is given up before Newton and its continuations.
+                let reached = match self.limb_misses(i, target) {
+                    Some(gap) => Err(gap),
+                    None => self.limb_along_path(i, target),
+                };
+                solved.push(reached.map_err(|res| {
                     KinError::Unreachable(format!(
                         "inverse kinematics of '{}': limb '{}' does not reach the target (residual {res:.3e} mm / rad): the target is outside the workspace or across a singularity",
                         self.name, self.limbs[i].name

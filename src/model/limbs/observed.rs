@@ -5,6 +5,7 @@
 use super::LimbMechanism;
 use crate::error::KinError;
 use crate::model::chain::JointKind;
+use crate::model::{check_inputs, Mechanism};
 use crate::params::Unit;
 use crate::se3::Pose;
 use nalgebra::{DMatrix, Matrix6xX};
@@ -46,7 +47,6 @@ impl LimbMechanism {
     /// The observed joints' values at inputs `q` and their parameter Jacobian (rows: observed
     /// joints; columns: error parameters).
     pub(super) fn observed_with_jacobian(&self, q: &[f64]) -> Result<(Vec<f64>, DMatrix<f64>), KinError> {
-        use crate::model::Mechanism;
         if self.observed.is_empty() {
             return Ok((Vec::new(), DMatrix::zeros(0, self.n_params())));
         }
@@ -58,10 +58,28 @@ impl LimbMechanism {
     /// derivatives there with respect to the unknowns (`F_z`) and the error parameters (`F_θ`).
     pub(super) fn linearized(&self, q: &[f64]) -> Result<ClosureAt, KinError> {
         let (x, passive) = self.forward_full(q)?;
-        let joints = self.joints_of(q, &passive);
-        let (_, fz) = self.closure(&x, &joints, true);
-        let fp = self.closure_params(&x, &joints);
+        let (fz, fp) = self.derivatives_at(q, &x, &passive);
         Ok((x, passive, fz, fp))
+    }
+
+    /// [`Mechanism::forward_with_jacobian_at`]: the platform rows at the forward solution
+    /// `(x, passive)` of inputs `q` (solved again when `passive` has the wrong length).
+    pub(super) fn jacobian_at(&self, q: &[f64], x: &Pose, passive: &[f64]) -> Result<(Pose, Matrix6xX<f64>), KinError> {
+        check_inputs(q, self.inputs.len())?;
+        if passive.len() != self.passive.len() {
+            return self.forward_with_jacobian(q);
+        }
+        let (fz, fp) = self.derivatives_at(q, x, passive);
+        Ok((*x, self.platform_rows(&fz, &fp)?))
+    }
+
+    /// The closure's derivatives `F_z` and `F_θ` at the forward solution `(x, passive)` of inputs
+    /// `q`.
+    pub(super) fn derivatives_at(&self, q: &[f64], x: &Pose, passive: &[f64]) -> (DMatrix<f64>, DMatrix<f64>) {
+        let joints = self.joints_of(q, passive);
+        let (_, fz) = self.closure(x, &joints, true);
+        let fp = self.closure_params(x, &joints);
+        (fz, fp)
     }
 
     /// The platform's six rows of `dz = −F_z⁺·F_θ`: the spatial identification Jacobian.
