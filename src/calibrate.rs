@@ -294,8 +294,13 @@ struct InstrumentData {
 
 impl InstrumentData {
     /// `None` for tracker data.
-    fn of(data: &DataSet, validation: Option<&DataSet>, distances: &[crate::instrument::SeatDistance]) -> Result<Option<InstrumentData>, IoError> {
-        let Some((points, pairs, indexed)) = crate::instrument::index_points(&data.measurements, distances).map_err(|e| data.locate(e))? else {
+    fn of(
+        data: &DataSet,
+        validation: Option<&DataSet>,
+        distances: &[crate::instrument::SeatDistance],
+    ) -> Result<Option<InstrumentData>, IoError> {
+        let Some((points, pairs, indexed)) = crate::instrument::index_points(&data.measurements, distances).map_err(|e| data.locate(e))?
+        else {
             return Ok(None);
         };
         // The known distances' rows: ids −1, −2, … after the file's rows.
@@ -362,7 +367,8 @@ fn instrument_start(model: &ModelFile, i: &InstrumentData) -> Result<StartingMod
     })?;
     let tool_guess = model.frames.map_or(Pose::identity(), |f| f.tool);
     let framed = Framed::new(inner, Pose::identity(), tool_guess);
-    let artifact = crate::instrument::start_points(framed, i.points.clone(), i.pairs.clone(), &i.data.measurements).map_err(|e| i.data.locate(e))?;
+    let artifact =
+        crate::instrument::start_points(framed, i.points.clone(), i.pairs.clone(), &i.data.measurements).map_err(|e| i.data.locate(e))?;
     let p_inner = FRAME_PARAMS + artifact.inner.inner.n_params();
     let mut free: Vec<usize> = vec![6, 7, 8];
     free.extend(inner_free.iter().map(|k| k + FRAME_PARAMS));

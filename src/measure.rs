@@ -209,10 +209,21 @@ pub fn row_weights(obs: &Observation, noise: &Noise) -> Vec<f64> {
     (0..obs.rows()).map(|k| row_weight(obs, k, noise)).collect()
 }
 
+/// The `pivot` of a [`Observation::Distance`] that is a known distance between two seats of an
+/// artifact ([`crate::instrument::SeatDistance`]), not a measurement.
+pub const KNOWN_DISTANCE: usize = usize::MAX;
+
+/// How much more a known distance between seats weighs than a measured row: it is a certified
+/// dimension of the artifact, and it must hold the scale against the pull of residuals a
+/// geometric model leaves on a real machine (shrinking a machine whose scale the seats do not
+/// fix shrinks every residual with it).
+pub const KNOWN_DISTANCE_WEIGHT: f64 = 100.0;
+
 /// The weight of row `k` of `obs`'s residual (see [`row_weights`]), without a vector.
 pub fn row_weight(obs: &Observation, k: usize, noise: &Noise) -> f64 {
     match obs {
         Observation::Pose(_) if k >= 3 => 1.0 / noise.orientation,
+        Observation::Distance { pivot: KNOWN_DISTANCE, .. } => KNOWN_DISTANCE_WEIGHT / noise.position,
         _ => 1.0 / noise.position,
     }
 }

@@ -1,6 +1,6 @@
 //! `kinecal validate MODEL DATA`: error statistics of a model against measurements.
 use clap::Args;
-use kinecal::io::data_file::{read_data, InputColumns};
+use kinecal::io::data_file::{read_data, DataSet, InputColumns, MeasurementFormat};
 use kinecal::io::model_file::ModelFile;
 use kinecal::model::Task;
 use kinecal::validate::{outliers, pose_errors, ErrorStats};
@@ -16,6 +16,10 @@ pub struct ValidateArgs {
     /// Print JSON instead of text.
     #[arg(long)]
     pub json: bool,
+    /// Seat data: a known distance between two seats, `A:B:MM` (its error is printed); repeat
+    /// for more.
+    #[arg(long = "seat-distance", value_name = "A:B:MM")]
+    pub seat_distances: Vec<kinecal::instrument::SeatDistance>,
 }
 
 /// Run the command.
@@ -28,6 +32,9 @@ pub fn run(a: ValidateArgs) -> anyhow::Result<()> {
     }
     if let Some(note) = data.dropped_note() {
         eprintln!("{note}");
+    }
+    if matches!(data.format, MeasurementFormat::Seat | MeasurementFormat::Distance) {
+        return instrument(&a, &file.name, &*model, &data);
     }
     let errors = pose_errors(&*model, &data.measurements).map_err(|e| data.locate(e))?;
     let stats = ErrorStats::of(&errors);
@@ -70,6 +77,44 @@ pub fn run(a: ValidateArgs) -> anyhow::Result<()> {
         if worst.len() > SHOWN {
             println!("… and {} more (all of them with --json)", worst.len() - SHOWN);
         }
+    }
+    Ok(())
+}
+
+/// Instrument data: each seat's spread and the known distances' errors, each pivot's length
+/// residuals ([`kinecal::instrument::held_out`]).
+fn instrument(a: &ValidateArgs, name: &str, model: &dyn kinecal::Mechanism, data: &DataSet) -> anyhow::Result<()> {
+    let h = kinecal::instrument::held_out(model, &data.measurements, &a.seat_distances).map_err(|e| data.locate(e))?;
+    if a.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&serde_json::json!({"model": name, "data": a.data, "instrument": h}))?
+        );
+        return Ok(());
+    }
+    println!(
+        "{name} on {} ({} rows, {}):",
+        a.data.display(),
+        data.measurements.len(),
+        data.format.describe()
+    );
+    for s in &h.seats {
+        println!(
+            "seat {}: {} rows, spread of the tool points about their mean {:.4} mm RMS, {:.4} mm max",
+            s.seat, s.rows, s.rms_mm, s.max_mm
+        );
+    }
+    if let Some(rms) = h.seat_rms_mm() {
+        println!("all seats: spread {rms:.4} mm RMS (3-D; 0 if the model were exact)");
+    }
+    for (x, y, known, e) in &h.distances {
+        println!("seats {x}–{y}: {:.4} mm apart, known {known:.4} mm: error {e:+.4} mm", known + e);
+    }
+    for p in &h.pivots {
+        println!(
+            "pivot {}: {} rows, measured − modelled length {:.4} mm RMS, {:.4} mm max (pivot placed by these rows)",
+            p.pivot, p.rows, p.rms_mm, p.max_mm
+        );
     }
     Ok(())
 }

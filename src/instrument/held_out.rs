@@ -1,0 +1,123 @@
+//! A calibration judged on instrument data it was not fitted on (held-out placements of the
+//! artifact), in the instrument's own terms: each seat's spread of the model's tool points about
+//! their mean (one point if the model were exact), the error of the known distances between
+//! seats, and for a ballbar each pivot's length residuals once the pivot is placed.
+use super::{sphere_centre, PointKind, SeatDistance};
+use crate::error::CalibError;
+use crate::measure::{Measurement, Observation};
+use crate::model::Mechanism;
+use nalgebra::Vector3;
+use serde::Serialize;
+use std::collections::BTreeMap;
+
+/// One seat's tool points under a model.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SeatSpread {
+    /// Seat number.
+    pub seat: usize,
+    /// Rows in the seat.
+    pub rows: usize,
+    /// The mean tool point (mm, the model's base frame).
+    pub centre: [f64; 3],
+    /// 3-D RMS distance of the tool points from their mean (mm).
+    pub rms_mm: f64,
+    /// Largest distance from the mean (mm).
+    pub max_mm: f64,
+}
+
+/// One pivot placed by the model's tool points and the measured lengths.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PivotFit {
+    /// Pivot number.
+    pub pivot: usize,
+    /// Rows.
+    pub rows: usize,
+    /// RMS of measured − modelled length once the pivot is placed (mm).
+    pub rms_mm: f64,
+    /// Largest |measured − modelled length| (mm).
+    pub max_mm: f64,
+}
+
+/// What [`held_out`] found.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct HeldOut {
+    /// Every seat, by number.
+    pub seats: Vec<SeatSpread>,
+    /// Each known distance between seats: `(a, b, known, modelled − known)` (mm).
+    pub distances: Vec<(usize, usize, f64, f64)>,
+    /// Every pivot, by number.
+    pub pivots: Vec<PivotFit>,
+}
+
+impl HeldOut {
+    /// 3-D RMS spread over every seat row (mm), `None` without seats.
+    pub fn seat_rms_mm(&self) -> Option<f64> {
+        let rows: usize = self.seats.iter().map(|s| s.rows).sum();
+        (rows > 0).then(|| (self.seats.iter().map(|s| s.rms_mm * s.rms_mm * s.rows as f64).sum::<f64>() / rows as f64).sqrt())
+    }
+}
+
+/// `model`'s tool points at `measurements` (seat or distance rows, as read) judged as the module
+/// docs say; `distances` are the known distances between seats.
+pub fn held_out(model: &dyn Mechanism, measurements: &[Measurement], distances: &[SeatDistance]) -> Result<HeldOut, CalibError> {
+    let mut groups: BTreeMap<(PointKind, usize), Vec<(Vector3<f64>, f64)>> = BTreeMap::new();
+    for (i, m) in measurements.iter().enumerate() {
+        let Some(key) = m.obs.artifact_point() else {
+            return Err(CalibError::InvalidOption(format!(
+                "pose {i}: not a seat or distance row; judge tracker data with the tracker's errors (validate without instrument rows)"
+            )));
+        };
+        let p = model
+            .forward(&m.q)
+            .map_err(|source| CalibError::Kinematics { pose: i, source })?
+            .translation
+            .vector;
+        let length = match m.obs {
+            Observation::Distance { length, .. } => length,
+            _ => 0.0,
+        };
+        groups.entry(key).or_default().push((p, length));
+    }
+    let mut out = HeldOut {
+        seats: Vec::new(),
+        distances: Vec::new(),
+        pivots: Vec::new(),
+    };
+    for (&(kind, id), rows) in &groups {
+        match kind {
+            PointKind::Seat => {
+                let centre = rows.iter().map(|r| r.0).sum::<Vector3<f64>>() / rows.len() as f64;
+                let d: Vec<f64> = rows.iter().map(|r| (r.0 - centre).norm()).collect();
+                out.seats.push(SeatSpread {
+                    seat: id,
+                    rows: rows.len(),
+                    centre: [centre.x, centre.y, centre.z],
+                    rms_mm: (d.iter().map(|x| x * x).sum::<f64>() / d.len() as f64).sqrt(),
+                    max_mm: d.iter().copied().fold(0.0, f64::max),
+                });
+            }
+            PointKind::Pivot => {
+                let c = sphere_centre(rows).ok_or_else(|| CalibError::InvalidOption(format!("pivot {id}: its rows do not place it")))?;
+                let e: Vec<f64> = rows.iter().map(|(p, l)| l - (p - c).norm()).collect();
+                out.pivots.push(PivotFit {
+                    pivot: id,
+                    rows: rows.len(),
+                    rms_mm: (e.iter().map(|x| x * x).sum::<f64>() / e.len() as f64).sqrt(),
+                    max_mm: e.iter().map(|x| x.abs()).fold(0.0, f64::max),
+                });
+            }
+        }
+    }
+    for d in distances {
+        let centre = |id: usize| {
+            out.seats
+                .iter()
+                .find(|s| s.seat == id)
+                .map(|s| Vector3::from(s.centre))
+                .ok_or_else(|| CalibError::InvalidOption(format!("seat distance {}:{}:{}: the data hold no seat {id}", d.a, d.b, d.length)))
+        };
+        let modelled = (centre(d.a)? - centre(d.b)?).norm();
+        out.distances.push((d.a, d.b, d.length, modelled - d.length));
+    }
+    Ok(out)
+}

@@ -1,0 +1,145 @@
+//! Unit tests of the instrument kinds.
+use super::*;
+use crate::measure::{residual, residual_jacobian};
+use crate::model::builtin::irb120;
+use crate::se3;
+
+fn artifact() -> Artifact<Framed<crate::model::chain::SerialChain>> {
+    let framed = Framed::new(
+        irb120(),
+        Pose::identity(),
+        se3::pose_from_parts(Vector3::new(15.0, -10.0, 120.0), Vector3::new(0.1, 0.2, -0.3)),
+    );
+    let points = vec![
+        ArtifactPoint {
+            kind: PointKind::Seat,
+            id: 0,
+            centre: Vector3::new(400.0, 50.0, 200.0),
+        },
+        ArtifactPoint {
+            kind: PointKind::Pivot,
+            id: 3,
+            centre: Vector3::new(350.0, -80.0, 150.0),
+        },
+    ];
+    Artifact {
+        inner: framed,
+        points,
+        pairs: vec![(0, 1)],
+    }
+}
+
+/// The relative pose's spatial Jacobian, and the seat and distance residual rows built from
+/// it, against central differences of the retraction (every column: the machine's, the
+/// frames', the points').
+#[test]
+fn jacobians_match_finite_differences() {
+    let m = artifact();
+    let h = 1e-6;
+    for (k, obs) in [
+        (0.0, Observation::Seat(0)),
+        (1.0, Observation::Distance { pivot: 3, length: 250.0 }),
+        // The known distance between the two points (the pair's row).
+        (
+            2.0,
+            Observation::Distance {
+                pivot: usize::MAX,
+                length: 60.0,
+            },
+        ),
+    ] {
+        let q = [0.3, -0.4, 0.5, 0.9, -1.1, 0.7, k];
+        let (t, jac) = m.forward_with_jacobian(&q).unwrap();
+        let rows = residual_jacobian(&obs, &t, &jac);
+        for c in 0..m.n_params() {
+            let mut d = DVector::zeros(m.n_params());
+            d[c] = h;
+            let mut plus = m.clone();
+            plus.retract(&d);
+            d[c] = -h;
+            let mut minus = m.clone();
+            minus.retract(&d);
+            let (tp, tm) = (plus.forward(&q).unwrap(), minus.forward(&q).unwrap());
+            let fd = (se3::log(&(tp * t.inverse())) - se3::log(&(tm * t.inverse()))) / (2.0 * h);
+            let err = (fd - jac.column(c)).norm();
+            assert!(err < 1e-5 * (1.0 + jac.column(c).norm()), "point {k}, column {c}: {err:e}");
+            // Residual = measured − predicted: its derivative is minus the rows.
+            let (rp, rm) = (residual(&obs, &tp), residual(&obs, &tm));
+            for r in 0..rows.nrows() {
+                let fd_row = -(rp[r] - rm[r]) / (2.0 * h);
+                let err = (fd_row - rows[(r, c)]).abs();
+                assert!(err < 1e-5 * (1.0 + rows[(r, c)].abs()), "point {k}, row {r}, column {c}: {err:e}");
+            }
+        }
+    }
+}
+
+#[test]
+fn a_seat_with_one_row_and_an_unknown_point_index_are_clear_errors() {
+    let row = |obs| Measurement {
+        q: vec![0.0; 6],
+        obs,
+        joints: Vec::new(),
+    };
+    let e = index_points(
+        &[row(Observation::Seat(2)), row(Observation::Seat(4)), row(Observation::Seat(4))],
+        &[],
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("seat 2 has 1 row"), "{e}");
+    let e = index_points(&[row(Observation::Seat(0)), row(Observation::Position(Vector3::zeros()))], &[]).unwrap_err();
+    assert!(e.to_string().contains("mix"), "{e}");
+    let m = artifact();
+    let e = m.forward(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 7.0]).unwrap_err();
+    assert!(e.to_string().contains("artifact point index 7"), "{e}");
+    let (points, _, indexed) = index_points(&[row(Observation::Seat(5)), row(Observation::Seat(5))], &[])
+        .unwrap()
+        .unwrap();
+    assert_eq!((points.len(), indexed[1].q.len()), (1, 7));
+    let two = [
+        row(Observation::Seat(5)),
+        row(Observation::Seat(5)),
+        row(Observation::Seat(6)),
+        row(Observation::Seat(6)),
+    ];
+    let e = index_points(&two, &[SeatDistance { a: 5, b: 9, length: 50.0 }]).unwrap_err();
+    assert!(e.to_string().contains("no seat 9"), "{e}");
+    let (_, pairs, indexed) = index_points(&two, &["6:5:50".parse().unwrap()]).unwrap().unwrap();
+    assert_eq!((pairs, indexed.len(), indexed[4].q[6]), (vec![(1, 0)], 5, 2.0));
+    assert!("5:5:50".parse::<SeatDistance>().is_err() && "5:6".parse::<SeatDistance>().is_err());
+}
+
+/// The sphere fit finds a centre from exact lengths, and the offset fit finds the tool
+/// point's offset and the pivot from a start 120 mm off.
+#[test]
+fn pivots_and_the_tool_offset_start_from_the_lengths() {
+    let truth = artifact();
+    let c = truth.points[1].centre;
+    let rows: Vec<(usize, Pose, f64)> = (0..30)
+        .map(|i| {
+            let f = i as f64;
+            let q = [
+                0.2 * f.sin(),
+                -0.3 + 0.1 * f.cos(),
+                0.4,
+                0.5 * (2.0 * f).sin(),
+                -1.0 + 0.2 * f.cos(),
+                0.3 * f,
+            ];
+            let flange = truth.inner.inner.forward(&q).unwrap();
+            let tip = (flange * truth.inner.tool).translation.vector;
+            (1, flange, (tip - c).norm())
+        })
+        .collect();
+    let sphere: Vec<(Vector3<f64>, f64)> = rows
+        .iter()
+        .map(|(_, p, _)| (p * truth.inner.tool).translation.vector)
+        .zip(rows.iter().map(|r| r.2))
+        .collect();
+    assert!((sphere_centre(&sphere).unwrap() - c).norm() < 1e-8);
+    let mut points = truth.points.clone();
+    points[1].centre += Vector3::new(30.0, -20.0, 10.0);
+    let t = fit_offset_and_pivots(&rows, Vector3::zeros(), &mut points);
+    assert!((t - truth.inner.tool.translation.vector).norm() < 1e-6, "{t:?}");
+    assert!((points[1].centre - c).norm() < 1e-6);
+}
