@@ -42,6 +42,7 @@ mod closure;
 mod elimination;
 mod kinematics;
 mod observed;
+mod skeleton;
 
 /// What a joint's value is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -573,6 +574,10 @@ impl Mechanism for LimbMechanism {
 
     fn n_params(&self) -> usize {
         self.limbs.iter().map(Limb::n_params).sum()
+    }
+
+    fn skeleton(&self) -> Vec<Vec<Vector3<f64>>> {
+        self.home_skeleton()
     }
 
     fn forward(&self, q: &[f64]) -> Result<Pose, KinError> {

@@ -129,3 +129,115 @@ fn report_renders_in_a_browser_with_its_verdict_and_flags() {
     check(&dom, &log, "FAILED");
     assert!(dom.contains("beyond the model"), "the failure reason is not shown");
 }
+
+/// The 3-D view's data embedded in the page (`<script id="view-data">`).
+fn view_data(html: &str) -> serde_json::Value {
+    let start = html.find("id=\"view-data\">").expect("no view data in the page") + "id=\"view-data\">".len();
+    let end = start + html[start..].find("</script>").unwrap();
+    serde_json::from_str(&html[start..end]).expect("the view data is JSON")
+}
+
+/// The report's 3-D view carries the report's own figures: per set the JSON's pose count, and
+/// for each drawn pose the JSON's errors before and after and its measured position; the
+/// machine's skeleton at home (a serial chain: base, six joints, tool) and the base frame. In
+/// Chromium (when installed) the script draws every embedded pose (`data-drawn`) with no
+/// console error.
+#[test]
+fn the_3d_view_draws_the_reports_own_data() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    ok(d, &["model", "export", "irb120", "--out", "m.toml"]);
+    ok(
+        d,
+        &[
+            "simulate",
+            "m.toml",
+            "--poses",
+            "40",
+            "--seed",
+            "5",
+            "--out",
+            "d.csv",
+            "--truth",
+            "t.toml",
+            "--validation-poses",
+            "25",
+            "--validation-out",
+            "v.csv",
+        ],
+    );
+    let json = crate::cli::json(
+        d,
+        &[
+            "identify",
+            "m.toml",
+            "d.csv",
+            "--validation",
+            "v.csv",
+            "--out",
+            "c.toml",
+            "--report",
+            "r.html",
+        ],
+    );
+    let html = std::fs::read_to_string(d.join("r.html")).unwrap();
+    let view = view_data(&html);
+    let sets = view["sets"].as_array().unwrap();
+    assert_eq!(sets.len(), 2);
+    let mut embedded = 0;
+    for (set, key) in sets.iter().zip(["identification", "validation"]) {
+        let report = &json[key];
+        let after = report["after"]["position"].as_array().unwrap();
+        let before = report["before"]["position"].as_array().unwrap();
+        assert_eq!(set["name"], key);
+        assert_eq!(set["n"].as_u64().unwrap() as usize, after.len(), "{key}: pose count");
+        let rows = set["i"].as_array().unwrap();
+        assert_eq!(rows.len(), after.len(), "{key}: every pose drawn below the thinning limit");
+        for (j, i) in rows.iter().enumerate() {
+            let i = i.as_u64().unwrap() as usize;
+            let close = |a: &serde_json::Value, b: &serde_json::Value, tol: f64| (a.as_f64().unwrap() - b.as_f64().unwrap()).abs() <= tol;
+            assert!(
+                close(&set["a"][j], &after[i], 6e-6),
+                "{key} pose {i}: error after {} vs {}",
+                set["a"][j],
+                after[i]
+            );
+            assert!(close(&set["b"][j], &before[i], 6e-6), "{key} pose {i}: error before");
+            assert_eq!(set["id"][j], report["ids"][i], "{key} pose {i}: id");
+            for c in 0..3 {
+                assert!(
+                    close(&set["p"][3 * j + c], &report["measured"][i][c], 6e-3),
+                    "{key} pose {i}: position"
+                );
+            }
+            // The error vector's length is the position error (pose measurements).
+            let ea: f64 = (0..3).map(|c| set["ea"][3 * j + c].as_f64().unwrap().powi(2)).sum::<f64>().sqrt();
+            assert!(
+                (ea - after[i].as_f64().unwrap()).abs() < 2e-5,
+                "{key} pose {i}: |error vector| {ea}"
+            );
+        }
+        embedded += rows.len();
+    }
+    let skeleton = view["skeleton"].as_array().unwrap();
+    assert_eq!(skeleton.len(), 1, "one polyline for a serial chain");
+    assert_eq!(skeleton[0].as_array().unwrap().len(), 3 * 8, "base, six joints and the tool");
+    assert_eq!(view["base"].as_array().map(Vec::len), Some(12), "the registered base frame");
+    assert!(
+        html.contains("id=\"maps\"") && html.matches("position error after calibration</text>").count() >= 2,
+        "no workspace maps"
+    );
+    let Some(browser) = chromium() else {
+        eprintln!("the_3d_view_draws_the_reports_own_data: no Chromium on this machine; the browser check skipped");
+        return;
+    };
+    let (dom, log) = render(browser, &d.join("r.html"), &d.join("profile"));
+    check(&dom, &log, "Verdict:");
+    let drawn: usize = dom
+        .split("data-drawn=\"")
+        .nth(1)
+        .and_then(|s| s.split('"').next())
+        .and_then(|s| s.parse().ok())
+        .expect("the view's canvas has no data-drawn");
+    assert_eq!(drawn, embedded, "the script drew {drawn} of {embedded} poses");
+}
