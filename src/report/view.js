@@ -36,7 +36,10 @@
   }
   function magnitudes(key) { var out = []; sets.forEach(function (s) { out = out.concat(s[key]); }); return out; }
   // Error vectors: scaled so that the 95th percentile is 8 % of the scene, a round factor.
-  function autoScale() { return nice(0.08 * R / Math.max(quantile(magnitudes(state.mode === "after" ? "a" : "b"), 0.95), 1e-9)); }
+  function autoScale() {
+    var q = quantile(magnitudes(state.mode === "after" ? "a" : "b"), 0.95);
+    return q > 1e-6 ? nice(0.08 * R / q) : 1;
+  }
   var scaleInput = document.getElementById("view-scale");
   function resetScale() { state.scale = autoScale(); scaleInput.value = String(state.scale); }
   resetScale();
@@ -193,5 +196,7 @@
     if (!sets.some(function (s) { return s.name === name; })) { box.parentNode.style.display = "none"; return; }
     box.addEventListener("change", function (e) { state.show[name] = e.target.checked; redraw(); });
   });
+  var t0 = performance.now();
   draw();
+  cv.setAttribute("data-ms", String(Math.round(performance.now() - t0)));
 })();
