@@ -7,7 +7,7 @@ mod verdict;
 mod view;
 
 pub use verdict::{Beyond, Status, ToleranceCheck, Verdict, CHANCE_BEYOND_3_SIGMA, SIGMA0_FAIL, SIGMA0_WARN};
-pub use view::MachineView;
+pub use view::{MachineView, VIEW_POINTS, VIEW_WORST};
 
 use crate::error::CalibError;
 use crate::identify::Identification;

@@ -241,3 +241,28 @@ fn the_3d_view_draws_the_reports_own_data() {
         .expect("the view's canvas has no data-drawn");
     assert_eq!(drawn, embedded, "the script drew {drawn} of {embedded} poses");
 }
+
+/// 100,000 identification poses (and 20,000 held out): the report stays under 2 MB, its 3-D view
+/// states each set's pose count and draws at most `VIEW_POINTS` of them per set.
+#[test]
+fn a_100000_pose_report_stays_under_2_mb() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    ok(d, &["model", "export", "irb120", "--out", "m.toml"]);
+    #[rustfmt::skip]
+    ok(d, &["simulate", "m.toml", "--poses", "100000", "--seed", "7", "--noise-mm", "0.02", "--noise-deg", "0.02", "--out", "d.csv", "--truth", "t.toml", "--validation-poses", "20000", "--validation-out", "v.csv"]);
+    #[rustfmt::skip]
+    ok(d, &["identify", "m.toml", "d.csv", "--validation", "v.csv", "--noise-mm", "0.02", "--noise-deg", "0.02", "--out", "c.toml", "--report", "r.html"]);
+    let html = std::fs::read_to_string(d.join("r.html")).unwrap();
+    assert!(html.len() <= 2_000_000, "report of {} bytes", html.len());
+    let view = view_data(&html);
+    let limit = kinecal::report::VIEW_POINTS;
+    for (set, n) in view["sets"].as_array().unwrap().iter().zip([100_000, 20_000]) {
+        assert_eq!(set["n"], n);
+        let drawn = set["i"].as_array().unwrap().len();
+        assert!(drawn <= limit && drawn >= limit / 2, "{drawn} poses drawn of {n}");
+        let a: Vec<f64> = set["a"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+        assert!(a.iter().all(|v| v.is_finite() && *v >= 0.0));
+    }
+    eprintln!("100,000-pose report: {} bytes", html.len());
+}
