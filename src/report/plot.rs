@@ -410,12 +410,12 @@ pub fn workspace_map(
     let mut svg = String::new();
     let mut frame = Frame { texts: String::new() };
     {
-        let root = SVGBackend::with_string(&mut svg, (SIDE, SIDE + 30)).into_drawing_area();
+        let root = SVGBackend::with_string(&mut svg, (SIDE, SIDE + 46)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| e.to_string())?;
         let mut chart = ChartBuilder::on(&root)
             .margin_top(44)
             .margin_right(14)
-            .margin_bottom(30)
+            .margin_bottom(46)
             .x_label_area_size(38)
             .y_label_area_size(64)
             .build_cartesian_2d(x0..x1, y0..y1)
@@ -465,7 +465,7 @@ pub fn workspace_map(
         "",
     );
     if hollow.iter().any(|h| *h) {
-        frame.text(SIDE as i32 - 10, by + 9, "end", 11, "● identification  □ validation", "");
+        frame.text(bx, by + 26, "start", 11, "● identification  □ validation", "");
     }
     Ok(finish(svg, frame))
 }

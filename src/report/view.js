@@ -67,14 +67,14 @@
     ctx.strokeStyle = colourName; ctx.lineWidth = width; ctx.setLineDash(dash || []);
     ctx.beginPath(); ctx.moveTo(a[0], a[1]); ctx.lineTo(b[0], b[1]); ctx.stroke(); ctx.setLineDash([]);
   }
-  function frame(origin, axes, len, label) {
+  function frame(origin, axes, len, label, below) {
     var o = project(origin);
     ["#d62728", "#2ca02c", "#1f77b4"].forEach(function (c, a) {
       var e = project([origin[0] + len * axes[a][0], origin[1] + len * axes[a][1], origin[2] + len * axes[a][2]]);
       line(o, e, c, 2);
       ctx.fillStyle = c; ctx.font = "11px sans-serif"; ctx.fillText("xyz"[a], e[0] + 3, e[1] - 3);
     });
-    ctx.fillStyle = "#222"; ctx.font = "12px sans-serif"; ctx.fillText(label, o[0] + 4, o[1] + 14);
+    ctx.fillStyle = "#222"; ctx.font = "12px sans-serif"; ctx.fillText(label, o[0] + 4, o[1] + (below ? 14 : -8));
   }
   function polyline(flat, colourName, width, dash) {
     for (var k = 0; k + 5 < flat.length; k += 3) {
@@ -90,7 +90,7 @@
     var top = quantile(magnitudes(key), 0.98), most = quantile(magnitudes(key), 1);
     // Frames and skeleton first, points over them.
     var axis = nice(0.12 * R);
-    frame([0, 0, 0], [[1, 0, 0], [0, 1, 0], [0, 0, 1]], axis, "measurement frame (axes " + axis + " mm)");
+    frame([0, 0, 0], [[1, 0, 0], [0, 1, 0], [0, 0, 1]], axis, "measurement frame (axes " + axis + " mm)", true);
     if (data.base) {
       var b = data.base;
       frame([b[0], b[1], b[2]], [[b[3], b[4], b[5]], [b[6], b[7], b[8]], [b[9], b[10], b[11]]], axis, "base");
