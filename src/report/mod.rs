@@ -2,6 +2,7 @@
 //! serialisable to JSON) and as one self-contained HTML file with inline SVG plots
 //! ([`CalibrationReport::to_html`]).
 mod html;
+pub mod plan;
 pub mod plot;
 mod verdict;
 mod view;

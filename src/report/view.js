@@ -41,7 +41,7 @@
     return q > 1e-6 ? nice(0.08 * R / q) : 1;
   }
   var scaleInput = document.getElementById("view-scale");
-  function resetScale() { state.scale = autoScale(); scaleInput.value = String(state.scale); }
+  function resetScale() { state.scale = autoScale(); if (scaleInput) scaleInput.value = String(state.scale); }
   resetScale();
 
   function project(p) {
@@ -102,22 +102,24 @@
         var p = [s.p[3 * j], s.p[3 * j + 1], s.p[3 * j + 2]];
         if (p[0] === null) continue;
         var q = project(p);
-        drawn.push({ x: q[0], y: q[1], d: q[2], s: si, j: j, v: s[key][j], e: [s[vkey][3 * j], s[vkey][3 * j + 1], s[vkey][3 * j + 2]], p: p });
+        var e = s[vkey] ? [s[vkey][3 * j], s[vkey][3 * j + 1], s[vkey][3 * j + 2]] : [null];
+        drawn.push({ x: q[0], y: q[1], d: q[2], s: si, j: j, v: s[key] ? s[key][j] : null, e: e, p: p });
       }
     });
     drawn.sort(function (a, b) { return a.d - b.d; });
     drawn.forEach(function (o) {
-      var c = colour(o.v, top);
+      var set = sets[o.s], c = set.colour || colour(o.v, top), r = set.size || 3.5;
       if (state.vectors && o.e[0] !== null) {
         var k = state.scale;
         var t = project([o.p[0] - k * o.e[0], o.p[1] - k * o.e[1], o.p[2] - k * o.e[2]]);
         line([o.x, o.y], t, c, 1);
       }
-      if (o.s === 0) {
-        ctx.fillStyle = c; ctx.beginPath(); ctx.arc(o.x, o.y, 3.5, 0, 2 * Math.PI); ctx.fill();
+      if (set.name !== "validation") {
+        ctx.fillStyle = c; ctx.beginPath(); ctx.arc(o.x, o.y, r, 0, 2 * Math.PI); ctx.fill();
       } else {
-        ctx.strokeStyle = c; ctx.lineWidth = 1.5; ctx.strokeRect(o.x - 3.5, o.y - 3.5, 7, 7);
+        ctx.strokeStyle = c; ctx.lineWidth = 1.5; ctx.strokeRect(o.x - r, o.y - r, 2 * r, 2 * r);
       }
+      if (set.tag) { ctx.fillStyle = "#222"; ctx.font = "11px sans-serif"; ctx.fillText(set.tag[o.j], o.x + r + 2, o.y - r); }
     });
     // The machine over the points.
     data.nominal.forEach(function (l) { polyline(l, "#999", 1.5, [5, 4]); });
@@ -136,13 +138,22 @@
       ctx.strokeStyle = "#c000c0"; ctx.lineWidth = 2; ctx.beginPath(); ctx.arc(q[0], q[1], 7, 0, 2 * Math.PI); ctx.stroke();
       ctx.fillStyle = "#c000c0"; ctx.font = "11px sans-serif"; ctx.fillText("changed " + fmt(m[0]) + " mm", q[0] + 9, q[1] - 6);
     });
-    // Colour bar and scale.
+    // Legend of the sets with a fixed colour; the colour bar and the vectors' scale when a set is
+    // coloured by its errors.
     var x0 = W - 340, y0 = 16;
-    for (var i = 0; i < 200; i++) { ctx.fillStyle = colour(i / 199 * top, top); ctx.fillRect(x0 + i, y0, 1, 12); }
+    var legend = sets.filter(function (s) { return s.colour; });
+    legend.forEach(function (s, k) {
+      ctx.fillStyle = s.colour; ctx.beginPath(); ctx.arc(x0 + 6, y0 + 6 + 18 * k, s.size || 3.5, 0, 2 * Math.PI); ctx.fill();
+      ctx.fillStyle = "#222"; ctx.font = "12px sans-serif"; ctx.fillText(s.name + " (" + s.n + ")", x0 + 16, y0 + 10 + 18 * k);
+    });
+    if (legend.length < sets.length) {
+      for (var i = 0; i < 200; i++) { ctx.fillStyle = colour(i / 199 * top, top); ctx.fillRect(x0 + i, y0, 1, 12); }
+      ctx.fillStyle = "#222"; ctx.font = "12px sans-serif";
+      ctx.fillText("0", x0 - 4, y0 + 26); ctx.fillText(fmt(top) + (most > top ? "+ mm (max " + fmt(most) + ")" : " mm"), x0 + 150, y0 + 26);
+      ctx.fillText("position error " + (state.mode === "after" ? "after" : "before") + " calibration", x0, y0 + 42);
+      if (state.vectors) ctx.fillText("error vectors ×" + state.scale + " (toward the model's position)", x0, y0 + 58);
+    }
     ctx.fillStyle = "#222"; ctx.font = "12px sans-serif";
-    ctx.fillText("0", x0 - 4, y0 + 26); ctx.fillText(fmt(top) + (most > top ? "+ mm (max " + fmt(most) + ")" : " mm"), x0 + 150, y0 + 26);
-    ctx.fillText("position error " + (state.mode === "after" ? "after" : "before") + " calibration", x0, y0 + 42);
-    if (state.vectors) ctx.fillText("error vectors ×" + state.scale + " (toward the model's position)", x0, y0 + 58);
     var o = project([0, 0, 0]);
     var off = o[0] < 0 || o[0] > W || o[1] < 0 || o[1] > H;
     ctx.fillText(drawn.length + " poses drawn" + (off ? "; the measurement frame's origin is off the view (wheel to zoom out)" : ""), 10, H - 10);
@@ -171,10 +182,11 @@
     var m = canvasXY(e), best = null, bd = 64;
     drawn.forEach(function (o) { var d = (o.x - m[0]) * (o.x - m[0]) + (o.y - m[1]) * (o.y - m[1]); if (d < bd) { bd = d; best = o; } });
     if (!best) { tip.style.display = "none"; return; }
-    var s = sets[best.s], j = best.j;
-    var text = s.name + " pose id " + s.id[j] + " (row " + s.i[j] + ")\nposition error after " + fmt(s.a[j]) + " mm, before " + fmt(s.b[j]) + " mm";
-    if (s.oa) text += "\norientation error after " + fmt(s.oa[j]) + " deg, before " + fmt(s.ob[j]) + " deg";
-    text += "\nat (" + best.p.map(function (v) { return v.toFixed(1); }).join(", ") + ") mm";
+    var s = sets[best.s], j = best.j, text;
+    if (s.label) text = s.label[j] + "\nat (" + best.p.map(function (v) { return v.toFixed(1); }).join(", ") + ") mm";
+    else text = s.name + " pose id " + s.id[j] + " (row " + s.i[j] + ")\nposition error after " + fmt(s.a[j]) + " mm, before " + fmt(s.b[j]) + " mm";
+    if (!s.label && s.oa) text += "\norientation error after " + fmt(s.oa[j]) + " deg, before " + fmt(s.ob[j]) + " deg";
+    if (!s.label) text += "\nat (" + best.p.map(function (v) { return v.toFixed(1); }).join(", ") + ") mm";
     tip.textContent = text;
     tip.style.left = (e.clientX - cv.getBoundingClientRect().left + 12) + "px";
     tip.style.top = (e.clientY - cv.getBoundingClientRect().top + 12) + "px";
@@ -189,10 +201,13 @@
   Array.prototype.forEach.call(document.querySelectorAll("input[name=view-mode]"), function (r) {
     r.addEventListener("change", function () { state.mode = r.value; resetScale(); redraw(); });
   });
-  document.getElementById("view-vectors").addEventListener("change", function (e) { state.vectors = e.target.checked; redraw(); });
-  scaleInput.addEventListener("change", function () { var v = parseFloat(scaleInput.value); if (v >= 0) { state.scale = v; redraw(); } });
+  var vectorsBox = document.getElementById("view-vectors");
+  if (vectorsBox) vectorsBox.addEventListener("change", function (e) { state.vectors = e.target.checked; redraw(); });
+  else state.vectors = false;
+  if (scaleInput) scaleInput.addEventListener("change", function () { var v = parseFloat(scaleInput.value); if (v >= 0) { state.scale = v; redraw(); } });
   ["identification", "validation"].forEach(function (name) {
     var box = document.getElementById("view-" + name);
+    if (!box) return;
     if (!sets.some(function (s) { return s.name === name; })) { box.parentNode.style.display = "none"; return; }
     box.addEventListener("change", function (e) { state.show[name] = e.target.checked; redraw(); });
   });

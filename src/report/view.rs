@@ -161,7 +161,7 @@ fn num(out: &mut String, v: f64, d: usize) {
     }
 }
 
-fn array(out: &mut String, values: impl Iterator<Item = f64>, d: usize) {
+pub(super) fn array(out: &mut String, values: impl Iterator<Item = f64>, d: usize) {
     out.push('[');
     for (k, v) in values.enumerate() {
         if k > 0 {
@@ -172,19 +172,19 @@ fn array(out: &mut String, values: impl Iterator<Item = f64>, d: usize) {
     out.push(']');
 }
 
-fn list(out: &mut String, key: &str, values: impl Iterator<Item = f64>, d: usize) {
+pub(super) fn list(out: &mut String, key: &str, values: impl Iterator<Item = f64>, d: usize) {
     let _ = write!(out, "\"{key}\":");
     array(out, values, d);
     out.push(',');
 }
 
 /// A JSON string, safe inside a `<script>` element.
-fn string(s: &str) -> String {
+pub(super) fn string(s: &str) -> String {
     serde_json::to_string(s).unwrap_or_else(|_| "\"\"".into()).replace('<', "\\u003c")
 }
 
 /// Decimals of positions (10 µm) and of errors (10 nm) in the view's data.
-const POSITION_DECIMALS: usize = 2;
+pub(super) const POSITION_DECIMALS: usize = 2;
 const ERROR_DECIMALS: usize = 5;
 
 fn set_json(out: &mut String, name: &str, s: &SetErrors) {
@@ -209,7 +209,7 @@ fn set_json(out: &mut String, name: &str, s: &SetErrors) {
     out.push('}');
 }
 
-fn polylines(out: &mut String, key: &str, l: &[Vec<[f64; 3]>]) {
+pub(super) fn polylines(out: &mut String, key: &str, l: &[Vec<[f64; 3]>]) {
     let _ = write!(out, "\"{key}\":[");
     for (k, line) in l.iter().enumerate() {
         if k > 0 {
@@ -267,19 +267,28 @@ impl CalibrationReport {
                 " The machine at home: calibrated solid, starting model dashed, drawn over the points; the three joints whose place the calibration changed most (apart from where the whole machine stands) are circled."
             }
         );
-        h.push_str(
-            "<div id=\"view-controls\" style=\"font-size:13px;margin:4px 0\">colour by error <label><input type=\"radio\" name=\"view-mode\" value=\"after\" checked> after calibration</label> <label><input type=\"radio\" name=\"view-mode\" value=\"before\"> before</label> · <label><input type=\"checkbox\" id=\"view-vectors\" checked> error vectors</label> ×<input type=\"number\" id=\"view-scale\" min=\"0\" step=\"any\" style=\"width:6em\"> · <label><input type=\"checkbox\" id=\"view-identification\" checked> identification</label> <label><input type=\"checkbox\" id=\"view-validation\" checked> validation</label> · view <button type=\"button\" data-view=\"iso\">3-D</button> <button type=\"button\" data-view=\"xy\">x–y</button> <button type=\"button\" data-view=\"xz\">x–z</button> <button type=\"button\" data-view=\"yz\">y–z</button></div>\n\
-             <div style=\"position:relative\"><canvas id=\"view3d\" width=\"1100\" height=\"620\" style=\"border:1px solid #ddd;max-width:100%;cursor:grab\" data-drawn=\"0\"></canvas>\
-             <div id=\"view-tip\" style=\"position:absolute;display:none;background:#fff;border:1px solid #888;padding:3px 6px;font-size:12px;pointer-events:none;white-space:pre\"></div></div>\n",
-        );
         let _ = writeln!(
             h,
-            "<script type=\"application/json\" id=\"view-data\">{}</script>",
-            self.view_json()
+            "<div id=\"view-controls\" style=\"font-size:13px;margin:4px 0\">colour by error <label><input type=\"radio\" name=\"view-mode\" value=\"after\" checked> after calibration</label> <label><input type=\"radio\" name=\"view-mode\" value=\"before\"> before</label> · <label><input type=\"checkbox\" id=\"view-vectors\" checked> error vectors</label> ×<input type=\"number\" id=\"view-scale\" min=\"0\" step=\"any\" style=\"width:6em\"> · <label><input type=\"checkbox\" id=\"view-identification\" checked> identification</label> <label><input type=\"checkbox\" id=\"view-validation\" checked> validation</label> · {VIEW_BUTTONS}</div>"
         );
-        let _ = writeln!(h, "<script>\n{}</script>", include_str!("view.js"));
+        canvas(h, &self.view_json());
     }
 }
+
+/// The view's canvas, its data (`json`, as [`CalibrationReport::view_json`] writes it; a set
+/// may instead give a fixed `colour`, a marker `size`, a `tag` drawn beside each point and a
+/// hover `label` per point) and the script.
+pub(super) fn canvas(h: &mut String, json: &str) {
+    h.push_str(
+        "<div style=\"position:relative\"><canvas id=\"view3d\" width=\"1100\" height=\"620\" style=\"border:1px solid #ddd;max-width:100%;cursor:grab\" data-drawn=\"0\"></canvas>\
+         <div id=\"view-tip\" style=\"position:absolute;display:none;background:#fff;border:1px solid #888;padding:3px 6px;font-size:12px;pointer-events:none;white-space:pre\"></div></div>\n",
+    );
+    let _ = writeln!(h, "<script type=\"application/json\" id=\"view-data\">{json}</script>");
+    let _ = writeln!(h, "<script>\n{}</script>", include_str!("view.js"));
+}
+
+/// The buttons that turn the view to the three planes of the measurement frame.
+pub(super) const VIEW_BUTTONS: &str = "view <button type=\"button\" data-view=\"iso\">3-D</button> <button type=\"button\" data-view=\"xy\">x–y</button> <button type=\"button\" data-view=\"xz\">x–z</button> <button type=\"button\" data-view=\"yz\">y–z</button>";
 
 #[cfg(test)]
 mod tests {

@@ -266,3 +266,45 @@ fn a_100000_pose_report_stays_under_2_mb() {
     }
     eprintln!("100,000-pose report: {} bytes", html.len());
 }
+
+/// `kinecal plan --report`: the page shows the candidates and the chosen configurations in the
+/// 3-D view (the chosen ones in the order of the plan's CSV, numbered), the criterion per move,
+/// the chosen configurations' table and the parameters identified and not; in Chromium the
+/// script draws every embedded point with no console error.
+#[test]
+fn a_plan_report_shows_candidates_and_chosen_configurations() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    #[rustfmt::skip]
+    let summary = crate::cli::json(d, &["plan", "--candidates", "1500", "-n", "8", "--method", "sffs", "-o", "plan.csv", "--report", "plan.html"]);
+    let html = std::fs::read_to_string(d.join("plan.html")).unwrap();
+    let view = view_data(&html);
+    let sets = view["sets"].as_array().unwrap();
+    assert_eq!(sets[0]["name"], "candidates");
+    assert_eq!(sets[0]["n"], 1500);
+    assert_eq!(sets[1]["name"], "chosen");
+    let chosen: Vec<u64> = sets[1]["i"].as_array().unwrap().iter().map(|v| v.as_u64().unwrap()).collect();
+    assert_eq!(chosen.len(), 8);
+    assert_eq!(sets[1]["tag"][7], "8");
+    assert_eq!(sets[0]["i"].as_array().unwrap().len(), 1500 - 8, "every candidate but the chosen");
+    // The same configurations as the CSV, in its order: their targets.
+    let text = std::fs::read_to_string(d.join("plan.csv")).unwrap();
+    let table = kinecal::io::table::parse_table(&d.join("plan.csv"), &text).unwrap();
+    let x = table.values("x_mm").unwrap();
+    for (k, xk) in x.iter().enumerate() {
+        assert!((sets[1]["p"][3 * k].as_f64().unwrap() - xk).abs() < 0.006, "chosen #{k}: x");
+    }
+    let identifiable = summary["identifiable_parameters"].as_u64().unwrap();
+    assert!(html.contains(&format!("<b>Identified</b> by these configurations ({identifiable})")));
+    assert!(html.contains("<b>Not identifiable</b>") && html.contains("after each move</text>"));
+    assert_eq!(html.matches("<tr><td>").count(), 8, "one row per chosen configuration");
+    assert_eq!(view["skeleton"].as_array().unwrap().len(), 1, "the random chain drawn at home");
+    let Some(browser) = chromium() else {
+        eprintln!("a_plan_report_shows_candidates_and_chosen_configurations: no Chromium; the browser check skipped");
+        return;
+    };
+    let (dom, log) = render(browser, &d.join("plan.html"), &d.join("profile"));
+    let console_errors: Vec<&str> = log.lines().filter(|l| l.contains("CONSOLE") && l.contains("rror")).collect();
+    assert!(console_errors.is_empty(), "console errors: {console_errors:?}");
+    assert!(dom.contains("data-drawn=\"1500\""), "the script did not draw the 1500 points");
+}
