@@ -322,7 +322,7 @@ impl CalibrationReport {
             variants: Vec::new(),
             tolerance_check: None,
             serial_chain: false,
-            machine: MachineView::of(nominal, &result.model),
+            machine: MachineView::of(nominal, &result.model, data.first().map(|m| m.q.as_slice())),
         };
         report.correlations(result, &params);
         report.absorbed = absorbed(result, &params);

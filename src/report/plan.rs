@@ -62,7 +62,7 @@ pub fn plan_view_json(p: &SampledPlan) -> String {
     let _ = write!(out, "\"tag\":[{}],\"label\":[{}]}}],", tags.join(","), labels.join(","));
     let skeleton: Vec<Vec<[f64; 3]>> = p.skeleton.iter().map(|l| l.iter().map(|v| [v.x, v.y, v.z]).collect()).collect();
     polylines(&mut out, "skeleton", &skeleton);
-    out.push_str("\"nominal\":[],\"moved\":[],\"base\":null}");
+    out.push_str("\"nominal\":[],\"moved\":[],\"base\":null,\"tool\":null}");
     out
 }
 

@@ -124,6 +124,11 @@
     // The machine over the points.
     data.nominal.forEach(function (l) { polyline(l, "#999", 1.5, [5, 4]); });
     data.skeleton.forEach(function (l) { polyline(l, "rgba(40,40,40,0.85)", 4); });
+    // The tool frame over the points too.
+    if (data.tool) {
+      var t = data.tool;
+      frame([t[0], t[1], t[2]], [[t[3], t[4], t[5]], [t[6], t[7], t[8]], [t[9], t[10], t[11]]], axis / 2, "tool at pose id " + data.toolPose);
+    }
     // The skeleton's vertices whose place the calibration changed most (three, when they moved at all).
     var moved = [];
     data.skeleton.forEach(function (l, j) {

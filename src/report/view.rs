@@ -36,6 +36,11 @@ pub struct MachineView {
     /// axes; `None` when the model carries no separate frames (its world frame is then the
     /// measurement frame).
     pub base: Option<[[f64; 3]; 4]>,
+    /// The calibrated model's tool frame at the first identification pose (origin, then its
+    /// x, y, z unit axes, in the measurement frame): where the tool frame found by the
+    /// calibration (the registered tool offset, for a model seen through frames) sits on the
+    /// measured points. `None` without poses.
+    pub tool: Option<[[f64; 3]; 4]>,
     /// How far each vertex of `skeleton` lies from its place in `skeleton_nominal` once the two
     /// drawings are brought together by the best rigid motion (mm): what the calibration
     /// changed in the machine's shape, apart from where it stands (a change of the frames, or
@@ -83,26 +88,31 @@ fn lines(m: &(impl Mechanism + ?Sized)) -> Vec<Vec<[f64; 3]>> {
     m.skeleton().iter().map(|l| l.iter().map(arr).collect()).collect()
 }
 
+/// A frame as its origin and unit axes.
+fn axes(x: &Pose) -> [[f64; 3]; 4] {
+    let r = x.rotation.to_rotation_matrix();
+    let m = r.matrix();
+    [
+        arr(&x.translation.vector),
+        arr(&m.column(0).into()),
+        arr(&m.column(1).into()),
+        arr(&m.column(2).into()),
+    ]
+}
+
 impl MachineView {
-    /// The drawing of `nominal` (the starting model) and `calibrated`, and the calibrated base
-    /// frame.
-    pub fn of<A: Mechanism + ?Sized, B: Mechanism + ?Sized>(nominal: &A, calibrated: &B) -> MachineView {
-        let base = calibrated.frames().map(|(x, _)| {
-            let r = x.rotation.to_rotation_matrix();
-            let m = r.matrix();
-            [
-                arr(&x.translation.vector),
-                arr(&m.column(0).into()),
-                arr(&m.column(1).into()),
-                arr(&m.column(2).into()),
-            ]
-        });
+    /// The drawing of `nominal` (the starting model) and `calibrated`, the calibrated base
+    /// frame, and the calibrated tool frame at the inputs `first` (the first pose), if given.
+    pub fn of<A: Mechanism + ?Sized, B: Mechanism + ?Sized>(nominal: &A, calibrated: &B, first: Option<&[f64]>) -> MachineView {
+        let base = calibrated.frames().map(|(x, _)| axes(&x));
+        let tool = first.and_then(|q| calibrated.forward(q).ok()).map(|t| axes(&t));
         let (skeleton, skeleton_nominal) = (lines(calibrated), lines(nominal));
         MachineView {
             moved: shape_change(&skeleton_nominal, &skeleton),
             skeleton,
             skeleton_nominal,
             base,
+            tool,
         }
     }
 }
@@ -226,7 +236,8 @@ impl CalibrationReport {
     /// position `p` and error vectors `eb`/`ea` (flat x, y, z), position errors `b`/`a` and,
     /// for pose measurements, orientation errors `ob`/`oa` (deg), before/after calibration; the
     /// machine's `skeleton` and `nominal` drawing (flat x, y, z per polyline), the shape change
-    /// `moved` per skeleton vertex ([`MachineView::moved`]) and the `base` frame.
+    /// `moved` per skeleton vertex ([`MachineView::moved`]), the `base` frame and the `tool`
+    /// frame at the first identification pose, whose id is `toolPose`.
     pub fn view_json(&self) -> String {
         let mut out = String::from("{\"sets\":[");
         set_json(&mut out, "identification", &self.identification);
@@ -245,10 +256,16 @@ impl CalibrationReport {
             array(&mut out, m.iter().copied(), ERROR_DECIMALS);
         }
         out.push_str("],");
-        match &self.machine.base {
-            Some(b) => list(&mut out, "base", b.iter().flatten().copied(), 6),
-            None => out.push_str("\"base\":null,"),
+        for (key, frame) in [("base", &self.machine.base), ("tool", &self.machine.tool)] {
+            match frame {
+                Some(b) => list(&mut out, key, b.iter().flatten().copied(), 6),
+                None => {
+                    let _ = write!(out, "\"{key}\":null,");
+                }
+            }
         }
+        let tool_pose = self.identification.ids.first().copied().unwrap_or(0);
+        let _ = write!(out, "\"toolPose\":{tool_pose},");
         out.pop();
         out.push('}');
         out

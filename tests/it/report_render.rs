@@ -223,6 +223,18 @@ fn the_3d_view_draws_the_reports_own_data() {
     assert_eq!(skeleton.len(), 1, "one polyline for a serial chain");
     assert_eq!(skeleton[0].as_array().unwrap().len(), 3 * 8, "base, six joints and the tool");
     assert_eq!(view["base"].as_array().map(Vec::len), Some(12), "the registered base frame");
+    // The tool frame at the first identification pose: its origin is where the calibrated model
+    // puts that pose, the measured position less its error vector.
+    let (tool, first) = (&view["tool"], &json["identification"]);
+    for c in 0..3 {
+        let model = first["measured"][0][c].as_f64().unwrap() - first["error_after"][0][c].as_f64().unwrap();
+        assert!(
+            (tool[c].as_f64().unwrap() - model).abs() < 1e-5,
+            "tool frame origin {c}: {} vs {model}",
+            tool[c]
+        );
+    }
+    assert_eq!(view["toolPose"], first["ids"][0]);
     assert!(
         html.contains("id=\"maps\"") && html.matches("position error after calibration</text>").count() >= 2,
         "no workspace maps"
