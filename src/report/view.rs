@@ -171,6 +171,7 @@ fn num(out: &mut String, v: f64, d: usize) {
     }
 }
 
+/// `values` as a JSON array, each rounded to `d` decimals.
 pub(super) fn array(out: &mut String, values: impl Iterator<Item = f64>, d: usize) {
     out.push('[');
     for (k, v) in values.enumerate() {
@@ -182,6 +183,7 @@ pub(super) fn array(out: &mut String, values: impl Iterator<Item = f64>, d: usiz
     out.push(']');
 }
 
+/// `"key":[values],` (see [`array`]).
 pub(super) fn list(out: &mut String, key: &str, values: impl Iterator<Item = f64>, d: usize) {
     let _ = write!(out, "\"{key}\":");
     array(out, values, d);
@@ -219,6 +221,7 @@ fn set_json(out: &mut String, name: &str, s: &SetErrors) {
     out.push('}');
 }
 
+/// `"key":[[x, y, z, …], …],`: polylines as flat arrays.
 pub(super) fn polylines(out: &mut String, key: &str, l: &[Vec<[f64; 3]>]) {
     let _ = write!(out, "\"{key}\":[");
     for (k, line) in l.iter().enumerate() {
