@@ -15,6 +15,7 @@ message the command line prints.
 """
 from __future__ import annotations
 
+import html
 import json
 from typing import Any, Dict, List, Optional, Tuple
 
@@ -112,6 +113,12 @@ class Calibration:
     def report_html(self) -> str:
         """The report as one self-contained HTML page."""
         return self._raw.report_html()
+
+    def _repr_html_(self) -> str:
+        """The report inline in a notebook: the self-contained page in an ``iframe`` (its styles
+        and its 3-D view's script stay inside it and run in a trusted or untrusted notebook)."""
+        page = html.escape(self.report_html(), quote=True)
+        return f'<iframe srcdoc="{page}" style="width:100%;height:820px;border:1px solid #ddd"></iframe>'
 
     def __repr__(self) -> str:
         v = self.validation

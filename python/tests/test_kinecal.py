@@ -1,5 +1,6 @@
 """pytest suite of the Python bindings: needs nothing outside the repository (data are simulated;
 the comparison with the command line runs when a built `kinecal` binary is found)."""
+import html
 import json
 import os
 import shutil
@@ -71,6 +72,9 @@ def test_noisy_calibration_validates_at_noise_level():
     ident = kinecal.identifiability(m, data)
     assert ident["rank"] == 30 and len(ident["redundant"]) == 12
     assert "<html" in cal.report_html()[:200].lower()
+    inline = cal._repr_html_()
+    assert inline.startswith("<iframe srcdoc=") and "&lt;canvas id=&quot;view3d&quot;" in inline
+    assert html.unescape(inline.split('srcdoc="', 1)[1].split('" style=', 1)[0]) == cal.report_html()
 
 
 def test_data_from_arrays_equals_data_from_the_simulation():

@@ -10,6 +10,7 @@ use kinecal::design::{self, Criterion, PlanEvent, PlanOptions, SampledSpace, Sel
 use kinecal::io::{builtin, model_file::ModelFile, output::Outputs};
 use kinecal::measure::Noise;
 use kinecal::model::Mechanism;
+use kinecal::report::plan::plan_html;
 use kinecal::simulate::{random_serial_chain, ObservationKind};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -64,6 +65,10 @@ pub struct PlanArgs {
     /// Output CSV (inputs in degrees, target poses in mm and degrees).
     #[arg(short, long, default_value = "plan.csv")]
     pub output: PathBuf,
+    /// Write an HTML report of the plan here: the candidates and the chosen configurations in 3-D,
+    /// the criterion as they are added, the parameters identified and not.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
     /// Print a JSON summary (indices, chosen candidates, timings) instead of text.
     #[arg(long)]
     pub json: bool,
@@ -94,17 +99,10 @@ pub(crate) fn model(args: &PlanArgs) -> anyhow::Result<(ModelFile, bool)> {
 /// Run the command.
 pub fn run(args: PlanArgs) -> anyhow::Result<()> {
     let started = Instant::now();
-    let say = |line: String| {
-        if !args.json {
-            println!("{line}")
-        }
-    };
+    let say = |line: String| (!args.json).then(|| println!("{line}"));
     let observe: ObservationKind = args.observe.parse().map_err(|e| anyhow::anyhow!("--observe {e}"))?;
-    let noise = Noise {
-        position: args.noise_position_mm,
-        orientation: args.noise_orientation_deg.to_radians(),
-        ..Noise::default()
-    };
+    let mut noise = Noise::default();
+    (noise.position, noise.orientation) = (args.noise_position_mm, args.noise_orientation_deg.to_radians());
     let select = SelectOptions {
         n: args.n,
         criterion: args.criterion,
@@ -125,7 +123,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
     if let Some(m) = &args.model {
         outputs.input(std::path::Path::new(m));
     }
-    outputs.output(&args.output)?;
+    outputs.output(&args.output)?.output_opt(args.report.as_deref())?;
     let (file, demo) = model(&args)?;
     let sampling = args.sampling.sampling(demo.then(|| file.inputs().len()));
     let stages = progress::Stages::new(args.json);
@@ -183,6 +181,9 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         .write_csv(&mut text)
         .with_context(|| format!("cannot write {}", args.output.display()))?;
     outputs.stage(&args.output, &text)?;
+    if let Some(path) = &args.report {
+        outputs.stage(path, plan_html(&planned).map_err(|e| anyhow::anyhow!("report: {e}"))?.as_bytes())?;
+    }
     outputs.commit()?;
     say(format!(
         "wrote {} (angle inputs in degrees, length inputs in mm, target tool poses in mm and degrees)",

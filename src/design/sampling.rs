@@ -173,6 +173,11 @@ pub struct SampledPlan {
     pub angle_inputs: Vec<bool>,
     /// Its number of error parameters.
     pub parameters: usize,
+    /// Their names (what [`Plan::columns`] index).
+    pub parameter_names: Vec<String>,
+    /// The mechanism drawn at home ([`Mechanism::skeleton`]; world frame, mm), for the plan's
+    /// report.
+    pub skeleton: Vec<Vec<Vector3<f64>>>,
     /// The candidates.
     pub candidates: Candidates,
     /// The chosen set.
@@ -456,6 +461,8 @@ pub fn plan_sampled(
         input_names: mech.input_names(),
         angle_inputs: file.inputs().iter().map(|i| i.unit == Unit::Angle).collect(),
         parameters: mech.n_params(),
+        parameter_names: mech.params().into_iter().map(|p| p.name).collect(),
+        skeleton: mech.skeleton(),
         candidates,
         plan: planned,
     })

@@ -60,7 +60,9 @@ impl HeldOut {
 /// `model`'s tool points at `measurements` (seat or distance rows, as read) judged as the module
 /// docs say; `distances` are the known distances between seats.
 pub fn held_out(model: &dyn Mechanism, measurements: &[Measurement], distances: &[SeatDistance]) -> Result<HeldOut, CalibError> {
-    let mut groups: BTreeMap<(PointKind, usize), Vec<(Vector3<f64>, f64)>> = BTreeMap::new();
+    // Per seat or pivot: the model's tool points and the measured lengths.
+    type Rows = Vec<(Vector3<f64>, f64)>;
+    let mut groups: BTreeMap<(PointKind, usize), Rows> = BTreeMap::new();
     for (i, m) in measurements.iter().enumerate() {
         let Some(key) = m.obs.artifact_point() else {
             return Err(CalibError::InvalidOption(format!(

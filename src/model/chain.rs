@@ -240,6 +240,15 @@ impl Mechanism for SerialChain {
         6 * self.initial.len()
     }
 
+    /// The base origin, every joint frame's origin and the tool, at zero joint values.
+    fn skeleton(&self) -> Vec<Vec<nalgebra::Vector3<f64>>> {
+        let zero = vec![0.0; self.joints.len()];
+        let frames = self.frames(&zero).unwrap_or_default();
+        let mut line = vec![nalgebra::Vector3::zeros()];
+        line.extend(frames.iter().map(|g| g.translation.vector));
+        vec![line]
+    }
+
     fn forward(&self, q: &[f64]) -> Result<Pose, KinError> {
         check_inputs(q, self.joints.len())?;
         let mut g = Pose::identity();

@@ -109,6 +109,14 @@ pub trait ConstraintSystem: Clone + Send + Sync + 'static {
     fn strokes(&self) -> Vec<(f64, f64)>;
     /// The prescribed workspace.
     fn workspace(&self) -> Workspace;
+    /// The machine drawn at platform pose `x` and inputs `q` on geometry `θ`, for the report's
+    /// 3-D view ([`Mechanism::skeleton`]): polylines in the base frame (mm), e.g. each limb
+    /// from the base through its actuator to the platform, and the platform. Empty (default)
+    /// without a drawing.
+    fn skeleton(&self, x: &[f64; 6], q: &[f64], theta: &[f64]) -> Vec<Vec<Vector3<f64>>> {
+        let _ = (x, q, theta);
+        Vec::new()
+    }
 }
 
 /// Partial derivatives of the constraint equations at one configuration.

@@ -162,6 +162,15 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Framed<M> {
     fn frames(&self) -> Option<(Pose, Pose)> {
         Some((self.measurement, self.tool))
     }
+    /// The inner mechanism's drawing, in the measurement frame.
+    fn skeleton(&self) -> Vec<Vec<nalgebra::Vector3<f64>>> {
+        let x = self.measurement;
+        let lines = self.inner.skeleton();
+        lines
+            .iter()
+            .map(|l| l.iter().map(|p| x.transform_point(&(*p).into()).coords).collect())
+            .collect()
+    }
 }
 
 #[cfg(test)]

@@ -343,6 +343,10 @@ impl Mechanism for WithJointTerms {
         self.chain.n_params() + self.terms.values.len()
     }
 
+    fn skeleton(&self) -> Vec<Vec<Vector3<f64>>> {
+        self.chain.skeleton()
+    }
+
     fn forward(&self, q: &[f64]) -> Result<Pose, KinError> {
         let qe = self.effective_joints(q)?;
         self.chain.forward(&qe)

@@ -13,8 +13,7 @@
 //!   frame), three equations `r_i = p(E_i) − X·a_i = 0`.
 //!
 //! The unknowns of forward kinematics are the platform pose (a spatial twist `ζ`, `X ← exp(ζ)·X`)
-//! and the values of the passive joints; the inputs are the actuated and sensed joint values. With
-//! `F_z` the derivative of the stacked residual with respect to the unknowns (spatial joint
+//! and the passive joints' values; the inputs are the actuated and sensed joints' values. With `F_z` the derivative of the stacked residual with respect to the unknowns (spatial joint
 //! Jacobians of the chains, `−I` or `−[I | −[X·a]×]` for the platform), Gauss–Newton solves
 //! `F_z·dz = −r` (least squares when the sensed joints make the system overdetermined, as in the
 //! 3T1R paper). A mechanism whose `F_z` has a null space at home has uncommanded freedoms: an
@@ -43,6 +42,7 @@ mod elimination;
 mod kinematics;
 mod observed;
 mod reach;
+mod skeleton;
 
 /// What a joint's value is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -574,6 +574,10 @@ impl Mechanism for LimbMechanism {
 
     fn n_params(&self) -> usize {
         self.limbs.iter().map(Limb::n_params).sum()
+    }
+
+    fn skeleton(&self) -> Vec<Vec<Vector3<f64>>> {
+        self.home_skeleton()
     }
 
     fn forward(&self, q: &[f64]) -> Result<Pose, KinError> {

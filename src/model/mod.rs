@@ -15,7 +15,7 @@
 use crate::error::KinError;
 use crate::params::{Param, Unit};
 use crate::se3::Pose;
-use nalgebra::{DMatrix, DVector, Matrix6xX};
+use nalgebra::{DMatrix, DVector, Matrix6xX, Vector3};
 
 pub mod builtin;
 pub mod chain;
@@ -142,6 +142,13 @@ pub trait Mechanism: Send + Sync {
         let _ = (n, seed);
         None
     }
+    /// The machine drawn at its home configuration, for the report's 3-D view: polylines
+    /// through its joints in the world frame (mm). A serial chain gives one, from the base
+    /// through every joint frame's origin to the tool; a limb mechanism one per limb (base to
+    /// its end) and the platform's outline. Empty (default) for a mechanism without a drawing.
+    fn skeleton(&self) -> Vec<Vec<Vector3<f64>>> {
+        Vec::new()
+    }
     /// The passive joints whose sensors are read as **observations** (their readings are compared
     /// with the model, weighted by the encoder noise, like the tracker's): name and unit
     /// ([`Unit::Angle`] in rad, [`Unit::Length`] in mm), in the order of
@@ -236,6 +243,9 @@ impl Mechanism for Box<dyn Mechanism> {
     }
     fn sample_configurations(&self, n: usize, seed: u64) -> Option<Result<Vec<Vec<f64>>, KinError>> {
         (**self).sample_configurations(n, seed)
+    }
+    fn skeleton(&self) -> Vec<Vec<Vector3<f64>>> {
+        (**self).skeleton()
     }
     fn observed_joints(&self) -> Vec<(String, Unit)> {
         (**self).observed_joints()

@@ -57,6 +57,8 @@ impl CalibrationReport {
         }
         self.errors_table(&mut h, &sets);
         self.variants_html(&mut h);
+        self.view_html(&mut h);
+        maps_html(&mut h, &sets)?;
         for (name, s) in &sets {
             per_pose_html(&mut h, name, s)?;
         }
@@ -397,6 +399,39 @@ fn per_pose_html(h: &mut String, name: &str, s: &SetErrors) -> Result<(), String
                 values: &oa,
             }],
             20,
+        )?);
+    }
+    h.push_str("</div>\n");
+    Ok(())
+}
+
+/// Workspace maps: the error after calibration over the x–y and x–z projections of the measured
+/// positions (measurement frame), both sets together.
+fn maps_html(h: &mut String, sets: &[(&str, &SetErrors)]) -> Result<(), String> {
+    let mut xyz: [Vec<f64>; 3] = Default::default();
+    let (mut err, mut hollow) = (Vec::new(), Vec::new());
+    for (name, s) in sets {
+        for (p, e) in s.measured.iter().zip(&s.after.position) {
+            for (a, v) in xyz.iter_mut().zip(p) {
+                a.push(*v);
+            }
+            err.push(*e);
+            hollow.push(*name == "validation");
+        }
+    }
+    if err.is_empty() {
+        return Ok(());
+    }
+    h.push_str("<h2 id=\"maps\">Workspace maps: error after calibration</h2>\n<p class=\"muted\">The measured positions over two projections of the workspace (measurement frame, equal scales), coloured by their position error after calibration: a region of large errors shows at a glance.</p><div class=\"plots\">");
+    for (b, label) in [(1, "y"), (2, "z")] {
+        h.push_str(&plot::workspace_map(
+            &format!("x–{label}: position error after calibration"),
+            "x (mm)",
+            &format!("{label} (mm)"),
+            &xyz[0],
+            &xyz[b],
+            &err,
+            &hollow,
         )?);
     }
     h.push_str("</div>\n");

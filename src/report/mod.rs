@@ -3,10 +3,13 @@
 //! ([`CalibrationReport::to_html`]).
 pub mod assess;
 mod html;
+pub mod plan;
 pub mod plot;
 mod verdict;
+mod view;
 
 pub use verdict::{Beyond, Status, ToleranceCheck, Verdict, CHANCE_BEYOND_3_SIGMA, SIGMA0_FAIL, SIGMA0_WARN};
+pub use view::{MachineView, VIEW_POINTS, VIEW_WORST};
 
 use crate::error::CalibError;
 use crate::identify::Identification;
@@ -14,7 +17,7 @@ use crate::io::model_file::Tolerances;
 use crate::measure::{Measurement, Noise};
 use crate::model::Mechanism;
 use crate::params::Unit;
-use crate::validate::{errors_at, forward_all, outliers_at, pose_errors, ErrorStats, Outlier, PoseErrors};
+use crate::validate::{errors_at, forward_all, outliers_at, ErrorStats, Outlier, PoseErrors};
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
@@ -42,6 +45,15 @@ pub struct SetErrors {
     pub joints_before: Vec<crate::validate::JointErrors>,
     /// Observed joints' readings against the calibrated model.
     pub joints_after: Vec<crate::validate::JointErrors>,
+    /// Measured tool position of each pose (mm, in the measurement frame; for reflector points,
+    /// their mean), where the 3-D view draws it.
+    pub measured: Vec<[f64; 3]>,
+    /// Position error vector of each pose before calibration: measured minus the starting
+    /// model's position (mm; for reflector points, the mean of the points' errors). Its length
+    /// is `before.position` for a position or pose observation.
+    pub error_before: Vec<[f64; 3]>,
+    /// The same after calibration (measured minus the calibrated model's position).
+    pub error_after: Vec<[f64; 3]>,
 }
 
 impl SetErrors {
@@ -52,11 +64,21 @@ impl SetErrors {
         calibrated: &B,
         data: &[Measurement],
     ) -> Result<SetErrors, CalibError> {
-        let before = pose_errors(nominal, data)?;
+        let start = forward_all(nominal, data)?;
+        let before = errors_at(&start, data);
         // The calibrated poses once, for the errors and the outliers.
         let reached = forward_all(calibrated, data)?;
         let after = errors_at(&reached, data);
+        let (measured, error_before): (Vec<_>, Vec<_>) = data.iter().zip(&start).map(|(m, t)| view::position_and_error(&m.obs, t)).unzip();
+        let error_after = data
+            .iter()
+            .zip(&reached)
+            .map(|(m, t)| view::position_and_error(&m.obs, t).1)
+            .collect();
         Ok(SetErrors {
+            measured,
+            error_before,
+            error_after,
             joints_before: crate::validate::observed_joint_errors(nominal, data)?,
             joints_after: crate::validate::observed_joint_errors(calibrated, data)?,
             source: source.into(),
@@ -181,6 +203,8 @@ pub struct CalibrationReport {
     /// The model is a serial chain without joint terms: a residual above the noise then points
     /// at them in the verdict.
     pub serial_chain: bool,
+    /// The machine and its frames as the report's 3-D view draws them.
+    pub machine: MachineView,
 }
 
 /// The same data fitted by a model with fewer terms (see [`CalibrationReport::variants`]).
@@ -299,6 +323,7 @@ impl CalibrationReport {
             variants: Vec::new(),
             tolerance_check: None,
             serial_chain: false,
+            machine: MachineView::of(nominal, &result.model, data.first().map(|m| m.q.as_slice())),
         };
         report.correlations(result, &params);
         report.absorbed = absorbed(result, &params);

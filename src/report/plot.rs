@@ -69,7 +69,13 @@ impl Frame {
     }
 }
 
-fn finish(mut svg: String, frame: Frame) -> String {
+/// The chart with its text, and without the attributes plotters writes on every marker that
+/// only restate SVG's defaults (`opacity="1"`; `stroke="none"` with its width): a large data set
+/// draws a thousand markers per series, and these made a third of the report.
+fn finish(svg: String, frame: Frame) -> String {
+    let mut svg = svg
+        .replace(" opacity=\"1\"", "")
+        .replace(" stroke=\"none\" stroke-width=\"1\"/>", "/>");
     if let Some(pos) = svg.rfind("</svg>") {
         svg.insert_str(pos, &frame.texts);
     }
@@ -347,6 +353,119 @@ pub fn scatter(title: &str, x_label: &str, y_label: &str, xs: &[f64], ys: &[f64]
             .draw_series(PointSeries::of_element(pts, 2, c, &|p, s, st| Circle::new(p, s, st.filled())))
             .map_err(|e| e.to_string())?;
         root.present().map_err(|e| e.to_string())?;
+    }
+    Ok(finish(svg, frame))
+}
+
+/// The colour of `v` on the error scale from 0 (blue) through green and yellow to `top` (red),
+/// the scale of the report's 3-D view.
+pub fn error_colour(v: f64, top: f64) -> (u8, u8, u8) {
+    const STOPS: [(f64, f64, f64); 5] = [
+        (49.0, 54.0, 149.0),
+        (69.0, 117.0, 180.0),
+        (116.0, 196.0, 118.0),
+        (254.0, 224.0, 80.0),
+        (215.0, 48.0, 39.0),
+    ];
+    let t = if top > 0.0 && v.is_finite() {
+        (v / top).clamp(0.0, 1.0)
+    } else {
+        0.0
+    } * 4.0;
+    let k = (t.floor() as usize).min(3);
+    let f = t - k as f64;
+    let (a, b) = (STOPS[k], STOPS[k + 1]);
+    let mix = |x: f64, y: f64| (x + f * (y - x)).round() as u8;
+    (mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
+}
+
+/// The poses over one projection of the workspace (`xs` against `ys`, mm, equal scales),
+/// coloured by `values` from 0 to their 98th percentile ([`error_colour`], with its colour bar); a pose
+/// with `hollow[i]` is an open square (e.g. a validation pose), the others filled circles.
+/// Thinned like the other plots, the ten largest values always kept; larger values drawn last.
+pub fn workspace_map(
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    xs: &[f64],
+    ys: &[f64],
+    values: &[f64],
+    hollow: &[bool],
+) -> Result<String, String> {
+    const SIDE: u32 = 440;
+    let n = xs.len().min(ys.len()).min(values.len());
+    let (xlo, xhi) = range(xs[..n].iter().copied());
+    let (ylo, yhi) = range(ys[..n].iter().copied());
+    // Equal scales: both axes span the larger extent.
+    let half = ((xhi - xlo).max(yhi - ylo) * 0.54).max(1e-6);
+    let (cx, cy) = ((xlo + xhi) / 2.0, (ylo + yhi) / 2.0);
+    let (x0, x1, y0, y1) = (cx - half, cx + half, cy - half, cy + half);
+    let mut order: Vec<usize> = (0..n).filter(|&i| values[i].is_finite()).collect();
+    order.sort_by(|&a, &b| values[a].total_cmp(&values[b]).then(a.cmp(&b)));
+    let m = order.len();
+    // The scale ends at the 98th percentile (redder beyond), as in the 3-D view.
+    let top = order.get((0.98 * m.saturating_sub(1) as f64) as usize).map_or(1.0, |&i| values[i]);
+    let most = order.last().map_or(top, |&i| values[i]);
+    let worst: Vec<usize> = (m.saturating_sub(10)..m).collect();
+    let mut svg = String::new();
+    let mut frame = Frame { texts: String::new() };
+    {
+        let root = SVGBackend::with_string(&mut svg, (SIDE, SIDE + 46)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let mut chart = ChartBuilder::on(&root)
+            .margin_top(44)
+            .margin_right(14)
+            .margin_bottom(46)
+            .x_label_area_size(38)
+            .y_label_area_size(64)
+            .build_cartesian_2d(x0..x1, y0..y1)
+            .map_err(|e| e.to_string())?;
+        decorate(&mut chart, &mut frame, (x0, x1, y0, y1), "", x_label, y_label, &[])?;
+        frame.text(SIDE as i32 / 2, 17, "middle", 12, title, r#" font-weight="bold""#);
+        for r in thin(m, &worst) {
+            let i = order[r];
+            let (cr, cg, cb) = error_colour(values[i], top);
+            let c = RGBColor(cr, cg, cb);
+            if hollow.get(i).copied().unwrap_or(false) {
+                chart
+                    .draw_series(std::iter::once(
+                        EmptyElement::at((xs[i], ys[i])) + Rectangle::new([(-3, -3), (3, 3)], c.stroke_width(1)),
+                    ))
+                    .map_err(|e| e.to_string())?;
+            } else {
+                chart
+                    .draw_series(std::iter::once(Circle::new((xs[i], ys[i]), 3, c.filled())))
+                    .map_err(|e| e.to_string())?;
+            }
+        }
+        root.present().map_err(|e| e.to_string())?;
+    }
+    // The colour bar under the chart.
+    let (bx, by) = (80, SIDE as i32 + 6);
+    for k in 0..100 {
+        let (r, g, b) = error_colour(k as f64 / 99.0 * top, top);
+        let _ = write!(
+            frame.texts,
+            r##"<rect x="{}" y="{by}" width="2" height="10" fill="#{r:02x}{g:02x}{b:02x}"/>"##,
+            bx + 2 * k
+        );
+    }
+    frame.text(bx - 4, by + 9, "end", 11, "0", "");
+    let beyond = if most > top {
+        format!("+ (max {})", fmt_tick(most, top / 100.0))
+    } else {
+        String::new()
+    };
+    frame.text(
+        bx + 204,
+        by + 9,
+        "start",
+        11,
+        &format!("{}{beyond} mm", fmt_tick(top, top / 100.0)),
+        "",
+    );
+    if hollow.iter().any(|h| *h) {
+        frame.text(bx, by + 26, "start", 11, "● identification  □ validation", "");
     }
     Ok(finish(svg, frame))
 }

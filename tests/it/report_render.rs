@@ -130,6 +130,197 @@ fn report_renders_in_a_browser_with_its_verdict_and_flags() {
     assert!(dom.contains("beyond the model"), "the failure reason is not shown");
 }
 
+/// The 3-D view's data embedded in the page (`<script id="view-data">`).
+fn view_data(html: &str) -> serde_json::Value {
+    let start = html.find("id=\"view-data\">").expect("no view data in the page") + "id=\"view-data\">".len();
+    let end = start + html[start..].find("</script>").unwrap();
+    serde_json::from_str(&html[start..end]).expect("the view data is JSON")
+}
+
+/// The report's 3-D view carries the report's own figures: per set the JSON's pose count, and
+/// for each drawn pose the JSON's errors before and after and its measured position; the
+/// machine's skeleton at home (a serial chain: base, six joints, tool) and the base frame. In
+/// Chromium (when installed) the script draws every embedded pose (`data-drawn`) with no
+/// console error.
+#[test]
+fn the_3d_view_draws_the_reports_own_data() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    ok(d, &["model", "export", "irb120", "--out", "m.toml"]);
+    ok(
+        d,
+        &[
+            "simulate",
+            "m.toml",
+            "--poses",
+            "40",
+            "--seed",
+            "5",
+            "--out",
+            "d.csv",
+            "--truth",
+            "t.toml",
+            "--validation-poses",
+            "25",
+            "--validation-out",
+            "v.csv",
+        ],
+    );
+    let json = crate::cli::json(
+        d,
+        &[
+            "identify",
+            "m.toml",
+            "d.csv",
+            "--validation",
+            "v.csv",
+            "--out",
+            "c.toml",
+            "--report",
+            "r.html",
+        ],
+    );
+    let html = std::fs::read_to_string(d.join("r.html")).unwrap();
+    let view = view_data(&html);
+    let sets = view["sets"].as_array().unwrap();
+    assert_eq!(sets.len(), 2);
+    let mut embedded = 0;
+    for (set, key) in sets.iter().zip(["identification", "validation"]) {
+        let report = &json[key];
+        let after = report["after"]["position"].as_array().unwrap();
+        let before = report["before"]["position"].as_array().unwrap();
+        assert_eq!(set["name"], key);
+        assert_eq!(set["n"].as_u64().unwrap() as usize, after.len(), "{key}: pose count");
+        let rows = set["i"].as_array().unwrap();
+        assert_eq!(rows.len(), after.len(), "{key}: every pose drawn below the thinning limit");
+        for (j, i) in rows.iter().enumerate() {
+            let i = i.as_u64().unwrap() as usize;
+            let close = |a: &serde_json::Value, b: &serde_json::Value, tol: f64| (a.as_f64().unwrap() - b.as_f64().unwrap()).abs() <= tol;
+            assert!(
+                close(&set["a"][j], &after[i], 6e-6),
+                "{key} pose {i}: error after {} vs {}",
+                set["a"][j],
+                after[i]
+            );
+            assert!(close(&set["b"][j], &before[i], 6e-6), "{key} pose {i}: error before");
+            assert_eq!(set["id"][j], report["ids"][i], "{key} pose {i}: id");
+            for c in 0..3 {
+                assert!(
+                    close(&set["p"][3 * j + c], &report["measured"][i][c], 6e-3),
+                    "{key} pose {i}: position"
+                );
+            }
+            // The error vector's length is the position error (pose measurements).
+            let ea: f64 = (0..3).map(|c| set["ea"][3 * j + c].as_f64().unwrap().powi(2)).sum::<f64>().sqrt();
+            assert!(
+                (ea - after[i].as_f64().unwrap()).abs() < 2e-5,
+                "{key} pose {i}: |error vector| {ea}"
+            );
+        }
+        embedded += rows.len();
+    }
+    let skeleton = view["skeleton"].as_array().unwrap();
+    assert_eq!(skeleton.len(), 1, "one polyline for a serial chain");
+    assert_eq!(skeleton[0].as_array().unwrap().len(), 3 * 8, "base, six joints and the tool");
+    assert_eq!(view["base"].as_array().map(Vec::len), Some(12), "the registered base frame");
+    // The tool frame at the first identification pose: its origin is where the calibrated model
+    // puts that pose, the measured position less its error vector.
+    let (tool, first) = (&view["tool"], &json["identification"]);
+    for c in 0..3 {
+        let model = first["measured"][0][c].as_f64().unwrap() - first["error_after"][0][c].as_f64().unwrap();
+        assert!(
+            (tool[c].as_f64().unwrap() - model).abs() < 1e-5,
+            "tool frame origin {c}: {} vs {model}",
+            tool[c]
+        );
+    }
+    assert_eq!(view["toolPose"], first["ids"][0]);
+    assert!(
+        html.contains("id=\"maps\"") && html.matches("position error after calibration</text>").count() >= 2,
+        "no workspace maps"
+    );
+    let Some(browser) = chromium() else {
+        eprintln!("the_3d_view_draws_the_reports_own_data: no Chromium on this machine; the browser check skipped");
+        return;
+    };
+    let (dom, log) = render(browser, &d.join("r.html"), &d.join("profile"));
+    check(&dom, &log, "Verdict:");
+    let drawn: usize = dom
+        .split("data-drawn=\"")
+        .nth(1)
+        .and_then(|s| s.split('"').next())
+        .and_then(|s| s.parse().ok())
+        .expect("the view's canvas has no data-drawn");
+    assert_eq!(drawn, embedded, "the script drew {drawn} of {embedded} poses");
+}
+
+/// 100,000 identification poses (and 20,000 held out): the report stays under 2 MB, its 3-D view
+/// states each set's pose count and draws at most `VIEW_POINTS` of them per set.
+#[test]
+fn a_100000_pose_report_stays_under_2_mb() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    ok(d, &["model", "export", "irb120", "--out", "m.toml"]);
+    #[rustfmt::skip]
+    ok(d, &["simulate", "m.toml", "--poses", "100000", "--seed", "7", "--noise-mm", "0.02", "--noise-deg", "0.02", "--out", "d.csv", "--truth", "t.toml", "--validation-poses", "20000", "--validation-out", "v.csv"]);
+    #[rustfmt::skip]
+    ok(d, &["identify", "m.toml", "d.csv", "--validation", "v.csv", "--noise-mm", "0.02", "--noise-deg", "0.02", "--out", "c.toml", "--report", "r.html"]);
+    let html = std::fs::read_to_string(d.join("r.html")).unwrap();
+    assert!(html.len() <= 2_000_000, "report of {} bytes", html.len());
+    let view = view_data(&html);
+    let limit = kinecal::report::VIEW_POINTS;
+    for (set, n) in view["sets"].as_array().unwrap().iter().zip([100_000, 20_000]) {
+        assert_eq!(set["n"], n);
+        let drawn = set["i"].as_array().unwrap().len();
+        assert!(drawn <= limit && drawn >= limit / 2, "{drawn} poses drawn of {n}");
+        let a: Vec<f64> = set["a"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+        assert!(a.iter().all(|v| v.is_finite() && *v >= 0.0));
+    }
+    eprintln!("100,000-pose report: {} bytes", html.len());
+}
+
+/// `kinecal plan --report`: the page shows the candidates and the chosen configurations in the
+/// 3-D view (the chosen ones in the order of the plan's CSV, numbered), the criterion per move,
+/// the chosen configurations' table and the parameters identified and not; in Chromium the
+/// script draws every embedded point with no console error.
+#[test]
+fn a_plan_report_shows_candidates_and_chosen_configurations() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    #[rustfmt::skip]
+    let summary = crate::cli::json(d, &["plan", "--candidates", "1500", "-n", "8", "--method", "sffs", "-o", "plan.csv", "--report", "plan.html"]);
+    let html = std::fs::read_to_string(d.join("plan.html")).unwrap();
+    let view = view_data(&html);
+    let sets = view["sets"].as_array().unwrap();
+    assert_eq!(sets[0]["name"], "candidates");
+    assert_eq!(sets[0]["n"], 1500);
+    assert_eq!(sets[1]["name"], "chosen");
+    let chosen: Vec<u64> = sets[1]["i"].as_array().unwrap().iter().map(|v| v.as_u64().unwrap()).collect();
+    assert_eq!(chosen.len(), 8);
+    assert_eq!(sets[1]["tag"][7], "8");
+    assert_eq!(sets[0]["i"].as_array().unwrap().len(), 1500 - 8, "every candidate but the chosen");
+    // The same configurations as the CSV, in its order: their targets.
+    let text = std::fs::read_to_string(d.join("plan.csv")).unwrap();
+    let table = kinecal::io::table::parse_table(&d.join("plan.csv"), &text).unwrap();
+    let x = table.values("x_mm").unwrap();
+    for (k, xk) in x.iter().enumerate() {
+        assert!((sets[1]["p"][3 * k].as_f64().unwrap() - xk).abs() < 0.006, "chosen #{k}: x");
+    }
+    let identifiable = summary["identifiable_parameters"].as_u64().unwrap();
+    assert!(html.contains(&format!("<b>Identified</b> by these configurations ({identifiable})")));
+    assert!(html.contains("<b>Not identifiable</b>") && html.contains("after each move</text>"));
+    assert_eq!(html.matches("<tr><td>").count(), 8, "one row per chosen configuration");
+    assert_eq!(view["skeleton"].as_array().unwrap().len(), 1, "the random chain drawn at home");
+    let Some(browser) = chromium() else {
+        eprintln!("a_plan_report_shows_candidates_and_chosen_configurations: no Chromium; the browser check skipped");
+        return;
+    };
+    let (dom, log) = render(browser, &d.join("plan.html"), &d.join("profile"));
+    let console_errors: Vec<&str> = log.lines().filter(|l| l.contains("CONSOLE") && l.contains("rror")).collect();
+    assert!(console_errors.is_empty(), "console errors: {console_errors:?}");
+    assert!(dom.contains("data-drawn=\"1500\""), "the script did not draw the 1500 points");
+}
+
 /// `assess --report` renders: the ISO 9283 table, the circular test's table and its polar plot
 /// (an SVG with the path), no NaN, no console error.
 #[test]

@@ -29,6 +29,26 @@ impl<C: ConstraintSystem> Mechanism for ClosedLoop<C> {
     fn n_params(&self) -> usize {
         self.n_params_total()
     }
+    /// The system's drawing at its home pose (the inputs of its inverse kinematics there, the
+    /// platform solved from them), in the world frame, with the tool offset from the platform.
+    fn skeleton(&self) -> Vec<Vec<Vector3<f64>>> {
+        let home = self.system.home();
+        let Ok(q) = self.system.inputs_for_pose(&home, &self.geometry) else {
+            return Vec::new();
+        };
+        let x = self.platform_pose(&q, Some(&home)).unwrap_or(home);
+        let base = pose_of(&self.base);
+        let platform = pose_of(&x);
+        let tool = platform.transform_point(&Vector3::from(self.tool).into()).coords;
+        let mut lines = self.system.skeleton(&x, &q, &self.geometry);
+        if !lines.is_empty() {
+            lines.push(vec![platform.translation.vector, tool]);
+        }
+        lines
+            .iter()
+            .map(|l| l.iter().map(|p| base.transform_point(&(*p).into()).coords).collect())
+            .collect()
+    }
     fn forward(&self, q: &[f64]) -> Result<Pose, KinError> {
         let x = self.platform_pose(q, None)?;
         Ok(self.tool_pose_of(&x))

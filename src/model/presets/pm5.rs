@@ -69,6 +69,7 @@
 use crate::error::KinError;
 use crate::model::closed::{v3, ClosedLoop, ConstraintSystem, Scalar, Task, Workspace};
 use crate::params::{Param, Unit};
+use nalgebra::Vector3;
 use std::f64::consts::PI;
 
 /// How the parasitic-motion constraint is evaluated.
@@ -321,6 +322,32 @@ impl ConstraintSystem for Pm5 {
             }
         };
         [f0, f1, f2, f3, f4, f5]
+    }
+    /// Each limb from its rail's origin `b_i` along the rail to its slider, then to its platform
+    /// joint `C_i`, and the platform triangle `C1 C2 C3`.
+    fn skeleton(&self, x: &[f64; 6], q: &[f64], t: &[f64]) -> Vec<Vec<Vector3<f64>>> {
+        if q.len() < 3 || t.len() < LIMB3 + 8 {
+            return Vec::new();
+        }
+        let p = Vector3::new(x[0], x[1], x[2]);
+        let rot = v3::rot_xyz(x[3], x[4], x[5]);
+        let r = |c: [f64; 3]| Vector3::from(v3::mul(&rot, &c));
+        // Per limb: offset of (dg, c, b, φ) in θ; limb 1 has its rod length between b and φ.
+        let limbs = [(0, 8), (LIMB2, LIMB2 + 7), (LIMB3, LIMB3 + 7)];
+        let mut joints = Vec::with_capacity(3);
+        let mut lines: Vec<Vec<Vector3<f64>>> = limbs
+            .iter()
+            .zip(q)
+            .map(|(&(o, phi), g)| {
+                let b = Vector3::new(t[o + 4], t[o + 5], t[o + 6]);
+                let w = Vector3::from(v3::planar(t[phi]));
+                let c = p + r([t[o + 1], t[o + 2], t[o + 3]]);
+                joints.push(c);
+                vec![b, b + w * (g + t[o]), c]
+            })
+            .collect();
+        lines.push(vec![joints[0], joints[1], joints[2], joints[0]]);
+        lines
     }
     fn inputs_for_pose(&self, x: &[f64; 6], t: &[f64]) -> Result<Vec<f64>, KinError> {
         let p = [x[0], x[1], x[2]];
