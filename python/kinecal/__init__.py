@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import html
 import json
-from typing import Any, Dict, List, Optional, Tuple
+from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -158,6 +158,7 @@ def calibrate(
     seed: int = 1,
     reweight: bool = False,
     huber: float = 5.0,
+    seat_distances: Sequence[str] = (),
 ) -> Calibration:
     """Identify the model's free parameters from ``data`` — the call behind ``kinecal identify``,
     with the same options: the measurement and tool frames found from the data (``frames=
@@ -165,7 +166,8 @@ def calibrate(
     ``starts`` starts, noise weights (``noise_mm``, ``noise_deg``; default: the model file's, else
     0.02 mm / 0.02°; ``encoder_noise_deg`` / ``encoder_noise_mm`` for the readings of observed
     joints, ``Model.observed``: default 0.01° / 0.01 mm), Huber loss (``huber`` robust σ, 0 = plain least squares), ``reflectors=
-    "points"`` to fit three reflector centres."""
+    "points"`` to fit three reflector centres; for seat data (a ``seat`` column), known distances
+    between seats as ``"A:B:MM"`` strings (``seat_distances``, docs/instruments.md)."""
     return Calibration(
         _kinecal.calibrate(
             model,
@@ -182,6 +184,7 @@ def calibrate(
             seed=seed,
             reweight=reweight,
             huber=huber,
+            seat_distances=list(seat_distances),
         )
     )
 

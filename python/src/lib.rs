@@ -369,6 +369,9 @@ impl Data {
                 Observation::Pose(p) => p.translation.vector.as_slice().to_vec(),
                 Observation::Position(p) => p.as_slice().to_vec(),
                 Observation::Points(pts) => pts.first().map_or(vec![f64::NAN; 3], |(_, m)| m.as_slice().to_vec()),
+                // Instrument rows locate no point by themselves (the seat's or pivot's centre is
+                // an unknown of the fit).
+                Observation::Seat(_) | Observation::Distance { .. } => vec![f64::NAN; 3],
             })
             .collect();
         rows_array(py, &rows, 3)
@@ -427,7 +430,7 @@ fn method_of(name: &str) -> PyResult<Method> {
 /// Identify the model's free parameters from `data` (optionally validated on `validation`): the
 /// library call behind `kinecal identify`, with the same options and defaults.
 #[pyfunction]
-#[pyo3(signature = (model, data, validation = None, *, noise_mm = None, noise_deg = None, encoder_noise_deg = None, encoder_noise_mm = None, method = "gauss-newton", frames = "estimate", reflectors = "frame", starts = 3, seed = 1, reweight = false, huber = 5.0))]
+#[pyo3(signature = (model, data, validation = None, *, noise_mm = None, noise_deg = None, encoder_noise_deg = None, encoder_noise_mm = None, method = "gauss-newton", frames = "estimate", reflectors = "frame", starts = 3, seed = 1, reweight = false, huber = 5.0, seat_distances = Vec::new()))]
 #[allow(clippy::too_many_arguments)]
 fn calibrate(
     py: Python<'_>,
@@ -445,6 +448,7 @@ fn calibrate(
     seed: u64,
     reweight: bool,
     huber: f64,
+    seat_distances: Vec<String>,
 ) -> PyResult<Calibration> {
     let base = model.file.noise.unwrap_or_default();
     let noise = Noise {
@@ -462,7 +466,12 @@ fn calibrate(
     if !huber.is_finite() || huber < 0.0 {
         return Err(err("huber: a finite number of standard deviations ≥ 0 (0 = off)"));
     }
+    let seat_distances = seat_distances
+        .iter()
+        .map(|s| s.parse().map_err(|e: String| err(format!("seat_distances: {e}"))))
+        .collect::<PyResult<Vec<_>>>()?;
     let opts = CalibrationOptions {
+        seat_distances,
         compare_terms: true,
         method: method_of(method)?,
         noise,
@@ -686,11 +695,7 @@ fn plan<'py>(
         .enumerate()
         .map(|(i, q)| {
             let target = model.mech.forward(&q).map_err(|e| err(format!("candidates[{i}]: {e}")))?;
-            Ok(Candidate {
-                q,
-                target,
-                solution: None,
-            })
+            Ok(Candidate { q, target, solution: None })
         })
         .collect::<PyResult<Vec<_>>>()?;
     let defaults = SelectOptions::default();
