@@ -66,6 +66,12 @@ const MAX_REJECTION_ROUNDS: usize = 5;
 /// the stated position noise (see [`crate::identify::Options::agree_with`]).
 pub const START_AGREEMENT: f64 = 0.01;
 
+/// The starts disagree when their predictions differ, at some pose, by more than this many
+/// standard deviations of the noise (the stated one, or the one the residual shows when that is
+/// larger): the largest difference over hundreds of poses is compared with the data's own
+/// scatter, and within three standard deviations the data cannot tell the predictions apart.
+pub const START_COVERAGE: f64 = 3.0;
+
 /// Poses the other starts run on at most (an evenly spread subset of larger sets).
 pub const START_POSES: usize = 20_000;
 
@@ -146,9 +152,9 @@ pub struct Calibration {
     pub blunders: Vec<i64>,
     /// What each start reached (the kept one first).
     pub starts: Vec<StartOutcome>,
-    /// Starts whose predictions differ by more than this (mm) disagree: the stated position
-    /// noise, or the noise the residual shows when that is larger (predictions closer than the
-    /// data's own scatter are not told apart by them).
+    /// Starts whose predictions differ by more than this (mm) disagree: [`START_COVERAGE`] times
+    /// the stated position noise, or the noise the residual shows when that is larger
+    /// (predictions closer than the data's own scatter are not told apart by them).
     pub start_tolerance_mm: f64,
 }
 
@@ -215,7 +221,7 @@ pub fn calibrate(
     })?;
     calibrated.description = Some(format!("calibrated from '{}' on {}", model.name, data.path.display()));
     calibrated.noise = Some(identification.noise);
-    let start_tolerance_mm = opts.noise.position.max(identification.sigma0 * identification.noise.position);
+    let start_tolerance_mm = START_COVERAGE * opts.noise.position.max(identification.sigma0 * identification.noise.position);
     let judged = Judged {
         start: &start,
         identification: &identification,

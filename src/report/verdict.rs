@@ -249,7 +249,7 @@ impl CalibrationReport {
                     self.sigma0
                 )
             } else {
-                "is the model of this machine, and are the joint columns in the right order and unit?".to_string()
+                "is the model of this machine, and are the joint columns in the right order and unit? (if the machine really is this far from its drawing, raise [calibration] tolerance_mm / tolerance_deg in the model file)".to_string()
             };
             failed.push(format!(
                 "corrections beyond the model's tolerances {limits}, in whatever split of the redundant parameters and frames: {}: {advice}",
