@@ -274,12 +274,7 @@ fn starting_model(
     match opts.frames {
         FrameMode::Model => Ok((model.build(), model.free_indices()?, None)),
         FrameMode::Estimate => {
-            let inner = model.mechanism.build();
-            let inner_free = select_params(&inner.params(), &model.free, &model.fixed).map_err(|pat| IoError::Invalid {
-                path: format!("model '{}'", model.name).into(),
-                message: format!("calibration pattern '{pat}' matches no parameter"),
-            })?;
-            let tool_guess = model.frames.map_or(Pose::identity(), |f| f.tool);
+            let (inner, inner_free, tool_guess) = nominal_mechanism(model)?;
             let reg = register(&inner, measurements, &tool_guess).map_err(|e| data.locate(e))?;
             let framed = Framed::new(inner, reg.measurement, reg.tool);
             let mut free: Vec<usize> = (0..FRAME_PARAMS).collect();
@@ -361,17 +356,26 @@ impl InstrumentData {
     }
 }
 
-/// The starting model for instrument data: the nominal mechanism with its tool-point offset
-/// and the artifact points started from the data ([`crate::instrument::start_points`]); free:
-/// the tool point's offset, the model's free parameters and the artifact points. The base is not
-/// placed (no instrument here sees it): the measurement frame stays the identity.
-fn instrument_start(model: &ModelFile, i: &InstrumentData) -> Result<StartingModel, IoError> {
+/// A mechanism without frames, its free parameters, and a tool frame to start from.
+type Nominal = (Box<dyn Mechanism>, Vec<usize>, Pose);
+
+/// The model file's mechanism without its frames, its free parameters, and the tool frame the
+/// file gives (the identity without one): what frames found from the data start from.
+fn nominal_mechanism(model: &ModelFile) -> Result<Nominal, IoError> {
     let inner = model.mechanism.build();
     let inner_free = select_params(&inner.params(), &model.free, &model.fixed).map_err(|pat| IoError::Invalid {
         path: format!("model '{}'", model.name).into(),
         message: format!("calibration pattern '{pat}' matches no parameter"),
     })?;
-    let tool_guess = model.frames.map_or(Pose::identity(), |f| f.tool);
+    Ok((inner, inner_free, model.frames.map_or(Pose::identity(), |f| f.tool)))
+}
+
+/// The starting model for instrument data: the nominal mechanism with its tool-point offset
+/// and the artifact points started from the data ([`crate::instrument::start_points`]); free:
+/// the tool point's offset, the model's free parameters and the artifact points. The base is not
+/// placed (no instrument here sees it): the measurement frame stays the identity.
+fn instrument_start(model: &ModelFile, i: &InstrumentData) -> Result<StartingModel, IoError> {
+    let (inner, inner_free, tool_guess) = nominal_mechanism(model)?;
     let framed = Framed::new(inner, Pose::identity(), tool_guess);
     let artifact =
         crate::instrument::start_points(framed, i.points.clone(), i.pairs.clone(), &i.data.measurements).map_err(|e| i.data.locate(e))?;
