@@ -375,6 +375,17 @@ fn nominal_mechanism(model: &ModelFile) -> Result<Nominal, IoError> {
 /// the tool point's offset, the model's free parameters and the artifact points. The base is not
 /// placed (no instrument here sees it): the measurement frame stays the identity.
 fn instrument_start(model: &ModelFile, i: &InstrumentData) -> Result<StartingModel, IoError> {
+    let only_seats = i.points.iter().all(|p| p.kind == crate::instrument::PointKind::Seat);
+    let turns_only = model.inputs().iter().all(|inp| inp.unit != crate::params::Unit::Length);
+    if only_seats && i.pairs.is_empty() && turns_only {
+        return Err(IoError::Invalid {
+            path: i.data.path.clone(),
+            message: format!(
+                "seats alone do not give the scale of '{}', whose inputs all turn: every length and every seat scaled alike leave each ball in its seat, and the fit would shrink the machine toward a point; state a known distance between two seats (--seat-distance A:B:MM), or measure with a ballbar (pivot, length_mm)",
+                model.name
+            ),
+        });
+    }
     let (inner, inner_free, tool_guess) = nominal_mechanism(model)?;
     let framed = Framed::new(inner, Pose::identity(), tool_guess);
     let artifact =

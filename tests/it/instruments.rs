@@ -5,12 +5,12 @@ use kinecal::instrument::simulate::{distance_rows, seat_rows, Placement};
 use kinecal::io::builtin;
 use kinecal::io::data_file::{DataSet, MeasurementFormat};
 use kinecal::io::model_file::ModelFile;
-use kinecal::measure::{Measurement, Noise};
+use kinecal::measure::{register_points, Measurement, Noise};
 use kinecal::model::framed::Framed;
 use kinecal::se3::{self, Pose};
 use kinecal::simulate::{random_configurations, virtual_prototype};
 use kinecal::Mechanism;
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Vector3;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -34,30 +34,14 @@ fn data_set(name: &str, measurements: Vec<Measurement>, format: MeasurementForma
     }
 }
 
-/// The largest distance between `a` and `b` after the best similarity (`scale`) or rigid
-/// motion takes `a` onto `b` (Umeyama): what the instrument cannot see, removed.
-fn aligned_max(a: &[Vector3<f64>], b: &[Vector3<f64>], scale: bool) -> f64 {
-    let n = a.len() as f64;
-    let (ca, cb) = (a.iter().sum::<Vector3<f64>>() / n, b.iter().sum::<Vector3<f64>>() / n);
-    let mut cov = Matrix3::zeros();
-    let mut var = 0.0;
-    for (p, q) in a.iter().zip(b) {
-        cov += (q - cb) * (p - ca).transpose();
-        var += (p - ca).norm_squared();
-    }
-    let svd = cov.svd(true, true);
-    let (u, vt) = (svd.u.unwrap(), svd.v_t.unwrap());
-    let mut d = Matrix3::identity();
-    if (u * vt).determinant() < 0.0 {
-        d[(2, 2)] = -1.0;
-    }
-    let r = u * d * vt;
-    let s = if scale {
-        (svd.singular_values.component_mul(&d.diagonal())).sum() / var
-    } else {
-        1.0
-    };
-    a.iter().zip(b).map(|(p, q)| (s * r * (p - ca) + cb - q).norm()).fold(0.0, f64::max)
+/// The largest distance between `a` and `b` after the rigid motion that best takes `a` onto `b`
+/// ([`register_points`]): where the machine stands, which no instrument here sees, removed.
+fn aligned_max(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> f64 {
+    let t = register_points(a, b).unwrap();
+    a.iter()
+        .zip(b)
+        .map(|(p, q)| (t.transform_point(&(*p).into()).coords - q).norm())
+        .fold(0.0, f64::max)
 }
 
 struct Outcome {
@@ -69,13 +53,13 @@ struct Outcome {
 /// A virtual prototype of the built-in `name` (errors ±0.5 mm / ±0.1° on its free parameters,
 /// the ball of [`ball`] on its tool), measured by `measure`, calibrated from the model file
 /// with default options but the stated noise; held-out tool points compared with the truth's
-/// after aligning what the instrument cannot see.
+/// after aligning what the instrument cannot see (a rigid motion: where the machine stands).
+/// Seat data state the true distance between seats 0 and 1, their scale.
 fn run(
     name: &str,
     reference: &[f64],
     per_point: usize,
     measure: impl Fn(&dyn Mechanism, &Placement) -> (Vec<Measurement>, MeasurementFormat),
-    scale_free: bool,
 ) -> Outcome {
     let file: ModelFile = builtin::model_file(name).unwrap();
     let nominal = file.build();
@@ -91,12 +75,27 @@ fn run(
         seed: 3,
     };
     let (rows, format) = measure(&truth, &how);
+    let centre = |seat: usize| {
+        let row = rows
+            .iter()
+            .find(|m| matches!(m.obs, kinecal::measure::Observation::Seat(s) if s == seat));
+        row.map(|m| truth.forward(&m.q).unwrap().translation.vector)
+    };
+    let seat_distances = match (centre(0), centre(1)) {
+        (Some(a), Some(b)) => vec![kinecal::instrument::SeatDistance {
+            a: 0,
+            b: 1,
+            length: (a - b).norm(),
+        }],
+        _ => Vec::new(),
+    };
     let data = data_set("instrument.csv", rows, format);
     let opts = CalibrationOptions {
         noise: Noise {
             position: 0.01,
             ..Noise::default()
         },
+        seat_distances,
         ..CalibrationOptions::default()
     };
     let cal = calibrate(&file, &data, None, &opts).unwrap();
@@ -107,7 +106,7 @@ fn run(
     let fitted: Vec<Vector3<f64>> = held_out.iter().map(|q| back.forward(q).unwrap().translation.vector).collect();
     let true_points: Vec<Vector3<f64>> = held_out.iter().map(|q| truth.forward(q).unwrap().translation.vector).collect();
     Outcome {
-        held_out_max_mm: aligned_max(&fitted, &true_points, scale_free),
+        held_out_max_mm: aligned_max(&fitted, &true_points),
         sigma0: cal.identification.sigma0,
         status: format!("{:?}: {}", cal.report.verdict.status, cal.report.verdict.reasons.join(" | ")),
     }
@@ -131,19 +130,13 @@ fn irb120_points(truth: &dyn Mechanism, shifts: &[[f64; 3]]) -> Vec<Vector3<f64>
 }
 
 #[test]
-fn seats_recover_a_serial_arm_up_to_a_similarity() {
-    let o = run(
-        "irb120",
-        &IRB120_REFERENCE,
-        15,
-        |truth, how| {
-            let seats = irb120_points(truth, &[[0.0, 0.0, 0.0], [0.5, 0.1, -0.1], [-0.5, -0.1, 0.2], [0.2, 0.3, 0.3]]);
-            (seat_rows(truth, &seats, how).unwrap(), MeasurementFormat::Seat)
-        },
-        true,
-    );
+fn seats_and_one_known_distance_recover_a_serial_arm() {
+    let o = run("irb120", &IRB120_REFERENCE, 15, |truth, how| {
+        let seats = irb120_points(truth, &[[0.0, 0.0, 0.0], [0.5, 0.1, -0.1], [-0.5, -0.1, 0.2], [0.2, 0.3, 0.3]]);
+        (seat_rows(truth, &seats, how).unwrap(), MeasurementFormat::Seat)
+    });
     eprintln!(
-        "irb120, 4 seats × 15, noise-free: σ̂₀ {:.2e}, held-out max {:.2e} mm after a similarity, {}",
+        "irb120, 4 seats × 15 and the distance of two, noise-free: σ̂₀ {:.2e}, held-out max {:.2e} mm after a rigid motion, {}",
         o.sigma0, o.held_out_max_mm, o.status
     );
     assert!(o.held_out_max_mm < 1e-9, "held-out {:e} mm", o.held_out_max_mm);
@@ -151,18 +144,12 @@ fn seats_recover_a_serial_arm_up_to_a_similarity() {
 
 #[test]
 fn a_ballbar_recovers_a_serial_arm_up_to_a_rigid_motion() {
-    let o = run(
-        "irb120",
-        &IRB120_REFERENCE,
-        40,
-        |truth, how| {
-            let centres = irb120_points(truth, &[[0.0, 0.0, 0.0], [0.5, 0.1, -0.1], [-0.5, -0.1, 0.2]]);
-            // Pivots 100 mm below the tool points, a 100 mm ballbar.
-            let pivots: Vec<Vector3<f64>> = centres.iter().map(|c| c - Vector3::new(0.0, 0.0, 100.0)).collect();
-            (distance_rows(truth, &pivots, 100.0, how).unwrap(), MeasurementFormat::Distance)
-        },
-        false,
-    );
+    let o = run("irb120", &IRB120_REFERENCE, 40, |truth, how| {
+        let centres = irb120_points(truth, &[[0.0, 0.0, 0.0], [0.5, 0.1, -0.1], [-0.5, -0.1, 0.2]]);
+        // Pivots 100 mm below the tool points, a 100 mm ballbar.
+        let pivots: Vec<Vector3<f64>> = centres.iter().map(|c| c - Vector3::new(0.0, 0.0, 100.0)).collect();
+        (distance_rows(truth, &pivots, 100.0, how).unwrap(), MeasurementFormat::Distance)
+    });
     eprintln!(
         "irb120, 3 pivots × 40, 100 mm ballbar, noise-free: σ̂₀ {:.2e}, held-out max {:.2e} mm after a rigid motion, {}",
         o.sigma0, o.held_out_max_mm, o.status
@@ -173,31 +160,25 @@ fn a_ballbar_recovers_a_serial_arm_up_to_a_rigid_motion() {
 /// A limbs machine (the 6-RUS hexapod, written as limbs): six seats where the platform's tool
 /// point stands at six random configurations, the platform tilted up to 10° at each; 6 × 20 rows.
 #[test]
-fn seats_recover_a_parallel_machine_up_to_a_similarity() {
+fn seats_and_one_known_distance_recover_a_parallel_machine() {
     let file: ModelFile = builtin::model_file("hexapod-6rus").unwrap();
     let nominal = file.build();
     let mut rng = ChaCha8Rng::seed_from_u64(5);
     let configurations = random_configurations(&*nominal, &file.inputs(), 6, &mut rng).unwrap();
     let reference = configurations[0].clone();
-    let o = run(
-        "hexapod-6rus",
-        &reference,
-        20,
-        move |truth, how| {
-            let how = Placement {
-                max_tilt: 10f64.to_radians(),
-                ..how.clone()
-            };
-            let seats: Vec<Vector3<f64>> = configurations
-                .iter()
-                .map(|q| truth.forward(q).unwrap().translation.vector)
-                .collect();
-            (seat_rows(truth, &seats, &how).unwrap(), MeasurementFormat::Seat)
-        },
-        true,
-    );
+    let o = run("hexapod-6rus", &reference, 20, move |truth, how| {
+        let how = Placement {
+            max_tilt: 10f64.to_radians(),
+            ..how.clone()
+        };
+        let seats: Vec<Vector3<f64>> = configurations
+            .iter()
+            .map(|q| truth.forward(q).unwrap().translation.vector)
+            .collect();
+        (seat_rows(truth, &seats, &how).unwrap(), MeasurementFormat::Seat)
+    });
     eprintln!(
-        "hexapod-6rus, 6 seats × 20, noise-free: σ̂₀ {:.2e}, held-out max {:.2e} mm after a similarity (its cranks turn: no scale from seats), {}",
+        "hexapod-6rus, 6 seats × 20 and the distance of two, noise-free: σ̂₀ {:.2e}, held-out max {:.2e} mm after a rigid motion, {}",
         o.sigma0, o.held_out_max_mm, o.status
     );
     assert!(o.held_out_max_mm < 1e-9, "held-out {:e} mm", o.held_out_max_mm);
@@ -262,4 +243,29 @@ fn a_real_panda_from_two_sockets_50_mm_apart() {
     // model brings them within the 0.2–0.4 mm its authors reach, and the 50 mm within 0.5 mm.
     assert!(b > 3.0 && a < 0.5, "spread {b} → {a} mm");
     assert!(after.distances[0].3.abs() < 0.5, "50 mm error {} mm", after.distances[0].3);
+}
+
+/// Seats alone on a machine whose inputs all turn give no scale: one clear error naming the way
+/// out, not a machine shrunk to a point.
+#[test]
+fn seats_without_a_known_distance_on_a_turning_machine_are_refused() {
+    let file: ModelFile = builtin::model_file("irb120").unwrap();
+    let truth = Framed::new(file.build(), Pose::identity(), ball());
+    let how = Placement {
+        per_point: 5,
+        reference: IRB120_REFERENCE.to_vec(),
+        max_tilt: 30f64.to_radians(),
+        noise_mm: 0.0,
+        seed: 1,
+    };
+    let seats = irb120_points(&truth, &[[0.0, 0.0, 0.0], [0.3, 0.0, 0.1]]);
+    let data = data_set("seats.csv", seat_rows(&truth, &seats, &how).unwrap(), MeasurementFormat::Seat);
+    let e = calibrate(&file, &data, None, &CalibrationOptions::default())
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        e.contains("seats alone do not give the scale") && e.contains("--seat-distance"),
+        "{e}"
+    );
 }
