@@ -359,6 +359,26 @@ impl InstrumentData {
 /// A mechanism without frames, its free parameters, and a tool frame to start from.
 type Nominal = (Box<dyn Mechanism>, Vec<usize>, Pose);
 
+/// What [`instrument_model`] gives: the starting model, its free parameters, the measurements
+/// as the fit uses them.
+pub type InstrumentModel = (Box<dyn Mechanism>, Vec<usize>, Vec<Measurement>);
+
+/// For instrument data (seats, distances; [`crate::instrument`]): the starting model
+/// [`calibrate`] fits — the nominal mechanism with the tool-point offset and the artifact points
+/// found from the data —, its free parameters, and the measurements as the fit uses them (each
+/// row's artifact point appended, the known distances' rows last). `None` for tracker data.
+pub fn instrument_model(
+    model: &ModelFile,
+    data: &DataSet,
+    distances: &[crate::instrument::SeatDistance],
+) -> Result<Option<InstrumentModel>, IoError> {
+    let Some(i) = InstrumentData::of(data, None, distances)? else {
+        return Ok(None);
+    };
+    let (start, free, _) = instrument_start(model, &i)?;
+    Ok(Some((start, free, i.data.measurements)))
+}
+
 /// The model file's mechanism without its frames, its free parameters, and the tool frame the
 /// file gives (the identity without one): what frames found from the data start from.
 fn nominal_mechanism(model: &ModelFile) -> Result<Nominal, IoError> {

@@ -34,16 +34,30 @@ pub struct IdentifiabilityArgs {
     /// Print JSON instead of text.
     #[arg(long)]
     pub json: bool,
+    /// Seat data: a known distance between two seats, `A:B:MM` (their scale); repeat for more.
+    #[arg(long = "seat-distance", value_name = "A:B:MM")]
+    pub seat_distances: Vec<kinecal::instrument::SeatDistance>,
 }
 
 /// Run the command.
 pub fn run(a: IdentifiabilityArgs) -> anyhow::Result<()> {
     let file = ModelFile::load_or_builtin(&a.model)?;
-    let model = file.build();
+    let mut model = file.build();
     let inputs = file.inputs();
-    let free = file.free_indices()?;
+    let mut free = file.free_indices()?;
+    let mut instrument = false;
     let data: Vec<Measurement> = match &a.data {
-        Some(p) => read_data(p, &file.data_columns(), InputColumns::Required)?.measurements,
+        Some(p) => {
+            let set = read_data(p, &file.data_columns(), InputColumns::Required)?;
+            // Instrument data: the model the fit uses (tool-point offset, seats and pivots).
+            match kinecal::calibrate::instrument_model(&file, &set, &a.seat_distances)? {
+                Some((start, f, measurements)) => {
+                    (model, free, instrument) = (start, f, true);
+                    measurements
+                }
+                None => set.measurements,
+            }
+        }
         None => {
             let mut rng = ChaCha8Rng::seed_from_u64(a.seed);
             let configurations = random_configurations(&*model, &inputs, a.poses, &mut rng)?;
@@ -89,6 +103,11 @@ pub fn run(a: IdentifiabilityArgs) -> anyhow::Result<()> {
             println!("no effect ({}): {}", id.no_effect.len(), names(&id.no_effect).join(" "));
         }
         println!("identifiable ({}): {}", id.identifiable.len(), names(&id.identifiable).join(" "));
+        if instrument {
+            println!(
+                "instrument data: the machine's base is not placed (the seats and pivots are somewhere unknown: moving the base and them together changes nothing measured), so that rigid motion is redundant and shows above on the last of those parameters in priority order; the tool point's offset (tx ty tz) and every seat and pivot (seatN.x …) are estimated"
+            );
+        }
     }
     Ok(())
 }
