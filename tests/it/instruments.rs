@@ -269,3 +269,78 @@ fn seats_without_a_known_distance_on_a_turning_machine_are_refused() {
         "{e}"
     );
 }
+
+/// A UR5e from its URDF (`ur_description`'s layout, tests/it/urdf.rs): seats with one known
+/// distance, noise-free through `calibrate()`; and a ballbar whose pivots sit too close
+/// together to determine it, which fails instead of passing a wrong machine.
+#[test]
+fn a_ur5e_from_its_urdf_with_seats_and_with_a_ballbar() {
+    let file = kinecal::io::urdf::import(&crate::urdf::ur5e_urdf(), Some("base_link_inertia"), Some("tool0")).unwrap();
+    let nominal = file.build();
+    let mut rng = ChaCha8Rng::seed_from_u64(21);
+    let (proto, _) = virtual_prototype(&nominal, &file.free_indices().unwrap(), 0.5, 0.1f64.to_radians(), &mut rng);
+    let truth = Framed::new(proto, Pose::identity(), ball());
+    let reference = vec![0.3, -1.2, 1.3, -1.6, -1.57, 0.2];
+    let how = Placement {
+        per_point: 25,
+        reference: reference.clone(),
+        max_tilt: 35f64.to_radians(),
+        noise_mm: 0.0,
+        seed: 4,
+    };
+    let points: Vec<Vector3<f64>> = [[0.0, 0.0, 0.0], [0.4, 0.1, -0.1], [-0.4, -0.1, 0.2], [0.2, 0.3, 0.3]]
+        .iter()
+        .map(|s| {
+            let mut q = reference.clone();
+            for k in 0..3 {
+                q[k] += s[k];
+            }
+            truth.forward(&q).unwrap().translation.vector
+        })
+        .collect();
+    let held_out = random_configurations(&*nominal, &file.inputs(), 30, &mut rng).unwrap();
+    let check = |rows: Vec<Measurement>, format, seat_distances, what: &str| {
+        let data = data_set("ur5e.csv", rows, format);
+        let opts = CalibrationOptions {
+            noise: Noise {
+                position: 0.01,
+                ..Noise::default()
+            },
+            seat_distances,
+            ..CalibrationOptions::default()
+        };
+        let cal = calibrate(&file, &data, None, &opts).unwrap();
+        let text = cal.model_file.to_toml().unwrap();
+        let back = ModelFile::load_str(std::path::Path::new("cal.toml"), &text).unwrap().build();
+        let fitted: Vec<Vector3<f64>> = held_out.iter().map(|q| back.forward(q).unwrap().translation.vector).collect();
+        let true_points: Vec<Vector3<f64>> = held_out.iter().map(|q| truth.forward(q).unwrap().translation.vector).collect();
+        let e = aligned_max(&fitted, &true_points);
+        eprintln!(
+            "ur5e from URDF, {what}, noise-free: held-out max {e:.2e} mm after a rigid motion, {:?}",
+            cal.report.verdict.status
+        );
+        assert!(e < 1e-9, "{what}: held-out {e:e} mm");
+    };
+    let known = vec![kinecal::instrument::SeatDistance {
+        a: 0,
+        b: 1,
+        length: (points[0] - points[1]).norm(),
+    }];
+    check(
+        seat_rows(&truth, &points, &how).unwrap(),
+        MeasurementFormat::Seat,
+        known,
+        "4 seats × 25 and one seat distance",
+    );
+    // A 100 mm ballbar at 4 pivots below these seats (60 rows each) is not enough here: the fit
+    // matches every length (σ̂₀ 0) with a machine 250 mm / 100° away, which the verdict fails
+    // (corrections far beyond the tolerances) — not silently wrong (docs/instruments.md).
+    let pivots: Vec<Vector3<f64>> = points.iter().map(|c| c - Vector3::new(0.0, 0.0, 100.0)).collect();
+    let data = data_set(
+        "ur5e-ballbar.csv",
+        distance_rows(&truth, &pivots, 100.0, &Placement { per_point: 60, ..how }).unwrap(),
+        MeasurementFormat::Distance,
+    );
+    let cal = calibrate(&file, &data, None, &CalibrationOptions::default()).unwrap();
+    assert_eq!(cal.report.verdict.status, kinecal::report::Status::Failed);
+}
