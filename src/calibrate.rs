@@ -232,6 +232,14 @@ pub fn calibrate(
         start_tolerance_mm,
     };
     let mut report = judge(model, data, validation, opts, &judged)?;
+    if let Some(i) = &instrument {
+        for (k, s, f) in crate::instrument::collapsed_pivots(&*start, &*identification.model, &i.data.measurements) {
+            report.fail(format!(
+                "the fit puts the tool point of every row of pivot {} at nearly one place ({f:.4} mm RMS about their mean, the nominal model {s:.4} mm): with one bar length, a machine that stands still over a pivot's rows fits them exactly, and this is such a machine, not the calibrated one; vary the lengths (a telescoping bar's range, a draw-wire), add seats, or measure from more pivots",
+                i.points[k].id
+            ));
+        }
+    }
     if opts.compare_terms && instrument.is_none() {
         report.variants = variants::variants(model, raw, validation, opts);
     }

@@ -263,6 +263,40 @@ pub fn start_points<M: Mechanism + Clone + 'static>(
     })
 }
 
+/// A fitted tool point counts as collapsed onto its pivot's other rows when its spread is below
+/// this share of the starting model's.
+pub const COLLAPSE: f64 = 0.1;
+
+/// The pivots (indices into the artifact points) whose tool points `fitted` puts at nearly one
+/// place while `start` spreads them ([`COLLAPSE`]), with both spreads (mm, RMS about their mean).
+/// Every row of a fixed-length bar has the same length, so a machine whose tool point stands
+/// still over a pivot's rows fits them all exactly: such a fit is a wrong machine, not a
+/// calibration. `indexed`: the measurements as the fit used them ([`index_points`]).
+pub fn collapsed_pivots(start: &dyn Mechanism, fitted: &dyn Mechanism, indexed: &[Measurement]) -> Vec<(usize, f64, f64)> {
+    let spread = |model: &dyn Mechanism, k: usize| -> Option<f64> {
+        let points: Vec<Vector3<f64>> = indexed
+            .iter()
+            .filter(|m| matches!(m.obs, Observation::Distance { pivot, .. } if pivot != crate::measure::KNOWN_DISTANCE))
+            .filter(|m| m.q.last().copied() == Some(k as f64))
+            .map(|m| model.forward(&m.q).ok().map(|t| t.translation.vector))
+            .collect::<Option<Vec<_>>>()?;
+        let mean = points.iter().sum::<Vector3<f64>>() / points.len().max(1) as f64;
+        Some((points.iter().map(|p| (p - mean).norm_squared()).sum::<f64>() / points.len().max(1) as f64).sqrt())
+    };
+    let pivots: std::collections::BTreeSet<usize> = indexed
+        .iter()
+        .filter(|m| matches!(m.obs, Observation::Distance { pivot, .. } if pivot != crate::measure::KNOWN_DISTANCE))
+        .filter_map(|m| m.q.last().map(|&k| k as usize))
+        .collect();
+    pivots
+        .into_iter()
+        .filter_map(|k| {
+            let (s, f) = (spread(start, k)?, spread(fitted, k)?);
+            (f < COLLAPSE * s).then_some((k, s, f))
+        })
+        .collect()
+}
+
 /// Levenberg–Marquardt on `L_i − |p_i + R_i·t − c_k|` over the tool-point offset `t` and the
 /// pivots' centres (rows: pivot index, flange pose, length); returns the offset, moves the
 /// centres. Stops where the cost no longer falls.

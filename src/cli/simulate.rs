@@ -3,6 +3,7 @@
 use super::progress;
 use clap::{Args, ValueEnum};
 use kinecal::error::CalibError;
+use kinecal::instrument::simulate::{distance_rows, middle_of_limits, parse_points, seat_distances, seat_rows, Placement};
 use kinecal::io::data_file::data_text;
 use kinecal::io::model_file::ModelFile;
 use kinecal::io::output::Outputs;
@@ -89,6 +90,35 @@ pub struct SimulateArgs {
     /// Validation data file to write (CSV).
     #[arg(long)]
     pub validation_out: Option<PathBuf>,
+    /// Instrument data instead of tracker data: fixed seats at these points (mm, base frame,
+    /// `X,Y,Z;X,Y,Z;…`), the tool point placed in each from `--per-point` orientations; the data
+    /// file gets a `seat` column (seat k is the k-th point). `--validation-out` then gets
+    /// `--validation-poses` fresh orientations per seat.
+    #[arg(long, value_name = "X,Y,Z;…", conflicts_with_all = ["pivots", "measure", "at", "cycles"])]
+    pub seats: Option<String>,
+    /// Instrument data: a ballbar between the tool point and each of these pivots (mm, base
+    /// frame, `X,Y,Z;…`), `--per-point` lengths each (directions within 60° of the pivot's
+    /// direction toward the reference tool point); columns `pivot,length_mm`. Needs `--ballbar-mm`.
+    #[arg(long, value_name = "X,Y,Z;…", requires = "ballbar_mm", conflicts_with_all = ["measure", "at", "cycles"])]
+    pub pivots: Option<String>,
+    /// The ballbar's length (mm).
+    #[arg(long, value_name = "L", requires = "pivots")]
+    pub ballbar_mm: Option<f64>,
+    /// Instrument data: rows per seat or pivot.
+    #[arg(long, visible_aliases = ["per-seat", "per-pivot"], default_value_t = 15)]
+    pub per_point: usize,
+    /// Instrument data: largest tilt of the tool from its orientation at the reference
+    /// configuration (degrees).
+    #[arg(long, default_value_t = 30.0)]
+    pub tilt_deg: f64,
+    /// Instrument data: the configuration the orientations are drawn about, the model's inputs
+    /// in file units (deg / mm, comma-separated); default the middle of each input's limits.
+    #[arg(long, value_name = "Q1,Q2,…", allow_hyphen_values = true)]
+    pub reference: Option<String>,
+    /// Instrument data: the true tool point (the ball's centre) in the flange or platform frame
+    /// (mm, `X,Y,Z`); written as the truth's tool frame. Default: the flange origin.
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
+    pub tool_mm: Option<String>,
     /// Print a JSON summary instead of text.
     #[arg(long)]
     pub json: bool,
@@ -129,6 +159,22 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
     let free = file.free_indices()?;
     let mut rng = ChaCha8Rng::seed_from_u64(a.seed);
     let (truth, _delta) = virtual_prototype(&nominal, &free, a.error_mm, a.error_deg.to_radians(), &mut rng);
+    let instrument = a.seats.is_some() || a.pivots.is_some();
+    anyhow::ensure!(
+        instrument || (a.tool_mm.is_none() && a.reference.is_none()),
+        "--tool-mm and --reference describe instrument data: give --seats or --pivots with them"
+    );
+    let truth: Box<dyn kinecal::Mechanism> = match &a.tool_mm {
+        Some(text) => {
+            let [ball] = parse_points(text)
+                .map_err(|e| anyhow::anyhow!("--tool-mm {e}"))?
+                .try_into()
+                .map_err(|_| anyhow::anyhow!("--tool-mm '{text}': one point X,Y,Z (mm)"))?;
+            let tool = kinecal::se3::pose_from_parts(ball, nalgebra::Vector3::zeros());
+            Box::new(kinecal::model::framed::Framed::new(truth, kinecal::se3::Pose::identity(), tool))
+        }
+        None => truth,
+    };
     let noise = Noise {
         position: a.noise_mm,
         orientation: a.noise_deg.to_radians(),
@@ -147,6 +193,9 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
     let truth_text = truth_file.to_toml().map_err(|e| anyhow::anyhow!("{}: {e}", a.truth.display()))?;
     outputs.stage(&a.truth, truth_text.as_bytes())?;
 
+    if instrument {
+        return instrument_run(&a, &file, &*truth, &mut rng, outputs);
+    }
     if let (Some(cycles), Some(at)) = (a.cycles, &a.at) {
         return test_run(&a, &*truth, &inputs, at, cycles, &noise, &mut rng, outputs);
     }
@@ -277,5 +326,151 @@ fn test_run(
         a.noise_deg,
         a.out.display()
     );
+    Ok(())
+}
+
+/// `--seats` or `--pivots`: instrument rows of `truth` to `--out` (and `--validation-out`).
+fn instrument_run(
+    a: &SimulateArgs,
+    file: &ModelFile,
+    truth: &dyn kinecal::Mechanism,
+    rng: &mut ChaCha8Rng,
+    mut outputs: Outputs,
+) -> anyhow::Result<()> {
+    use rand::RngExt;
+    anyhow::ensure!(a.per_point > 0, "--per-point: must be at least 1");
+    anyhow::ensure!(
+        a.tilt_deg.is_finite() && (0.0..=90.0).contains(&a.tilt_deg),
+        "--tilt-deg: must be between 0 and 90, got {}",
+        a.tilt_deg
+    );
+    let inputs = file.inputs();
+    let reference = match &a.reference {
+        Some(text) => {
+            let values: Vec<f64> = text
+                .split(',')
+                .map(|v| v.trim().parse::<f64>())
+                .collect::<Result<_, _>>()
+                .map_err(|_| {
+                    anyhow::anyhow!(
+                        "--reference '{text}': the model's {} inputs in deg / mm, comma-separated",
+                        inputs.len()
+                    )
+                })?;
+            anyhow::ensure!(
+                values.len() == inputs.len(),
+                "--reference '{text}': {} values, the model has {} inputs ({})",
+                values.len(),
+                inputs.len(),
+                kinecal::io::data_file::input_headers(&inputs).join(", ")
+            );
+            inputs
+                .iter()
+                .zip(values)
+                .map(|(i, v)| {
+                    if i.unit == kinecal::params::Unit::Angle {
+                        v.to_radians()
+                    } else {
+                        v
+                    }
+                })
+                .collect()
+        }
+        None => middle_of_limits(&inputs),
+    };
+    truth
+        .forward(&reference)
+        .map_err(|e| anyhow::anyhow!("the reference configuration: {e} (give one the machine reaches with --reference)"))?;
+    let how = |per_point: usize, seed: u64| Placement {
+        per_point,
+        reference: reference.clone(),
+        max_tilt: a.tilt_deg.to_radians(),
+        noise_mm: a.noise_mm,
+        seed,
+        inputs: inputs.clone(),
+    };
+    let (option, text) = match (&a.seats, &a.pivots) {
+        (Some(s), _) => ("--seats", s),
+        (None, Some(p)) => ("--pivots", p),
+        (None, None) => unreachable!("called with seats or pivots"),
+    };
+    let points = parse_points(text).map_err(|e| anyhow::anyhow!("{option} {e}"))?;
+    let draw = |how: &Placement| -> anyhow::Result<Vec<kinecal::measure::Measurement>> {
+        let rows = match a.ballbar_mm {
+            Some(length) if a.seats.is_none() => distance_rows(truth, &points, length, how),
+            _ => seat_rows(truth, &points, how),
+        };
+        rows.map_err(|e| match e {
+            CalibError::Kinematics { source, .. } => anyhow::anyhow!("{option}: {source}"),
+            e => anyhow::anyhow!("{option}: {e}"),
+        })
+    };
+    let mut sets = vec![(a.out.clone(), a.per_point)];
+    if let Some(v) = &a.validation_out {
+        anyhow::ensure!(
+            a.validation_poses > 0,
+            "--validation-out needs --validation-poses N (N ≥ 1 rows per point)"
+        );
+        sets.push((v.clone(), a.validation_poses));
+    }
+    let mut written = Vec::new();
+    let mut first_id = 0i64;
+    for (path, per_point) in sets {
+        let rows = draw(&how(per_point, rng.random()))?;
+        let ids: Vec<i64> = (first_id..first_id + rows.len() as i64).collect();
+        first_id += rows.len() as i64;
+        let data = data_text(&path, &file.data_columns(), &ids, &rows, None)?;
+        outputs.stage(&path, data.as_bytes())?;
+        written.push(Written { path, poses: rows.len() });
+    }
+    outputs.commit()?;
+    let kind = if a.seats.is_some() { "seat" } else { "pivot" };
+    let distances: Vec<String> = if a.seats.is_some() {
+        seat_distances(&points)
+            .iter()
+            .map(|d| format!("{}:{}:{:.6}", d.a, d.b, d.length))
+            .collect()
+    } else {
+        Vec::new()
+    };
+    if a.json {
+        let files: Vec<_> = written
+            .iter()
+            .map(|w| serde_json::json!({"path": w.path, "rows": w.poses}))
+            .collect();
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&serde_json::json!({
+                "model": file.name, "seed": a.seed, "error_mm": a.error_mm, "error_deg": a.error_deg,
+                "noise_mm": a.noise_mm, "instrument": kind, "points": points.len(), "ballbar_mm": a.ballbar_mm,
+                "seat_distances": distances, "truth": a.truth, "data": files,
+            }))?
+        );
+        return Ok(());
+    }
+    println!(
+        "virtual prototype of {}: ±{} mm / ±{} deg errors (seed {}) → {}",
+        file.name,
+        a.error_mm,
+        a.error_deg,
+        a.seed,
+        a.truth.display()
+    );
+    for w in &written {
+        println!(
+            "{} {kind}s × {} rows (tilt ≤ {}°), noise {} mm → {}",
+            points.len(),
+            w.poses / points.len(),
+            a.tilt_deg,
+            a.noise_mm,
+            w.path.display()
+        );
+    }
+    if !distances.is_empty() {
+        println!(
+            "the seats' distances (the artifact's known dimensions, for identify): --seat-distance {}",
+            distances.join(" --seat-distance ")
+        );
+    }
     Ok(())
 }

@@ -1,7 +1,9 @@
 //! Instrument measurements of a virtual prototype: configurations that put the true tool point
 //! in a seat, or on a sphere of known radius about a pivot, from many orientations.
 use crate::error::{CalibError, KinError};
+use crate::instrument::SeatDistance;
 use crate::measure::{Measurement, Observation};
+use crate::model::kind::InputSpec;
 use crate::model::Mechanism;
 use crate::se3::{self, Pose};
 use nalgebra::Vector3;
@@ -22,6 +24,26 @@ pub struct Placement {
     pub noise_mm: f64,
     /// Seed of every random draw.
     pub seed: u64,
+    /// The model's inputs (e.g. [`crate::io::model_file::ModelFile::inputs`]): a configuration
+    /// outside their limits is brought within them by whole turns of its angles, or drawn again.
+    /// Empty: no limits.
+    pub inputs: Vec<InputSpec>,
+}
+
+/// `q` within the limits of `inputs` (angles moved by whole turns where that brings them in),
+/// or `None`.
+fn within_limits(mut q: Vec<f64>, inputs: &[InputSpec]) -> Option<Vec<f64>> {
+    for (v, i) in q.iter_mut().zip(inputs) {
+        let Some((lo, hi)) = i.limits else { continue };
+        if i.unit == crate::params::Unit::Angle && !(lo..=hi).contains(v) {
+            let turn = std::f64::consts::TAU;
+            *v -= ((*v - lo) / turn).floor() * turn;
+        }
+        if !(lo..=hi).contains(v) {
+            return None;
+        }
+    }
+    Some(q)
 }
 
 /// Attempts per requested row before [`seat_rows`] or [`distance_rows`] gives up.
@@ -31,7 +53,7 @@ const ATTEMPTS: usize = 50;
 /// prototype) that put its tool point in each seat of `seats` (mm, base frame), orientations
 /// drawn as `how` says; one [`Observation::Seat`] row each, the seat's number its index.
 pub fn seat_rows(truth: &dyn Mechanism, seats: &[Vector3<f64>], how: &Placement) -> Result<Vec<Measurement>, CalibError> {
-    draw_rows(truth, seats, how, |_, _| None)
+    draw_rows(truth, seats, how, "seat", |_, _| None)
 }
 
 /// Configurations of `truth` whose tool point lies at `length` (mm) from each pivot of `pivots`,
@@ -44,7 +66,7 @@ pub fn distance_rows(truth: &dyn Mechanism, pivots: &[Vector3<f64>], length: f64
     let home = truth
         .forward(&how.reference)
         .map_err(|source| CalibError::Kinematics { pose: 0, source })?;
-    draw_rows(truth, pivots, how, |pivot, rng| {
+    draw_rows(truth, pivots, how, "pivot", |pivot, rng| {
         let axis = (home.translation.vector - pivot).try_normalize(1e-9).unwrap_or_else(Vector3::z);
         Some(pivot + se3::so3_exp(&random_tilt(rng, 60f64.to_radians())) * axis * length)
     })
@@ -65,6 +87,7 @@ fn draw_rows(
     truth: &dyn Mechanism,
     points: &[Vector3<f64>],
     how: &Placement,
+    name: &str,
     mut target: impl FnMut(&Vector3<f64>, &mut rand_chacha::ChaCha8Rng) -> Option<Vector3<f64>>,
 ) -> Result<Vec<Measurement>, CalibError> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(how.seed);
@@ -84,7 +107,11 @@ fn draw_rows(
             let place = aim.unwrap_or(*point) + if aim.is_none() { settle } else { Vector3::zeros() };
             let rotation = se3::so3_exp(&random_tilt(&mut rng, how.max_tilt)) * home.rotation;
             let goal = Pose::from_parts(place.into(), rotation);
-            let Ok(q) = truth.inverse(&goal, Some(&how.reference)) else {
+            let Some(q) = truth
+                .inverse(&goal, Some(&how.reference))
+                .ok()
+                .and_then(|q| within_limits(q, &how.inputs))
+            else {
                 continue;
             };
             let Ok(reached) = truth.forward(&q) else { continue };
@@ -109,11 +136,60 @@ fn draw_rows(
             return Err(CalibError::Kinematics {
                 pose: out.len(),
                 source: KinError::Unreachable(format!(
-                    "point {k} at ({:.1}, {:.1}, {:.1}) mm: {found} of {} configurations reached it (move it into the workspace or tilt less)",
+                    "{name} {k} at ({:.1}, {:.1}, {:.1}) mm: {found} of {} configurations reached it (move it into the workspace or tilt less)",
                     point.x, point.y, point.z, how.per_point
                 )),
             });
         }
     }
     Ok(out)
+}
+
+/// Points (mm) from text `X,Y,Z;X,Y,Z;…` (e.g. `400,0,300;400,100,300`), for a command line.
+/// The error names the first malformed point.
+pub fn parse_points(text: &str) -> Result<Vec<Vector3<f64>>, String> {
+    let mut out = Vec::new();
+    for (k, part) in text.split(';').map(str::trim).enumerate() {
+        if part.is_empty() && k > 0 {
+            continue;
+        }
+        let values: Vec<f64> = part
+            .split(',')
+            .map(|v| v.trim().parse::<f64>())
+            .collect::<Result<_, _>>()
+            .map_err(|_| format!("'{part}': a point is X,Y,Z in mm (numbers), points are separated by ';'"))?;
+        match values.as_slice() {
+            [x, y, z] if values.iter().all(|v| v.is_finite()) => out.push(Vector3::new(*x, *y, *z)),
+            _ => {
+                return Err(format!(
+                    "'{part}': a point is X,Y,Z in mm (three numbers), points are separated by ';'"
+                ))
+            }
+        }
+    }
+    if out.is_empty() {
+        return Err("no point given: X,Y,Z;X,Y,Z;… in mm".into());
+    }
+    Ok(out)
+}
+
+/// The distances from the first seat to every other one ([`SeatDistance`] `0:k`): the known
+/// dimensions of an artifact whose seats are at `seats` (mm), which give seat data its scale.
+pub fn seat_distances(seats: &[Vector3<f64>]) -> Vec<SeatDistance> {
+    seats
+        .iter()
+        .enumerate()
+        .skip(1)
+        .map(|(k, s)| SeatDistance {
+            a: 0,
+            b: k,
+            length: (s - seats[0]).norm(),
+        })
+        .collect()
+}
+
+/// The middle of each input's limits (0 where it has none, and for an approach direction): a reference configuration
+/// ([`Placement::reference`]) when none is given.
+pub fn middle_of_limits(inputs: &[InputSpec]) -> Vec<f64> {
+    inputs.iter().map(|i| i.limits.map_or(0.0, |(lo, hi)| 0.5 * (lo + hi))).collect()
 }

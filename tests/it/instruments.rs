@@ -73,6 +73,7 @@ fn run(
         max_tilt: 35f64.to_radians(),
         noise_mm: 0.0,
         seed: 3,
+        inputs: Vec::new(),
     };
     let (rows, format) = measure(&truth, &how);
     let centre = |seat: usize| {
@@ -257,6 +258,7 @@ fn seats_without_a_known_distance_on_a_turning_machine_are_refused() {
         max_tilt: 30f64.to_radians(),
         noise_mm: 0.0,
         seed: 1,
+        inputs: file.inputs(),
     };
     let seats = irb120_points(&truth, &[[0.0, 0.0, 0.0], [0.3, 0.0, 0.1]]);
     let data = data_set("seats.csv", seat_rows(&truth, &seats, &how).unwrap(), MeasurementFormat::Seat);
@@ -287,6 +289,7 @@ fn a_ur5e_from_its_urdf_with_seats_and_with_a_ballbar() {
         max_tilt: 35f64.to_radians(),
         noise_mm: 0.0,
         seed: 4,
+        inputs: file.inputs(),
     };
     let points: Vec<Vector3<f64>> = [[0.0, 0.0, 0.0], [0.4, 0.1, -0.1], [-0.4, -0.1, 0.2], [0.2, 0.3, 0.3]]
         .iter()
@@ -343,4 +346,100 @@ fn a_ur5e_from_its_urdf_with_seats_and_with_a_ballbar() {
     );
     let cal = calibrate(&file, &data, None, &CalibrationOptions::default()).unwrap();
     assert_eq!(cal.report.verdict.status, kinecal::report::Status::Failed);
+    eprintln!("ur5e, ballbar: {}", cal.report.verdict.reasons[0]);
+    assert!(
+        cal.report.verdict.reasons[0].contains("at nearly one place"),
+        "{:?}",
+        cal.report.verdict.reasons
+    );
+}
+
+/// The command line end to end: `simulate --seats` on the built-in IRB 120 with a ball off the
+/// flange axis and 10 µm noise, `identify` with the seats' known distances, `validate` on
+/// held-out orientations: each seat's spread falls from the nominal's millimetres to the noise.
+#[test]
+fn cli_seats_simulate_identify_validate() {
+    use crate::cli::{fails, json, ok};
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let sim = json(
+        dir,
+        &[
+            "simulate",
+            "irb120",
+            "--seats",
+            "400,0,300;450,100,250;350,-100,350;420,50,400",
+            "--reference",
+            "0,20,11.5,0,57,0",
+            "--tool-mm",
+            "15,-10,120",
+            "--per-seat",
+            "15",
+            "--tilt-deg",
+            "35",
+            "--noise-mm",
+            "0.01",
+            "--out",
+            "d.csv",
+            "--truth",
+            "t.toml",
+            "--validation-poses",
+            "10",
+            "--validation-out",
+            "v.csv",
+        ],
+    );
+    assert_eq!(sim["data"][0]["rows"], 60);
+    assert_eq!(sim["data"][1]["rows"], 40);
+    let distances: Vec<String> = sim["seat_distances"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|d| d.as_str().unwrap().to_string())
+        .collect();
+    assert_eq!(distances.len(), 3);
+    let header = std::fs::read_to_string(dir.join("d.csv")).unwrap();
+    assert!(header.lines().next().unwrap().ends_with(",seat"), "{header}");
+    let mut identify = vec!["identify", "irb120", "d.csv", "--out", "cal.toml", "--noise-mm", "0.01"];
+    for d in &distances {
+        identify.extend(["--seat-distance", d.as_str()]);
+    }
+    let out = ok(dir, &identify);
+    assert!(out.contains("verdict: calibrated"), "{out}");
+    let spread = |model: &str| -> f64 {
+        let v = json(dir, &["validate", model, "v.csv", "--seat-distance", &distances[0]]);
+        let seats = v["instrument"]["seats"].as_array().unwrap();
+        assert_eq!(seats.len(), 4);
+        seats.iter().map(|s| s["rms_mm"].as_f64().unwrap()).fold(0.0, f64::max)
+    };
+    let (nominal, calibrated) = (spread("irb120"), spread("cal.toml"));
+    eprintln!("irb120 seats via the CLI: held-out worst seat spread {nominal:.3} mm (nominal) → {calibrated:.4} mm (calibrated)");
+    assert!(nominal > 5.0 && calibrated < 0.03, "spread {nominal} → {calibrated} mm");
+
+    // Mistakes are one line.
+    let far = fails(
+        dir,
+        &[
+            "simulate", "irb120", "--seats", "2000,0,0", "--out", "x.csv", "--truth", "x.toml", "--force",
+        ],
+    );
+    assert!(
+        far.starts_with("--seats:") && far.contains("seat 0 at (2000.0, 0.0, 0.0) mm"),
+        "{far}"
+    );
+    let bad = fails(
+        dir,
+        &[
+            "simulate",
+            "irb120",
+            "--seats",
+            "400,0;1,2,3",
+            "--out",
+            "x.csv",
+            "--truth",
+            "x.toml",
+            "--force",
+        ],
+    );
+    assert!(bad.contains("'400,0'"), "{bad}");
 }
