@@ -34,19 +34,11 @@ const REFERENCE: [f64; 6] = [0.0, 0.35, 0.2, 0.0, 1.0, 0.0];
 /// Rows per calibration, every kind.
 const ROWS: usize = 120;
 
+/// A data set of instrument rows (its format follows from the rows).
 fn data_set(measurements: Vec<Measurement>, format: MeasurementFormat) -> DataSet {
-    let n = measurements.len();
-    DataSet {
-        path: "data.csv".into(),
-        lines: (2..2 + n).collect(),
-        ids: (0..n as i64).collect(),
-        format,
-        has_inputs: true,
-        dropped: Vec::new(),
-        reflectors: Vec::new(),
-        derived: Vec::new(),
-        measurements,
-    }
+    let set = DataSet::from_measurements("data.csv", measurements);
+    assert_eq!(set.format, format);
+    set
 }
 
 /// RMS distance between `a` and `b` after the rigid motion that takes `a` best onto `b` (Umeyama).

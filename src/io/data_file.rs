@@ -101,6 +101,8 @@ impl DataSet {
     pub fn from_measurements(name: &str, measurements: Vec<Measurement>) -> DataSet {
         let format = match measurements.first().map(|m| &m.obs) {
             Some(Observation::Position(_)) => MeasurementFormat::Position,
+            Some(Observation::Seat(_)) => MeasurementFormat::Seat,
+            Some(Observation::Distance { .. }) => MeasurementFormat::Distance,
             _ => MeasurementFormat::PoseQuaternion,
         };
         DataSet {

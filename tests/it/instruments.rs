@@ -19,19 +19,11 @@ fn ball() -> Pose {
     se3::pose_from_parts(Vector3::new(15.0, -10.0, 120.0), Vector3::zeros())
 }
 
+/// A data set of instrument rows (its format follows from the rows).
 fn data_set(name: &str, measurements: Vec<Measurement>, format: MeasurementFormat) -> DataSet {
-    let n = measurements.len();
-    DataSet {
-        path: name.into(),
-        lines: (2..2 + n).collect(),
-        ids: (0..n as i64).collect(),
-        format,
-        has_inputs: true,
-        dropped: Vec::new(),
-        reflectors: Vec::new(),
-        derived: Vec::new(),
-        measurements,
-    }
+    let set = DataSet::from_measurements(name, measurements);
+    assert_eq!(set.format, format);
+    set
 }
 
 /// The largest distance between `a` and `b` after the rigid motion that best takes `a` onto `b`
