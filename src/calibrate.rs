@@ -340,9 +340,10 @@ impl InstrumentData {
                         .ok_or_else(|| IoError::Invalid {
                             path: v.path.clone(),
                             message: format!(
-                                "{} {} is not in the identification data: held-out rows must use the seats and pivots placed there",
+                                "{} {} is not in the identification data: --validation rows must use the seats and pivots placed there; judge new placements after identifying, with `kinecal validate CALIBRATED.toml {}` (each seat's spread, the known distances' errors)",
                                 p.kind.name(),
-                                p.id
+                                p.id,
+                                v.path.display()
                             ),
                         })?;
                     m.q.push(k as f64);

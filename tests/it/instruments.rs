@@ -220,6 +220,21 @@ fn a_real_panda_from_two_sockets_50_mm_apart() {
         ..CalibrationOptions::default()
     };
     let cal = calibrate(&file, &ident, None, &opts).unwrap();
+    // A held-out placement has seats of its own: not a --validation set (one line saying what to
+    // run instead), but what `validate` (instrument::held_out) judges.
+    let e = calibrate(
+        &file,
+        &ident,
+        Some(&data_set("held.csv", held.clone(), MeasurementFormat::Seat)),
+        &opts,
+    )
+    .err()
+    .unwrap()
+    .to_string();
+    assert!(
+        e.contains("seat 6 is not in the identification data") && e.contains("kinecal validate"),
+        "{e}"
+    );
     let text = cal.model_file.to_toml().unwrap();
     let calibrated = ModelFile::load_str(std::path::Path::new("cal.toml"), &text).unwrap().build();
     let before = held_out(&*file.build(), &held, &[fifty(3)]).unwrap();
