@@ -420,7 +420,7 @@ fn instrument_start(model: &ModelFile, i: &InstrumentData) -> Result<StartingMod
     let artifact =
         crate::instrument::start_points(framed, i.points.clone(), i.pairs.clone(), &i.data.measurements).map_err(|e| i.data.locate(e))?;
     let p_inner = FRAME_PARAMS + artifact.inner.inner.n_params();
-    let mut free: Vec<usize> = vec![6, 7, 8];
+    let mut free: Vec<usize> = crate::model::framed::TOOL_TRANSLATION.collect();
     free.extend(inner_free.iter().map(|k| k + FRAME_PARAMS));
     free.extend(p_inner..p_inner + 3 * artifact.points.len());
     Ok((Box::new(artifact), free, None))

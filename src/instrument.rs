@@ -273,28 +273,38 @@ pub const COLLAPSE: f64 = 0.1;
 /// still over a pivot's rows fits them all exactly: such a fit is a wrong machine, not a
 /// calibration. `indexed`: the measurements as the fit used them ([`index_points`]).
 pub fn collapsed_pivots(start: &dyn Mechanism, fitted: &dyn Mechanism, indexed: &[Measurement]) -> Vec<(usize, f64, f64)> {
-    let spread = |model: &dyn Mechanism, k: usize| -> Option<f64> {
-        let points: Vec<Vector3<f64>> = indexed
+    // The measured rows of each pivot (not the known distances between seats).
+    let mut rows: BTreeMap<usize, Vec<&Measurement>> = BTreeMap::new();
+    for m in indexed {
+        if let (Observation::Distance { pivot, .. }, Some(&k)) = (&m.obs, m.q.last()) {
+            if *pivot != crate::measure::KNOWN_DISTANCE {
+                rows.entry(k as usize).or_default().push(m);
+            }
+        }
+    }
+    let rms = |model: &dyn Mechanism, rows: &[&Measurement]| -> Option<f64> {
+        let points = rows
             .iter()
-            .filter(|m| matches!(m.obs, Observation::Distance { pivot, .. } if pivot != crate::measure::KNOWN_DISTANCE))
-            .filter(|m| m.q.last().copied() == Some(k as f64))
             .map(|m| model.forward(&m.q).ok().map(|t| t.translation.vector))
             .collect::<Option<Vec<_>>>()?;
-        let mean = points.iter().sum::<Vector3<f64>>() / points.len().max(1) as f64;
-        Some((points.iter().map(|p| (p - mean).norm_squared()).sum::<f64>() / points.len().max(1) as f64).sqrt())
+        Some(spread(&points).1)
     };
-    let pivots: std::collections::BTreeSet<usize> = indexed
-        .iter()
-        .filter(|m| matches!(m.obs, Observation::Distance { pivot, .. } if pivot != crate::measure::KNOWN_DISTANCE))
-        .filter_map(|m| m.q.last().map(|&k| k as usize))
-        .collect();
-    pivots
-        .into_iter()
-        .filter_map(|k| {
-            let (s, f) = (spread(start, k)?, spread(fitted, k)?);
+    rows.into_iter()
+        .filter_map(|(k, rows)| {
+            let (s, f) = (rms(start, &rows)?, rms(fitted, &rows)?);
             (f < COLLAPSE * s).then_some((k, s, f))
         })
         .collect()
+}
+
+/// The mean of `points`, their RMS distance from it and the largest (mm): how far a model puts
+/// one seat's (or one pivot's) tool points apart.
+pub fn spread(points: &[Vector3<f64>]) -> (Vector3<f64>, f64, f64) {
+    let n = points.len().max(1) as f64;
+    let mean = points.iter().sum::<Vector3<f64>>() / n;
+    let d: Vec<f64> = points.iter().map(|p| (p - mean).norm()).collect();
+    let rms = (d.iter().map(|x| x * x).sum::<f64>() / n).sqrt();
+    (mean, rms, d.iter().copied().fold(0.0, f64::max))
 }
 
 /// Levenberg–Marquardt on `L_i − |p_i + R_i·t − c_k|` over the tool-point offset `t` and the
@@ -454,6 +464,13 @@ impl<M: Mechanism> Artifact<M> {
         (shift * pose, out)
     }
 
+    /// Rows over the inner mechanism's parameters, with the points' (zero) columns appended.
+    fn point_columns(&self, rows: &DMatrix<f64>) -> DMatrix<f64> {
+        let mut out = DMatrix::zeros(rows.nrows(), rows.ncols() + 3 * self.points.len());
+        out.columns_mut(0, rows.ncols()).copy_from(rows);
+        out
+    }
+
     /// The translation by minus point `k`'s centre.
     fn shift(&self, k: usize) -> Pose {
         Pose::from_parts(Translation3::from(-self.points[k].centre), nalgebra::UnitQuaternion::identity())
@@ -540,9 +557,7 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Artifact<M> {
     }
     fn observed_joints_with_jacobian(&self, q: &[f64]) -> Result<(Vec<f64>, DMatrix<f64>), KinError> {
         let (values, rows) = self.inner.observed_joints_with_jacobian(self.split(q)?.0)?;
-        let mut out = DMatrix::zeros(rows.nrows(), self.n_params());
-        out.columns_mut(0, rows.ncols()).copy_from(&rows);
-        Ok((values, out))
+        Ok((values, self.point_columns(&rows)))
     }
     fn forward_with_jacobian_and_observed(&self, q: &[f64], near: Option<&Pose>) -> Result<ForwardAndObserved, KinError> {
         let (qi, k) = self.split(q)?;
@@ -552,9 +567,7 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Artifact<M> {
         let inner_near = near.map(|n| self.shift(k).inverse() * n);
         let (pose, jac, values, rows) = self.inner.forward_with_jacobian_and_observed(qi, inner_near.as_ref())?;
         let (pose, jac) = self.relative(k, (pose, jac));
-        let mut out = DMatrix::zeros(rows.nrows(), self.n_params());
-        out.columns_mut(0, rows.ncols()).copy_from(&rows);
-        Ok((pose, jac, values, out))
+        Ok((pose, jac, values, self.point_columns(&rows)))
     }
 }
 

@@ -2,7 +2,7 @@
 //! artifact), in the instrument's own terms: each seat's spread of the model's tool points about
 //! their mean (one point if the model were exact), the error of the known distances between
 //! seats, and for a ballbar each pivot's length residuals once the pivot is placed.
-use super::{sphere_centre, PointKind, SeatDistance};
+use super::{sphere_centre, spread, PointKind, SeatDistance};
 use crate::error::CalibError;
 use crate::measure::{Measurement, Observation};
 use crate::model::Mechanism;
@@ -88,14 +88,14 @@ pub fn held_out(model: &dyn Mechanism, measurements: &[Measurement], distances: 
     for (&(kind, id), rows) in &groups {
         match kind {
             PointKind::Seat => {
-                let centre = rows.iter().map(|r| r.0).sum::<Vector3<f64>>() / rows.len() as f64;
-                let d: Vec<f64> = rows.iter().map(|r| (r.0 - centre).norm()).collect();
+                let points: Vec<Vector3<f64>> = rows.iter().map(|r| r.0).collect();
+                let (centre, rms_mm, max_mm) = spread(&points);
                 out.seats.push(SeatSpread {
                     seat: id,
                     rows: rows.len(),
                     centre: [centre.x, centre.y, centre.z],
-                    rms_mm: (d.iter().map(|x| x * x).sum::<f64>() / d.len() as f64).sqrt(),
-                    max_mm: d.iter().copied().fold(0.0, f64::max),
+                    rms_mm,
+                    max_mm,
                 });
             }
             PointKind::Pivot => {

@@ -30,6 +30,10 @@ mod commanded;
 /// Number of frame parameters [`Framed`] adds in front of the mechanism's own.
 pub const FRAME_PARAMS: usize = 12;
 
+/// The tool frame's translation among the frame parameters (`tx ty tz`): all a point-measuring
+/// instrument sees of the tool frame.
+pub const TOOL_TRANSLATION: std::ops::Range<usize> = 6..9;
+
 /// Names of the 12 frame parameters, in order.
 pub const FRAME_PARAM_NAMES: [&str; FRAME_PARAMS] = ["mx", "my", "mz", "mrx", "mry", "mrz", "tx", "ty", "tz", "trx", "try", "trz"];
 
@@ -194,14 +198,7 @@ mod tests {
         let (t, jac) = m.forward_with_jacobian(&q).unwrap();
         let h = 1e-6;
         for c in 0..m.n_params() {
-            let mut d = DVector::zeros(m.n_params());
-            d[c] = h;
-            let mut plus = m.clone();
-            plus.retract(&d);
-            d[c] = -h;
-            let mut minus = m.clone();
-            minus.retract(&d);
-            let (tp, tm) = (plus.forward(&q).unwrap(), minus.forward(&q).unwrap());
+            let (tp, tm) = crate::model::retracted_poses(&m, &q, c, h);
             let fd = (se3::log(&(tp * t.inverse())) - se3::log(&(tm * t.inverse()))) / (2.0 * h);
             let err = (fd - jac.column(c)).norm();
             assert!(err < 1e-5 * (1.0 + jac.column(c).norm()), "column {c}: {err:e}");

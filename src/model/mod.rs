@@ -28,6 +28,20 @@ pub mod kind;
 pub mod limbs;
 pub mod presets;
 
+/// The tool poses at `q` of `m` with parameter `c` retracted by `+h` and by `−h`: the two sides
+/// of a central difference, for the unit tests that check identification Jacobians.
+#[cfg(test)]
+pub(crate) fn retracted_poses<M: Mechanism + Clone>(m: &M, q: &[f64], c: usize, h: f64) -> (Pose, Pose) {
+    let side = |s: f64| {
+        let mut d = DVector::zeros(m.n_params());
+        d[c] = s * h;
+        let mut moved = m.clone();
+        moved.retract(&d);
+        moved.forward(q).expect("forward kinematics at the test configuration")
+    };
+    (side(1.0), side(-1.0))
+}
+
 /// The tool pose, the spatial identification Jacobian (6 × p), the observed joints' values and
 /// their parameter Jacobian (observed × p), from one evaluation
 /// ([`Mechanism::forward_with_jacobian_and_observed`]).

@@ -42,6 +42,17 @@ struct Outcome {
     status: String,
 }
 
+impl Outcome {
+    /// Print what `what` reached and require the held-out points at round-off.
+    fn exact(&self, what: &str) {
+        eprintln!(
+            "{what}, noise-free: σ̂₀ {:.2e}, held-out max {:.2e} mm after a rigid motion, {}",
+            self.sigma0, self.held_out_max_mm, self.status
+        );
+        assert!(self.held_out_max_mm < 1e-9, "{what}: held-out {:e} mm", self.held_out_max_mm);
+    }
+}
+
 /// A virtual prototype of the built-in `name` (errors ±0.5 mm / ±0.1° on its free parameters,
 /// the ball of [`ball`] on its tool), measured by `measure`, calibrated from the model file
 /// with default options but the stated noise; held-out tool points compared with the truth's
@@ -128,11 +139,7 @@ fn seats_and_one_known_distance_recover_a_serial_arm() {
         let seats = irb120_points(truth, &[[0.0, 0.0, 0.0], [0.5, 0.1, -0.1], [-0.5, -0.1, 0.2], [0.2, 0.3, 0.3]]);
         (seat_rows(truth, &seats, how).unwrap(), MeasurementFormat::Seat)
     });
-    eprintln!(
-        "irb120, 4 seats × 15 and the distance of two, noise-free: σ̂₀ {:.2e}, held-out max {:.2e} mm after a rigid motion, {}",
-        o.sigma0, o.held_out_max_mm, o.status
-    );
-    assert!(o.held_out_max_mm < 1e-9, "held-out {:e} mm", o.held_out_max_mm);
+    o.exact("irb120, 4 seats × 15 and the distance of two");
 }
 
 #[test]
@@ -143,11 +150,7 @@ fn a_ballbar_recovers_a_serial_arm_up_to_a_rigid_motion() {
         let pivots: Vec<Vector3<f64>> = centres.iter().map(|c| c - Vector3::new(0.0, 0.0, 100.0)).collect();
         (distance_rows(truth, &pivots, 100.0, how).unwrap(), MeasurementFormat::Distance)
     });
-    eprintln!(
-        "irb120, 3 pivots × 40, 100 mm ballbar, noise-free: σ̂₀ {:.2e}, held-out max {:.2e} mm after a rigid motion, {}",
-        o.sigma0, o.held_out_max_mm, o.status
-    );
-    assert!(o.held_out_max_mm < 1e-9, "held-out {:e} mm", o.held_out_max_mm);
+    o.exact("irb120, 3 pivots × 40, 100 mm ballbar");
 }
 
 /// A limbs machine (the 6-RUS hexapod, written as limbs): six seats where the platform's tool
@@ -170,11 +173,7 @@ fn seats_and_one_known_distance_recover_a_parallel_machine() {
             .collect();
         (seat_rows(truth, &seats, &how).unwrap(), MeasurementFormat::Seat)
     });
-    eprintln!(
-        "hexapod-6rus, 6 seats × 20 and the distance of two, noise-free: σ̂₀ {:.2e}, held-out max {:.2e} mm after a rigid motion, {}",
-        o.sigma0, o.held_out_max_mm, o.status
-    );
-    assert!(o.held_out_max_mm < 1e-9, "held-out {:e} mm", o.held_out_max_mm);
+    o.exact("hexapod-6rus, 6 seats × 20 and the distance of two");
 }
 
 /// Real seat data (tests/data/mukca-panda: a Franka Panda, a printed tool with two sockets 50 mm
