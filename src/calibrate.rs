@@ -166,7 +166,9 @@ pub struct StartOutcome {
     /// Whether that identification converged.
     pub converged: bool,
     /// Largest distance (mm) between this start's predicted tool positions and the kept
-    /// solution's, over the identification poses.
+    /// solution's, over the identification poses; NaN for a start that could not be evaluated
+    /// (the perturbed machine did not assemble at some pose), which neither agrees nor
+    /// disagrees.
     pub max_difference_mm: f64,
 }
 
@@ -473,6 +475,14 @@ fn judge<M: Mechanism + Clone>(
     report.serial_chain = matches!(model.mechanism, MechanismSpec::Serial(_));
     report.assess(&opts.noise, &model.tolerances);
     let spread = j.outcomes.iter().map(|s| s.max_difference_mm).fold(0.0, f64::max);
+    let unevaluated = j.outcomes.iter().filter(|s| s.max_difference_mm.is_nan()).count();
+    if unevaluated > 0 {
+        report.warn(format!(
+            "{unevaluated} of the {} starts could not be evaluated (the perturbed machine does not assemble at every pose): agreement was checked with {} of them",
+            j.outcomes.len(),
+            j.outcomes.len() - unevaluated
+        ));
+    }
     if spread > j.start_tolerance_mm {
         let sigmas: Vec<String> = j.outcomes.iter().map(|s| format!("{:.3}", s.sigma0)).collect();
         report.fail(format!(

@@ -236,23 +236,51 @@ pub fn start_points<M: Mechanism + Clone + 'static>(
                 _ => None,
             })
             .collect();
-        for &k in &pivots {
-            let sphere: Vec<(Vector3<f64>, f64)> = rows
-                .iter()
-                .filter(|(j, ..)| *j == k)
-                .map(|(_, pose, l)| (pose.translation.vector + pose.rotation * t, *l))
-                .collect();
-            points[k].centre = sphere_centre(&sphere).ok_or_else(|| {
-                CalibError::InvalidOption(format!(
-                    "pivot {}: its rows do not place it (the tool points lie in a plane or on a line); measure from more spread poses",
-                    points[k].id
-                ))
-            })?;
-        }
-        // Without seats the tool-point offset is found with the pivots: Gauss–Newton on the
-        // lengths over the offset and every pivot's centre.
+        // Each pivot by a sphere fit of the tool points with offset `t`: `None` names a pivot
+        // whose rows do not place it.
+        let place = |t: Vector3<f64>, points: &mut [ArtifactPoint]| -> Result<(), usize> {
+            for &k in &pivots {
+                let sphere: Vec<(Vector3<f64>, f64)> = rows
+                    .iter()
+                    .filter(|(j, ..)| *j == k)
+                    .map(|(_, pose, l)| (pose.translation.vector + pose.rotation * t, *l))
+                    .collect();
+                points[k].centre = sphere_centre(&sphere).ok_or(k)?;
+            }
+            Ok(())
+        };
+        place(t, &mut points).map_err(|k| {
+            CalibError::InvalidOption(format!(
+                "pivot {}: its rows do not place it (the tool points lie in a plane or on a line); measure from more spread poses",
+                points[k].id
+            ))
+        })?;
+        // Without seats the tool-point offset is found with the pivots: Levenberg–Marquardt on
+        // the lengths over the offset and every pivot's centre. A machine that turns its tool
+        // little has a mirrored minimum (the ball as far below the centre of turning as it is
+        // above), so the offset starts from zero and from a bar's length along each tool axis
+        // either way (the pivots placed anew for each), and a clearly lower cost is kept.
         if seats.is_empty() {
-            t = fit_offset_and_pivots(&rows, t, &mut points);
+            let reach = rows.iter().map(|(.., l)| l.abs()).sum::<f64>() / rows.len().max(1) as f64;
+            let mut best: Option<(f64, Vector3<f64>, Vec<ArtifactPoint>)> = None;
+            for t0 in std::iter::once(Vector3::zeros()).chain((0..6).map(|k| {
+                let sign = if k % 2 == 0 { 1.0 } else { -1.0 };
+                Vector3::ith(k / 2, sign * reach)
+            })) {
+                let mut tried = points.clone();
+                if place(t0, &mut tried).is_err() {
+                    continue;
+                }
+                let (offset, cost) = fit_offset_and_pivots(&rows, t0, &mut tried);
+                // Another start replaces the zero offset only at a clearly lower cost: a
+                // machine that never turns its tool (a delta) cannot tell the offset from
+                // the pivots, and keeps zero.
+                if best.as_ref().is_none_or(|(c, ..)| cost < 0.5 * *c) {
+                    best = Some((cost, offset, tried));
+                }
+            }
+            let (_, offset, placed) = best.expect("the zero offset places every pivot");
+            (t, points) = (offset, placed);
             framed.tool *= Translation3::from(t);
         }
     }
@@ -308,9 +336,9 @@ pub fn spread(points: &[Vector3<f64>]) -> (Vector3<f64>, f64, f64) {
 }
 
 /// Levenberg–Marquardt on `L_i − |p_i + R_i·t − c_k|` over the tool-point offset `t` and the
-/// pivots' centres (rows: pivot index, flange pose, length); returns the offset, moves the
-/// centres. Stops where the cost no longer falls.
-fn fit_offset_and_pivots(rows: &[(usize, Pose, f64)], t0: Vector3<f64>, points: &mut [ArtifactPoint]) -> Vector3<f64> {
+/// pivots' centres (rows: pivot index, flange pose, length); returns the offset and the cost
+/// (sum of squared residuals, mm²), moves the centres. Stops where the cost no longer falls.
+fn fit_offset_and_pivots(rows: &[(usize, Pose, f64)], t0: Vector3<f64>, points: &mut [ArtifactPoint]) -> (Vector3<f64>, f64) {
     let n = 3 + 3 * points.len();
     let residual = |x: &DVector<f64>| -> DVector<f64> {
         let t = Vector3::new(x[0], x[1], x[2]);
@@ -351,7 +379,12 @@ fn fit_offset_and_pivots(rows: &[(usize, Pose, f64)], t0: Vector3<f64>, points: 
             for d in 0..n {
                 m[(d, d)] += lambda * jtj[(d, d)].max(1e-12);
             }
-            let Some(step) = m.cholesky().map(|c| c.solve(&(-&g))) else {
+            // Minimum-norm steps: a direction the lengths do not see (the offset and every
+            // pivot moved alike, on a machine that never turns its tool) stays where it is
+            // instead of drifting with round-off.
+            let svd = m.svd(true, true);
+            let floor = 1e-10 * svd.singular_values.max();
+            let Ok(step) = svd.solve(&(-&g), floor) else {
                 lambda *= 10.0;
                 continue;
             };
@@ -375,7 +408,7 @@ fn fit_offset_and_pivots(rows: &[(usize, Pose, f64)], t0: Vector3<f64>, points: 
             p.centre = x.fixed_rows::<3>(3 + 3 * k).into_owned();
         }
     }
-    Vector3::new(x[0], x[1], x[2])
+    (Vector3::new(x[0], x[1], x[2]), r.norm_squared())
 }
 
 /// The centre `c` of the sphere on which points `p_i` lie at distances `L_i` (least squares:
@@ -405,12 +438,13 @@ pub fn sphere_centre(rows: &[(Vector3<f64>, f64)]) -> Option<Vector3<f64>> {
             let d = p - c;
             let u = d.try_normalize(1e-12)?;
             r[k] = l - d.norm();
+            // ∂r/∂c = +u: the residual grows as the centre moves toward the point.
             for i in 0..3 {
-                j[(k, i)] = -u[i];
+                j[(k, i)] = u[i];
             }
         }
-        let step = j.svd(true, true).solve(&r, 1e-12).ok()?;
-        c -= Vector3::new(step[0], step[1], step[2]);
+        let step = j.svd(true, true).solve(&(-r), 1e-12).ok()?;
+        c += Vector3::new(step[0], step[1], step[2]);
         if step.norm() < 1e-13 * (1.0 + c.norm()) {
             break;
         }

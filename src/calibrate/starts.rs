@@ -97,7 +97,8 @@ pub fn other_starts(
         let pert = perturbation(setup.start, setup.free, setup.tolerances, setup.seed.wrapping_add(k as u64));
         let mut perturbed = setup.start.box_clone();
         perturbed.retract(&pert);
-        // A start that fails outright (a pose out of reach) is a start that did not agree.
+        // A start that fails outright (the perturbed machine does not assemble at some pose)
+        // is not evaluated: it says nothing about the kept solution ([`StartOutcome`]).
         let outcome = identify(&perturbed, &subset, &agree_opts).ok().map(|r| {
             let delta = pert + &r.delta;
             Identification { delta, ..r }
@@ -152,7 +153,7 @@ pub fn other_starts(
             (None, _) => StartOutcome {
                 sigma0: f64::NAN,
                 converged: false,
-                max_difference_mm: if k == best { 0.0 } else { f64::INFINITY },
+                max_difference_mm: if k == best { 0.0 } else { f64::NAN },
             },
         })
         .collect();

@@ -294,13 +294,17 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         let spread = cal.starts.iter().map(|s| s.max_difference_mm).fold(0.0, f64::max);
         let agree = if spread <= cal.start_tolerance_mm { "agree" } else { "DISAGREE" };
         println!(
-            "{} starts {agree}: predictions within {spread:.2e} mm of the kept solution (σ̂₀ {})",
+            "{} starts {agree}: predictions within {spread:.2e} mm of the kept solution (σ̂₀ {}){}",
             cal.starts.len(),
             cal.starts
                 .iter()
                 .map(|s| format!("{:.4}", s.sigma0))
                 .collect::<Vec<_>>()
-                .join(" / ")
+                .join(" / "),
+            match cal.starts.iter().filter(|s| s.max_difference_mm.is_nan()).count() {
+                0 => String::new(),
+                n => format!("; {n} not evaluated: the perturbed machine does not assemble at every pose"),
+            }
         );
     }
     if !cal.blunders.is_empty() {

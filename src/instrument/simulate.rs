@@ -111,6 +111,7 @@ fn draw_rows(
                 .inverse(&goal, Some(&how.reference))
                 .ok()
                 .and_then(|q| within_limits(q, &how.inputs))
+                .and_then(|q| approached(truth, &goal, q, out.last().map(|m: &Measurement| m.q.as_slice()), &how.inputs))
             else {
                 continue;
             };
@@ -143,6 +144,33 @@ fn draw_rows(
         }
     }
     Ok(out)
+}
+
+/// `q` with its approach-direction inputs ([`InputSpec::approach_of`]) set as the machine
+/// arrives from `previous` (the row measured before; none: from below), solved again with those
+/// directions (lost motion moves the tool a little), or `None` when the directions the new
+/// solution implies differ from those it was solved with. Without such inputs, `q` itself.
+fn approached(truth: &dyn Mechanism, goal: &Pose, mut q: Vec<f64>, previous: Option<&[f64]>, inputs: &[InputSpec]) -> Option<Vec<f64>> {
+    let directions = |q: &[f64]| -> Vec<(usize, f64)> {
+        inputs
+            .iter()
+            .enumerate()
+            .filter_map(|(k, i)| {
+                let j = i.approach_of?;
+                let from = previous.and_then(|p| p.get(j).copied()).unwrap_or(f64::NEG_INFINITY);
+                Some((k, if q[j] >= from { 1.0 } else { -1.0 }))
+            })
+            .collect()
+    };
+    let wanted = directions(&q);
+    if wanted.is_empty() {
+        return Some(q);
+    }
+    for &(k, d) in &wanted {
+        q[k] = d;
+    }
+    let q = within_limits(truth.inverse(goal, Some(&q)).ok()?, inputs)?;
+    (directions(&q) == wanted && wanted.iter().all(|&(k, d)| q[k] == d)).then_some(q)
 }
 
 /// Points (mm) from text `X,Y,Z;X,Y,Z;…` (e.g. `400,0,300;400,100,300`), for a command line.

@@ -132,7 +132,37 @@ fn pivots_and_the_tool_offset_start_from_the_lengths() {
     assert!((sphere_centre(&sphere).unwrap() - c).norm() < 1e-8);
     let mut points = truth.points.clone();
     points[1].centre += Vector3::new(30.0, -20.0, 10.0);
-    let t = fit_offset_and_pivots(&rows, Vector3::zeros(), &mut points);
+    let (t, cost) = fit_offset_and_pivots(&rows, Vector3::zeros(), &mut points);
     assert!((t - truth.inner.tool.translation.vector).norm() < 1e-6, "{t:?}");
     assert!((points[1].centre - c).norm() < 1e-6);
+    assert!(cost < 1e-12, "{cost:e}");
+}
+
+/// With lengths that no sphere fits exactly (noise), the centre is the least-squares one: every
+/// small move of it raises the sum of squared length residuals (a Gauss–Newton step of the wrong
+/// sign walked away from it, and placed a pivot kilometres off on a machine that never turns).
+#[test]
+fn a_sphere_centre_is_the_least_squares_one_when_lengths_disagree() {
+    let c = Vector3::new(80.0, 2.0, 20.0);
+    let rows: Vec<(Vector3<f64>, f64)> = (0..40)
+        .map(|i| {
+            let f = i as f64;
+            let p = Vector3::new(30.0 * (0.7 * f).sin(), 25.0 * (1.3 * f).cos(), 90.0 + 20.0 * (0.4 * f).sin());
+            // Errors of ±0.5 mm, far above round-off.
+            (p, (p - c).norm() + 0.5 * (2.1 * f).sin())
+        })
+        .collect();
+    let cost = |x: &Vector3<f64>| rows.iter().map(|(p, l)| (l - (p - x).norm()).powi(2)).sum::<f64>();
+    let found = sphere_centre(&rows).unwrap();
+    assert!((found - c).norm() < 5.0, "{found:?}");
+    for d in [
+        Vector3::x(),
+        Vector3::y(),
+        Vector3::z(),
+        -Vector3::x(),
+        -Vector3::y(),
+        -Vector3::z(),
+    ] {
+        assert!(cost(&found) < cost(&(found + 1e-3 * d)), "{d:?}");
+    }
 }

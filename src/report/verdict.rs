@@ -325,4 +325,13 @@ impl CalibrationReport {
         self.verdict.status = Status::Failed;
         self.verdict.reasons.insert(0, reason);
     }
+
+    /// Add a warning to the verdict: a calibrated result becomes usable with warnings; a failed
+    /// one stays failed, the warning after its reasons.
+    pub fn warn(&mut self, reason: String) {
+        if self.verdict.status == Status::Calibrated {
+            self.verdict.status = Status::UsableWithWarnings;
+        }
+        self.verdict.reasons.push(reason);
+    }
 }
