@@ -5,6 +5,7 @@ use kinecal::io::data_file::{data_text, join_files, read_data, DataSet, InputCol
 use kinecal::io::exports::{join_exports, ExportFiles, JoinedExports};
 use kinecal::io::model_file::{AngleUnit, LengthUnit, ModelFile};
 use kinecal::io::output::Outputs;
+use kinecal::io::seat_exports::join_seat_exports;
 use kinecal::io::split::{split, SplitRule};
 use std::path::PathBuf;
 
@@ -60,16 +61,23 @@ enum DataCommand {
     ///   [--reference B1 …] --angles deg|rad --units mm|m --out F`: a controller log (idx or id,
     ///   then one column per input in the model's order) and one tracker export per reflector
     ///   (idx or id, x, y, z), matched by id; lost beams (empty or 0,0,0) and unmatched ids are
-    ///   dropped and listed; fixed reference reflectors report how steady the tracker stood.
+    ///   dropped and listed; fixed reference reflectors report how steady the tracker stood;
+    /// * `data join MODEL --seat S0 --seat S1 … --angles deg|rad --out F`: one file per seat,
+    ///   each the joint configurations (one column per joint, header optional) at which the tool
+    ///   ball sat in that seat; seat k is the k-th file (docs/instruments.md).
     Join {
         /// Model file or built-in name (decides the input columns).
         model: String,
         /// Inputs file (CSV), first form.
-        #[arg(required_unless_present = "joints", conflicts_with = "joints")]
+        #[arg(required_unless_present_any = ["joints", "seat"], conflicts_with_all = ["joints", "seat"])]
         inputs: Option<PathBuf>,
         /// Measurement file (CSV), first form.
-        #[arg(required_unless_present = "joints", conflicts_with = "joints")]
+        #[arg(required_unless_present_any = ["joints", "seat"], conflicts_with_all = ["joints", "seat"])]
         measurements: Option<PathBuf>,
+        /// A seat's export (third form): the joint configurations at which the ball sat in it;
+        /// once per seat, seat numbers 0, 1, … in the order given.
+        #[arg(long, action = clap::ArgAction::Append, conflicts_with = "joints")]
+        seat: Vec<PathBuf>,
         /// Controller log of the joint values (second form).
         #[arg(long, requires = "reflector")]
         joints: Option<PathBuf>,
@@ -193,6 +201,7 @@ pub fn run(args: DataArgs) -> anyhow::Result<()> {
             inputs,
             measurements,
             joints,
+            seat,
             reflector,
             reference,
             angles,
@@ -209,27 +218,31 @@ pub fn run(args: DataArgs) -> anyhow::Result<()> {
                 .chain(&joints)
                 .chain(&reflector)
                 .chain(&reference)
+                .chain(&seat)
             {
                 outputs.input(p);
             }
             outputs.output(&out)?;
             let file = ModelFile::load_or_builtin(&model)?;
+            let angle_unit = AngleUnit::parse(&angles).unwrap_or(AngleUnit::Deg);
+            let length_unit = LengthUnit::parse(&units).unwrap_or(LengthUnit::Mm);
             let (d, reflectors) = match (inputs, measurements, joints) {
+                _ if !seat.is_empty() => (join_seat_exports(&seat, angle_unit, length_unit, &file.data_columns())?, None),
                 (Some(i), Some(m), None) => (join_files(&i, &m, &file.data_columns())?, None),
                 (None, None, Some(joints)) => {
                     let files = ExportFiles {
                         joints,
-                        angles: AngleUnit::parse(&angles).unwrap_or(AngleUnit::Deg),
+                        angles: angle_unit,
                         reflectors: reflector,
                         references: reference,
-                        lengths: LengthUnit::parse(&units).unwrap_or(LengthUnit::Mm),
+                        lengths: length_unit,
                     };
                     let j = join_exports(&files, &file.data_columns(), &out)?;
                     print_join(&j, json);
                     let r = (!j.data.reflectors.is_empty()).then(|| j.data.reflectors.clone());
                     (j.data, r)
                 }
-                _ => anyhow::bail!("data join: give either INPUTS and MEASUREMENTS, or --joints with --reflector"),
+                _ => anyhow::bail!("data join: give either INPUTS and MEASUREMENTS, --joints with --reflector, or --seat files"),
             };
             outputs.stage(
                 &out,

@@ -5,6 +5,7 @@ pub mod data_file;
 pub mod exports;
 pub mod model_file;
 pub mod output;
+pub mod seat_exports;
 pub mod split;
 pub mod table;
 pub mod test_poses;

@@ -207,3 +207,88 @@ fn starts_that_reach_other_minima_fail() {
     assert!(stderr.contains("starts disagree"), "{stderr}");
     assert!(!d.join("c.toml").exists());
 }
+
+/// The third form of `data join`: one raw export per seat (the Panda's sockets as its controller
+/// logged them, joints in rad, no header): one data file with a `seat` column, seat k the k-th
+/// file, every row kept; a row with a missing joint and a seat with one row are one line each.
+#[test]
+fn seat_exports_join_into_one_seat_file() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mukca-panda");
+    let urdf = data.join("panda.urdf");
+    ok(
+        d,
+        &["model", "import", urdf.to_str().unwrap(), "--tip", "ball_link", "-o", "panda.toml"],
+    );
+    let sockets: Vec<String> = ["back_left", "high"]
+        .iter()
+        .flat_map(|p| [0, 1].map(|s| data.join(p).join(format!("socket_{s}.csv")).display().to_string()))
+        .collect();
+    let mut args = vec!["data", "join", "panda.toml", "--angles", "rad", "--out", "seats.csv"];
+    for s in &sockets {
+        args.extend(["--seat", s.as_str()]);
+    }
+    ok(d, &args);
+    let text = fs::read_to_string(d.join("seats.csv")).unwrap();
+    let header = text.lines().next().unwrap();
+    assert!(header.starts_with("id,panda_joint1_deg") && header.ends_with(",seat"), "{header}");
+    // Every configuration of every file, in order, with its seat number; angles now in degrees.
+    let rows: Vec<Vec<f64>> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    let mut expected = Vec::new();
+    for (k, s) in sockets.iter().enumerate() {
+        for line in fs::read_to_string(s).unwrap().lines().filter(|l| !l.trim().is_empty()) {
+            let q: Vec<f64> = line.split(',').map(|v| v.trim().parse().unwrap()).collect();
+            expected.push((q, k));
+        }
+    }
+    assert_eq!(rows.len(), expected.len());
+    for (row, (q, seat)) in rows.iter().zip(&expected) {
+        assert_eq!(row[8], *seat as f64);
+        for j in 0..7 {
+            assert!((row[1 + j] - q[j].to_degrees()).abs() < 1e-9);
+        }
+    }
+    // A mistake in a file: one line naming the file and line.
+    let first = fs::read_to_string(&sockets[0]).unwrap();
+    let mut lines: Vec<&str> = first.lines().collect();
+    let short = lines[2].rsplit_once(',').unwrap().0.to_string();
+    lines[2] = &short;
+    fs::write(d.join("bad.csv"), lines.join("\n")).unwrap();
+    let e = fails(
+        d,
+        &[
+            "data",
+            "join",
+            "panda.toml",
+            "--seat",
+            "bad.csv",
+            "--angles",
+            "rad",
+            "--out",
+            "x.csv",
+        ],
+    );
+    assert!(e.contains("bad.csv:3: 6 values, the model has 7 joint inputs"), "{e}");
+    fs::write(d.join("one.csv"), lines[0]).unwrap();
+    let e = fails(
+        d,
+        &[
+            "data",
+            "join",
+            "panda.toml",
+            "--seat",
+            "one.csv",
+            "--angles",
+            "rad",
+            "--out",
+            "x.csv",
+        ],
+    );
+    assert!(e.contains("one.csv: 1 configurations: a seat needs at least 2"), "{e}");
+    assert!(!d.join("x.csv").exists());
+}

@@ -1,0 +1,124 @@
+//! Seat exports joined into one data file ([`join_seat_exports`]): one file per seat (a socket,
+//! cone or nest the tool ball was placed in), each the list of joint configurations at which the
+//! ball sat there — what a robot's controller logs while someone guides the ball into each seat.
+//!
+//! | file | rows | columns | unit |
+//! |---|---|---|---|
+//! | seat `k` (the `k`-th file, seat number `k`) | one per configuration | one per joint input, in the model's order; an optional header line; `,` or blanks between values; `#` comments | [`AngleUnit`] for revolute inputs, [`LengthUnit`] for prismatic ones |
+//!
+//! Ids are the rows' order over all files (1, 2, …); approach directions, where the model has
+//! them, follow from that order ([`crate::model::kind::approach_from_order`]).
+use super::data_file::DataSet;
+use super::model_file::{AngleUnit, InputSpec, LengthUnit};
+use super::IoError;
+use crate::measure::{Measurement, Observation};
+use crate::params::Unit;
+use std::path::PathBuf;
+
+/// Join the seat exports `seats` (seat `k` is `seats[k]`) for a model whose data columns are
+/// `columns` ([`crate::io::model_file::ModelFile::data_columns`]): a data set of
+/// [`Observation::Seat`] rows, inputs in rad and mm.
+pub fn join_seat_exports(seats: &[PathBuf], angles: AngleUnit, lengths: LengthUnit, columns: &[InputSpec]) -> Result<DataSet, IoError> {
+    // The columns a controller logs: the joint inputs (not approach directions, not observed joints).
+    let joints: Vec<(usize, &InputSpec)> = columns
+        .iter()
+        .enumerate()
+        .filter(|(_, i)| i.approach_of.is_none() && !i.observed)
+        .collect();
+    let n_inputs = columns.iter().filter(|i| !i.observed).count();
+    let mut measurements = Vec::new();
+    let mut lines = Vec::new();
+    for (seat, path) in seats.iter().enumerate() {
+        let text = std::fs::read_to_string(path).map_err(|source| IoError::Read {
+            path: path.clone(),
+            source,
+        })?;
+        let before = measurements.len();
+        for (n, raw) in text.lines().enumerate() {
+            let line = raw.split('#').next().unwrap_or("").trim();
+            if line.is_empty() {
+                continue;
+            }
+            let fields: Vec<&str> = line
+                .split(|c: char| c == ',' || c.is_whitespace())
+                .filter(|f| !f.is_empty())
+                .collect();
+            let values: Result<Vec<f64>, _> = fields.iter().map(|f| f.parse::<f64>()).collect();
+            let Ok(values) = values else {
+                // A header before the first row.
+                if measurements.len() == before
+                    && fields
+                        .iter()
+                        .any(|f| f.parse::<f64>().is_err() && f.chars().any(char::is_alphabetic))
+                {
+                    continue;
+                }
+                let (column, value) = fields
+                    .iter()
+                    .enumerate()
+                    .find(|(_, f)| f.parse::<f64>().is_err())
+                    .map(|(k, f)| (joints.get(k).map_or(format!("{}", k + 1), |(_, i)| i.name.clone()), f.to_string()))
+                    .unwrap_or_default();
+                return Err(IoError::NotANumber {
+                    path: path.clone(),
+                    line: n + 1,
+                    column,
+                    value,
+                });
+            };
+            if values.len() != joints.len() {
+                return Err(IoError::AtLine {
+                    path: path.clone(),
+                    line: n + 1,
+                    message: format!(
+                        "{} values, the model has {} joint inputs ({}): one column per joint, in the model's order",
+                        values.len(),
+                        joints.len(),
+                        joints.iter().map(|(_, i)| i.name.as_str()).collect::<Vec<_>>().join(", ")
+                    ),
+                });
+            }
+            let mut q = vec![0.0; n_inputs];
+            for ((k, input), v) in joints.iter().zip(&values) {
+                if !v.is_finite() {
+                    return Err(IoError::NonFinite {
+                        path: path.clone(),
+                        line: n + 1,
+                        column: input.name.clone(),
+                        value: v.to_string(),
+                    });
+                }
+                q[*k] = match input.unit {
+                    Unit::Angle => v * angles.to_rad(),
+                    Unit::Length => v * lengths.to_mm(),
+                    Unit::Dimensionless => *v,
+                };
+            }
+            measurements.push(Measurement {
+                q,
+                joints: Vec::new(),
+                obs: Observation::Seat(seat),
+            });
+            lines.push(n + 1);
+        }
+        if measurements.len() - before < crate::instrument::MIN_SEAT_ROWS {
+            return Err(IoError::Invalid {
+                path: path.clone(),
+                message: format!(
+                    "{} configurations: a seat needs at least {} (the ball placed in it from several orientations)",
+                    measurements.len() - before,
+                    crate::instrument::MIN_SEAT_ROWS
+                ),
+            });
+        }
+    }
+    let mut qs: Vec<Vec<f64>> = measurements.iter().map(|m| m.q.clone()).collect();
+    crate::model::kind::approach_from_order(&columns[..n_inputs], &vec![false; n_inputs], &mut qs);
+    for (m, q) in measurements.iter_mut().zip(qs) {
+        m.q = q;
+    }
+    let mut set = DataSet::from_measurements(&seats.first().map_or("seats".into(), |p| p.display().to_string()), measurements);
+    set.ids = (1..=set.measurements.len() as i64).collect();
+    set.lines = lines;
+    Ok(set)
+}
