@@ -334,6 +334,13 @@ pub fn plan_instrument(file: &ModelFile, layout: &InstrumentLayout, opts: &Instr
             layout.kind().name()
         )));
     }
+    if opts.draw.per_point < min {
+        return Err(CalibError::InvalidOption(format!(
+            "{} candidates per {} cannot give each its {min} rows (draw at least {min})",
+            opts.draw.per_point,
+            layout.kind().name()
+        )));
+    }
     let candidates = instrument_candidates(file, layout, &opts.draw)?;
     if candidates.len() < n {
         return Err(CalibError::InvalidOption(format!(

@@ -138,6 +138,10 @@ fn a_ballbar_plan_gives_each_pivot_its_minimum_and_a_bad_layout_is_refused() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("cannot give each of the 3 pivots its 4 rows"), "{e}");
+    let e = plan_instrument(&file, &layout, &options(&file, 18, 3, 0, Criterion::O2))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("3 candidates per pivot cannot give each its 4 rows"), "{e}");
     let bad = InstrumentLayout {
         bar_length: Some(-100.0),
         ..layout
