@@ -30,8 +30,10 @@ use nalgebra::{DMatrix, DVector, Matrix6xX, Translation3, Vector3};
 use std::collections::BTreeMap;
 
 mod held_out;
+mod planned;
 pub mod simulate;
 pub use held_out::{held_out, HeldOut, PivotFit, SeatSpread};
+pub use planned::measure_planned;
 
 pub use crate::measure::PointKind;
 pub use crate::params::ARTIFACT_GROUP;

@@ -71,6 +71,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Compensate(a) => cli::compensate::run(a),
         Command::Assess(a) => cli::assess::run(a),
         Command::Plan(a) if a.iso.iso9283 => cli::plan::model(&a).and_then(|(f, _)| cli::iso_plan::run(&a, f)),
+        Command::Plan(a) if a.instrument.active() => cli::plan::model(&a).and_then(|(f, _)| cli::instrument_plan::run(&a, f)),
         Command::Plan(a) => cli::plan::run(*a),
     }
 }

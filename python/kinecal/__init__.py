@@ -40,6 +40,7 @@ __all__ = [
     "simulate",
     "plan",
     "plan_sampled",
+    "plan_instrument",
     "SampledPlan",
     "__version__",
 ]
@@ -327,3 +328,19 @@ def plan_sampled(model: Model, n: int = 30, **options: Any) -> SampledPlan:
     ``"paper"``), ``candidates``, ``seed``, ``max_condition``, ``criterion``, ``method``,
     ``observe``, ``noise_mm``, ``noise_deg``, ``pool``, ``shortlist``."""
     return SampledPlan(*_kinecal.plan_sampled(model, n, **options))
+
+
+def plan_instrument(
+    model: Model,
+    points: Sequence[Tuple[float, float, float]],
+    n: int = 40,
+    **options: Any,
+) -> Tuple[np.ndarray, List[int], Dict[str, Any]]:
+    """Plan an instrument's rows on ``model``'s nominal geometry (``kinecal plan --seats`` /
+    ``--pivots``, the same library call): ``points`` are the seats' centres (mm, base frame), or
+    the pivots' with ``ballbar_mm``. Options: ``ballbar_mm``, ``tool_mm`` (the ball on the flange),
+    ``candidates_per_point``, ``tilt_deg``, ``reference`` (rad / mm), ``min_per_point``,
+    ``criterion``, ``method``, ``noise_mm``, ``seed``. Returns (the chosen configurations
+    (n, inputs) in rad / mm, each row's point, summary dict)."""
+    q, point_of, summary = _kinecal.plan_instrument(model, [list(p) for p in points], n, **options)
+    return q, list(point_of), json.loads(summary)

@@ -111,6 +111,22 @@ def plan(
     noise_mm: float = 0.02,
     noise_deg: float = 0.02,
 ) -> Tuple[List[int], str]: ...
+def plan_instrument(
+    model: Model,
+    points: List[List[float]],
+    n: int = 40,
+    *,
+    ballbar_mm: Optional[float] = None,
+    tool_mm: List[float] = ...,
+    candidates_per_point: int = 100,
+    tilt_deg: float = 30.0,
+    reference: Optional[List[float]] = None,
+    min_per_point: int = 0,
+    criterion: str = "d",
+    method: str = "sffs",
+    noise_mm: float = 0.01,
+    seed: int = 1,
+) -> Tuple[np.ndarray, List[int], str]: ...
 def plan_sampled(
     model: Model,
     n: int = 30,

@@ -848,6 +848,78 @@ fn plan_sampled(
     ))
 }
 
+/// Plan an instrument's rows on `model`'s nominal geometry (`kinecal plan --seats` / `--pivots`,
+/// the same library call `design::plan_instrument`): `points` are the seats' (or, with
+/// `ballbar_mm`, the pivots') centres (mm, base frame), `tool_mm` the ball on the flange,
+/// `reference` the configuration orientations are drawn about (rad / mm; default the middle of
+/// the limits). Returns (the chosen configurations (n, inputs) in rad / mm, each row's point,
+/// summary JSON: rows per point, indices, identifiable columns, repair moves).
+#[pyfunction]
+#[pyo3(signature = (model, points, n = 40, *, ballbar_mm = None, tool_mm = [0.0, 0.0, 0.0], candidates_per_point = 100, tilt_deg = 30.0, reference = None, min_per_point = 0, criterion = "d", method = "sffs", noise_mm = 0.01, seed = 1))]
+#[allow(clippy::too_many_arguments)]
+fn plan_instrument<'py>(
+    py: Python<'py>,
+    model: &Model,
+    points: Vec<[f64; 3]>,
+    n: usize,
+    ballbar_mm: Option<f64>,
+    tool_mm: [f64; 3],
+    candidates_per_point: usize,
+    tilt_deg: f64,
+    reference: Option<Vec<f64>>,
+    min_per_point: usize,
+    criterion: &str,
+    method: &str,
+    noise_mm: f64,
+    seed: u64,
+) -> PyResult<(Bound<'py, PyArray2<f64>>, Vec<usize>, String)> {
+    use kinecal::design::{InstrumentLayout, InstrumentPlanOptions, SelectOptions};
+    let inputs = model.file.inputs();
+    let reference = reference.unwrap_or_else(|| kinecal::instrument::simulate::middle_of_limits(&inputs));
+    if reference.len() != inputs.len() {
+        return Err(err(format!(
+            "reference: {} values, the model has {} inputs",
+            reference.len(),
+            inputs.len()
+        )));
+    }
+    if !(tilt_deg.is_finite() && (0.0..=90.0).contains(&tilt_deg)) {
+        return Err(err(format!("tilt_deg: must be between 0 and 90, got {tilt_deg}")));
+    }
+    let layout = InstrumentLayout {
+        points: points.iter().map(|&p| p.into()).collect(),
+        bar_length: ballbar_mm,
+        ball: tool_mm.into(),
+    };
+    let opts = InstrumentPlanOptions {
+        draw: kinecal::instrument::simulate::Placement {
+            per_point: candidates_per_point,
+            reference,
+            max_tilt: tilt_deg.to_radians(),
+            noise_mm,
+            seed,
+            inputs: inputs.clone(),
+        },
+        min_per_point,
+        method: method.parse().map_err(err)?,
+        select: SelectOptions {
+            n,
+            criterion: criterion.parse().map_err(err)?,
+            ..Default::default()
+        },
+    };
+    let plan = kinecal::design::plan_instrument(&model.file, &layout, &opts).map_err(err)?;
+    let point_of: Vec<usize> = plan.rows.iter().map(|m| m.obs.artifact_point().map_or(0, |p| p.1)).collect();
+    let per_point: Vec<usize> = (0..layout.points.len())
+        .map(|k| point_of.iter().filter(|&&p| p == k).count())
+        .collect();
+    let summary = serde_json::json!({"instrument": layout.kind().name(), "rows": plan.rows.len(), "rows_per_point": per_point,
+        "candidates": plan.candidates.len(), "repairs": plan.repairs, "indices": plan.selection.indices,
+        "columns": plan.column_names});
+    let q: Vec<Vec<f64>> = plan.rows.iter().map(|m| m.q.clone()).collect();
+    Ok((rows_array(py, &q, inputs.len()), point_of, summary.to_string()))
+}
+
 /// The compiled core of the `kinecal` package.
 #[pymodule]
 fn _kinecal(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -866,5 +938,6 @@ fn _kinecal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
     m.add_function(wrap_pyfunction!(plan, m)?)?;
     m.add_function(wrap_pyfunction!(plan_sampled, m)?)?;
+    m.add_function(wrap_pyfunction!(plan_instrument, m)?)?;
     Ok(())
 }

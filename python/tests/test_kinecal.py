@@ -260,3 +260,20 @@ def test_assess_circle_and_plan_iso9283(tmp_path):
     assert abs(summary["side_mm"] - 60.0) < 1e-9
     assert summary["poses"][0]["position_mm"] == [0.0, 0.0, 500.0]
     assert commands.shape[0] == 5
+
+
+def test_plan_instrument_gives_each_seat_its_rows():
+    """Seat orientations planned on the nominal (``kinecal plan --seats``): the rows asked for, each
+    seat its minimum, the same seed the same plan; a negative bar is refused."""
+    m = kinecal.Model.load("irb120")
+    seats = [(400, 0, 300), (450, 100, 250), (350, -100, 350), (420, 50, 400)]
+    opts = dict(tool_mm=[15, -10, 120], candidates_per_point=20, tilt_deg=35, min_per_point=3, seed=3,
+                reference=list(np.radians([0, 20, 11.5, 0, 57, 0])))
+    q, point_of, summary = kinecal.plan_instrument(m, seats, 24, **opts)
+    assert q.shape == (24, 6) and len(point_of) == 24 and summary["rows"] == 24
+    assert all(point_of.count(k) >= 3 for k in range(4)), point_of
+    assert summary["instrument"] == "seat" and np.isfinite(summary["indices"]["log_det"])
+    again, _, _ = kinecal.plan_instrument(m, seats, 24, **opts)
+    np.testing.assert_array_equal(q, again)
+    with pytest.raises(kinecal.KinecalError, match="must be positive"):
+        kinecal.plan_instrument(m, seats[:1], 8, ballbar_mm=-100.0)

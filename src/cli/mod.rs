@@ -4,6 +4,7 @@ pub mod compensate;
 pub mod data;
 pub mod identifiability;
 pub mod identify;
+pub mod instrument_plan;
 pub mod irb120;
 pub mod iso_plan;
 pub mod model;

@@ -2,7 +2,7 @@
 //! [`design::plan_sampled`], makes the candidates and chooses among them; this module parses the
 //! arguments (the sampling ones in [`super::sampling`]), shows progress and prints. The mechanism:
 //! `--preset NAME` (built-in), `--model NAME|FILE` (as for `identify`), or neither: a seeded random
-//! revolute serial chain (`--joints`, `--chain-seed`) sampled in joint space. `--iso9283`: [`super::iso_plan`].
+//! revolute serial chain (`--joints`, `--chain-seed`) sampled in joint space. `--iso9283`, `--seats`: other files.
 use crate::cli::{progress, sampling::SamplingArgs};
 use anyhow::Context;
 use clap::Args;
@@ -32,6 +32,9 @@ pub struct PlanArgs {
     /// The ISO 9283 test poses instead ([`super::iso_plan`]).
     #[command(flatten)]
     pub iso: super::iso_plan::IsoArgs,
+    /// An instrument's rows instead: seats or ballbar pivots ([`super::instrument_plan`]).
+    #[command(flatten)]
+    pub instrument: super::instrument_plan::InstrumentArgs,
     /// Revolute joints of the built-in random serial chain.
     #[arg(long, default_value_t = 6)]
     pub joints: usize,
@@ -87,12 +90,9 @@ pub(crate) fn model(args: &PlanArgs) -> anyhow::Result<(ModelFile, bool)> {
     if let Some(m) = &args.model {
         return Ok((ModelFile::load_or_builtin(m)?, false));
     }
-    anyhow::ensure!(
-        (1..=16).contains(&args.joints),
-        "--joints must be between 1 and 16, got {}",
-        args.joints
-    );
-    let chain = random_serial_chain(&mut ChaCha8Rng::seed_from_u64(args.chain_seed), args.joints, 0);
+    let joints = args.joints;
+    anyhow::ensure!((1..=16).contains(&joints), "--joints must be between 1 and 16, got {joints}");
+    let chain = random_serial_chain(&mut ChaCha8Rng::seed_from_u64(args.chain_seed), joints, 0);
     Ok((ModelFile::new(chain.name().to_string(), chain.into()), true))
 }
 

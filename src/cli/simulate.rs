@@ -94,12 +94,13 @@ pub struct SimulateArgs {
     /// `X,Y,Z;X,Y,Z;…`), the tool point placed in each from `--per-point` orientations; the data
     /// file gets a `seat` column (seat k is the k-th point). `--validation-out` then gets
     /// `--validation-poses` fresh orientations per seat.
-    #[arg(long, value_name = "X,Y,Z;…", conflicts_with_all = ["pivots", "measure", "at", "cycles"])]
+    /// With `--at` (an instrument plan of `kinecal plan --seats`), the plan's rows are measured.
+    #[arg(long, value_name = "X,Y,Z;…", conflicts_with_all = ["pivots", "measure", "cycles"])]
     pub seats: Option<String>,
     /// Instrument data: a ballbar between the tool point and each of these pivots (mm, base
     /// frame, `X,Y,Z;…`), `--per-point` lengths each (directions within 60° of the pivot's
     /// direction toward the reference tool point); columns `pivot,length_mm`. Needs `--ballbar-mm`.
-    #[arg(long, value_name = "X,Y,Z;…", requires = "ballbar_mm", conflicts_with_all = ["measure", "at", "cycles"])]
+    #[arg(long, value_name = "X,Y,Z;…", requires = "ballbar_mm", conflicts_with_all = ["measure", "cycles"])]
     pub pivots: Option<String>,
     /// The ballbar's length (mm).
     #[arg(long, value_name = "L", requires = "pivots")]
@@ -415,8 +416,11 @@ fn instrument_run(
     }
     let mut written = Vec::new();
     let mut first_id = 0i64;
-    for (path, per_point) in sets {
-        let rows = draw(&how(per_point, rng.random()))?;
+    for (k, (path, per_point)) in sets.into_iter().enumerate() {
+        let rows = match &a.at {
+            Some(at) if k == 0 => planned(at, file, truth, &points, a.seats.is_some(), a.noise_mm, rng.random())?,
+            _ => draw(&how(per_point, rng.random()))?,
+        };
         let ids: Vec<i64> = (first_id..first_id + rows.len() as i64).collect();
         first_id += rows.len() as i64;
         let data = data_text(&path, &file.data_columns(), &ids, &rows, None)?;
@@ -458,10 +462,13 @@ fn instrument_run(
     );
     for w in &written {
         println!(
-            "{} {kind}s × {} rows (tilt ≤ {}°), noise {} mm → {}",
+            "{} {kind}s × {} rows ({}), noise {} mm → {}",
             points.len(),
             w.poses / points.len(),
-            a.tilt_deg,
+            match &a.at {
+                Some(at) if w.path == a.out => format!("planned in {}", at.display()),
+                _ => format!("tilt ≤ {}°", a.tilt_deg),
+            },
             a.noise_mm,
             w.path.display()
         );
@@ -473,4 +480,29 @@ fn instrument_run(
         );
     }
     Ok(())
+}
+
+/// The instrument plan `at` (`kinecal plan --seats` / `--pivots`) measured on `truth`
+/// ([`kinecal::instrument::measure_planned`]); `seats`: whether the points are seats.
+fn planned(
+    at: &Path,
+    file: &ModelFile,
+    truth: &dyn kinecal::Mechanism,
+    points: &[nalgebra::Vector3<f64>],
+    seats: bool,
+    noise_mm: f64,
+    seed: u64,
+) -> anyhow::Result<Vec<kinecal::measure::Measurement>> {
+    use kinecal::io::data_file::{read_data, InputColumns};
+    let plan = read_data(at, &file.data_columns(), InputColumns::Required)?;
+    let kind = if seats { "seat" } else { "pivot" };
+    anyhow::ensure!(
+        plan.measurements
+            .iter()
+            .all(|m| m.obs.artifact_point().is_some_and(|(k, _)| k.name() == kind)),
+        "{}: not a plan of {kind} rows (plan with kinecal plan --{kind}s, and measure with the same --{kind}s)",
+        at.display()
+    );
+    kinecal::instrument::measure_planned(truth, &plan.measurements, points, noise_mm, seed, &file.inputs())
+        .map_err(|e| anyhow::anyhow!("{}: {e}", at.display()))
 }

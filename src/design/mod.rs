@@ -22,10 +22,15 @@
 //! model file describes, from a description of where to sample ([`mod@sampling`]: what
 //! `kinecal plan` and Python's `plan_sampled` call); [`write_plan_csv`] writes the chosen
 //! configurations.
+//!
+//! For an instrument without a tracker (seats, a ballbar), [`plan_instrument`] chooses the
+//! orientations at each seat or the directions about each pivot, with the artifact's unknowns
+//! estimated alongside ([`mod@instrument`]).
 pub mod candidates;
 pub mod closed;
 pub mod indices;
 pub mod information;
+pub mod instrument;
 pub mod jacobians;
 pub mod lazy;
 pub mod plan;
@@ -36,6 +41,7 @@ pub use candidates::{candidates_in_input_box, candidates_in_workspace, Candidate
 pub use closed::{actuator_condition, candidates_in_platform_box, PlatformGeneration};
 pub use indices::{Criterion, ObservabilityIndices};
 pub use information::InformationState;
+pub use instrument::{instrument_blocks, instrument_candidates, plan_instrument, InstrumentLayout, InstrumentPlan, InstrumentPlanOptions};
 pub use jacobians::{identifiable_columns, CandidateJacobians};
 pub use plan::{forward_agrees, plan, Plan, PlanOptions};
 pub use sampling::{

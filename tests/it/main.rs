@@ -11,6 +11,7 @@ mod dh;
 mod exports;
 mod fuzz;
 mod identify;
+mod instrument_plan;
 mod instruments;
 mod irb120;
 mod joint_terms;

@@ -1,0 +1,135 @@
+//! What the instrument examples share (`instrument_noise.rs`, `instrument_plan.rs`): the IRB 120
+//! set-up (reference configuration, ball, seats near the reference), a tracker's rows, a
+//! calibration through `calibrate()` judged on held-out tool points after the rigid motion the
+//! instruments do not see, and the table's median [min–max].
+#![allow(dead_code)]
+use kinecal::calibrate::{calibrate, CalibrationOptions};
+use kinecal::io::data_file::{DataSet, MeasurementFormat};
+use kinecal::io::model_file::ModelFile;
+use kinecal::measure::{register_points, Measurement, Noise, Observation};
+use kinecal::model::kind::InputSpec;
+use kinecal::se3::{self, Pose};
+use kinecal::simulate::random_configurations;
+use kinecal::Mechanism;
+use nalgebra::Vector3;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+
+/// The IRB 120's reference configuration (rad): the tool pointing down in front of the robot.
+pub const REFERENCE: [f64; 6] = [0.0, 0.35, 0.2, 0.0, 1.0, 0.0];
+
+/// The ball on the flange: 120 mm out and off the axis.
+pub fn ball() -> Pose {
+    se3::pose_from_parts(Vector3::new(15.0, -10.0, 120.0), Vector3::zeros())
+}
+
+/// Four seats where `model`'s tool point stands at the reference and three nearby configurations.
+pub fn seats_near_reference(model: &dyn Mechanism) -> Vec<Vector3<f64>> {
+    [[0.0, 0.0, 0.0], [0.5, 0.1, -0.1], [-0.5, -0.1, 0.2], [0.2, 0.3, 0.3]]
+        .iter()
+        .map(|s| {
+            let q: Vec<f64> = REFERENCE
+                .iter()
+                .enumerate()
+                .map(|(k, v)| v + s.get(k).copied().unwrap_or(0.0))
+                .collect();
+            model.forward(&q).unwrap().translation.vector
+        })
+        .collect()
+}
+
+/// A data set of instrument or tracker rows (its format follows from the rows).
+pub fn data_set(measurements: Vec<Measurement>, format: MeasurementFormat) -> DataSet {
+    let set = DataSet::from_measurements("data.csv", measurements);
+    assert_eq!(set.format, format);
+    set
+}
+
+/// RMS distance between `a` and `b` after the rigid motion that takes `a` best onto `b`.
+pub fn aligned_rms(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> f64 {
+    let t = register_points(a, b).unwrap();
+    let sum: f64 = a
+        .iter()
+        .zip(b)
+        .map(|(p, q)| (t.transform_point(&(*p).into()).coords - q).norm_squared())
+        .sum();
+    (sum / a.len() as f64).sqrt()
+}
+
+/// Held-out RMS (mm) of the calibrated model against the truth at `qs`, a rigid motion removed.
+pub fn held_out(calibrated: &dyn Mechanism, truth: &dyn Mechanism, qs: &[Vec<f64>]) -> f64 {
+    let at = |m: &dyn Mechanism| -> Vec<Vector3<f64>> { qs.iter().map(|q| m.forward(q).unwrap().translation.vector).collect() };
+    aligned_rms(&at(calibrated), &at(truth))
+}
+
+/// One calibration: held-out RMS over the whole workspace, near the seats, and the verdict.
+pub type Outcome = (f64, f64, String);
+
+/// Calibrate `file` from `data` with the stated position noise `noise` (mm) and `opts`, reload the
+/// written model, and judge it against `truth` at `whole` and `near` ([`held_out`]).
+pub fn run(
+    file: &ModelFile,
+    data: DataSet,
+    noise: f64,
+    opts: CalibrationOptions,
+    truth: &dyn Mechanism,
+    whole: &[Vec<f64>],
+    near: &[Vec<f64>],
+) -> Outcome {
+    let opts = CalibrationOptions {
+        noise: Noise {
+            position: noise,
+            ..Noise::default()
+        },
+        ..opts
+    };
+    let cal = calibrate(file, &data, None, &opts).unwrap();
+    let status = format!("{:?}", cal.report.verdict.status).to_lowercase();
+    let text = cal.model_file.to_toml().unwrap();
+    let back = ModelFile::load_str(std::path::Path::new("cal.toml"), &text).unwrap().build();
+    (held_out(&*back, truth, whole), held_out(&*back, truth, near), status)
+}
+
+/// A tracker's rows: `tracked` (the truth seen from the tracker) at `n` random configurations of
+/// `nominal`, the ball's position with `sigma` mm of noise per axis.
+pub fn tracker_rows(
+    tracked: &dyn Mechanism,
+    nominal: &dyn Mechanism,
+    inputs: &[InputSpec],
+    n: usize,
+    sigma: f64,
+    rng: &mut ChaCha8Rng,
+) -> Vec<Measurement> {
+    let normal = Normal::new(0.0, sigma).unwrap();
+    let qs = random_configurations(nominal, inputs, n, rng).unwrap();
+    qs.into_iter()
+        .map(|q| {
+            let p = tracked.forward(&q).unwrap().translation.vector;
+            let e = Vector3::new(normal.sample(rng), normal.sample(rng), normal.sample(rng));
+            Measurement {
+                q,
+                obs: Observation::Position(p + e),
+                joints: Vec::new(),
+            }
+        })
+        .collect()
+}
+
+/// The tracker 2 m away (its frame in the robot's base).
+pub fn tracker() -> Pose {
+    se3::pose_from_parts(
+        Vector3::new(2000.0, -700.0, 400.0),
+        Vector3::new(1.0, 2.0, -0.5).normalize() * 120f64.to_radians(),
+    )
+}
+
+/// One row of the table: `name`, the median [min–max] of both held-out columns, the verdicts.
+pub fn table_row(name: &str, runs: &[Outcome]) -> String {
+    let col = |f: fn(&Outcome) -> f64| {
+        let mut v: Vec<f64> = runs.iter().map(f).collect();
+        v.sort_by(f64::total_cmp);
+        format!("{:.4} [{:.4}–{:.4}]", v[v.len() / 2], v[0], v[v.len() - 1])
+    };
+    let calibrated = runs.iter().filter(|r| r.2 == "calibrated").count();
+    format!("| {name} | {} | {} | {calibrated} of {} |", col(|r| r.0), col(|r| r.1), runs.len())
+}
