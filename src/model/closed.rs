@@ -38,7 +38,7 @@ use super::{check_inputs, Mechanism};
 use crate::error::KinError;
 use crate::params::{Param, Unit};
 use crate::se3::{self, Pose};
-use nalgebra::{DMatrix, DVector, Dyn, Matrix3, Matrix6xX, Rotation3, Translation3, UnitQuaternion, Vector3, LU};
+use nalgebra::{DMatrix, DVector, Matrix3, Matrix6, Matrix6xX, Rotation3, Translation3, UnitQuaternion, Vector3, LU, U6};
 use num_dual::DualNum;
 use rand::{Rng, RngExt};
 
@@ -212,8 +212,9 @@ const MAX_BACKTRACKS: usize = 40;
 /// ([`ClosedLoop::inverse_with_jacobian`]).
 pub type InverseSolution = (Vec<f64>, [f64; 6], DMatrix<f64>);
 
-/// LU factors of a square Jacobian.
-type Factors = LU<f64, Dyn, Dyn>;
+/// LU factors of the 6 × 6 constraint Jacobian `F_X` (fixed size: no allocation, unrolled; the
+/// same elimination as the dynamic LU, so the same numbers).
+type Factors = LU<f64, U6, U6>;
 
 impl<C: ConstraintSystem> ClosedLoop<C> {
     /// The mechanism at its nominal geometry, with base and tool frame errors as parameters
@@ -422,7 +423,7 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
                 condition: cond,
             });
         }
-        Ok((x, fx.lu()))
+        Ok((x, Matrix6::from_fn(|r, c| fx[(r, c)]).lu()))
     }
 
     /// Tool pose of platform coordinates `x` at the current frames.
