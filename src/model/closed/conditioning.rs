@@ -27,6 +27,7 @@ fn inverse_norm1(m: &DMatrix<f64>) -> Option<f64> {
     let n = m.nrows();
     let w = 2 * n;
     let mut a = vec![0.0; n * w];
+    let mut prow = vec![0.0; w];
     for r in 0..n {
         for c in 0..n {
             a[r * w + c] = m[(r, c)];
@@ -50,20 +51,25 @@ fn inverse_norm1(m: &DMatrix<f64>) -> Option<f64> {
             }
         }
         let inv = 1.0 / pivot;
-        for c in col..w {
-            a[col * w + c] *= inv;
+        for v in &mut a[col * w + col..(col + 1) * w] {
+            *v *= inv;
         }
-        for r in 0..n {
-            let f = a[r * w + col];
+        prow[col..].copy_from_slice(&a[col * w + col..(col + 1) * w]);
+        for (r, row) in a.chunks_exact_mut(w).enumerate() {
+            let f = row[col];
             if r == col || f == 0.0 {
                 continue;
             }
-            for c in col..w {
-                a[r * w + c] -= f * a[col * w + c];
+            for (v, p) in row[col..].iter_mut().zip(&prow[col..]) {
+                *v -= f * p;
             }
         }
     }
-    Some((0..n).map(|c| (0..n).map(|r| a[r * w + n + c].abs()).sum::<f64>()).fold(0.0, f64::max))
+    Some(
+        (0..n)
+            .map(|c| (0..n).map(|r| a[r * w + n + c].abs()).sum::<f64>())
+            .fold(0.0, f64::max),
+    )
 }
 
 /// `Some(condition number)` when that of the square matrix `m` exceeds `limit`, `None` when it does
@@ -94,7 +100,10 @@ mod tests {
     fn inverse_norm_is_that_of_the_lu_inverse() {
         let m = DMatrix::from_fn(7, 7, |r, c| ((r * 7 + c) as f64 * 0.37).sin() + if r == c { 2.0 } else { 0.0 });
         let inv = m.clone().try_inverse().unwrap();
-        let want = inv.column_iter().map(|c| c.iter().map(|v| v.abs()).sum::<f64>()).fold(0.0, f64::max);
+        let want = inv
+            .column_iter()
+            .map(|c| c.iter().map(|v| v.abs()).sum::<f64>())
+            .fold(0.0, f64::max);
         let got = inverse_norm1(&m).unwrap();
         assert!((got - want).abs() <= 1e-12 * want, "{got} vs {want}");
         assert!(inverse_norm1(&DMatrix::zeros(3, 3)).is_none());
