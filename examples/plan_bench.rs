@@ -172,7 +172,7 @@ fn bench_pm5(args: &Args) -> anyhow::Result<()> {
 
 /// A model file: candidates in its workspace as `kinecal plan --model` makes them, then [`bench`].
 fn bench_model(path: &std::path::Path, args: &Args) -> anyhow::Result<()> {
-    use kinecal::design::{CandidateSampling, PoseRanges, Points, Region};
+    use kinecal::design::{CandidateSampling, Points, PoseRanges, Region};
     let file = kinecal::io::model_file::ModelFile::load(path)?;
     let sampling = CandidateSampling {
         region: Region::Poses(PoseRanges {
