@@ -5,10 +5,13 @@
 //! cargo run --release --example plan_bench -- --candidates 300000 --n 30 --criterion o2
 //! cargo run --release --example plan_bench -- --preset pm5 --candidates 300000 --criterion o2
 //! cargo run --release --example plan_bench -- --preset pm5 --grid --criterion d
+//! cargo run --release --example plan_bench -- --model examples/models/hexapod-6rus.toml --methods sffs
 //! ```
 //!
 //! With `--preset pm5` the candidates are the 5-DOF machine's platform workspace
-//! (`design::candidates_in_platform_box`); measured figures are in `docs/design.md`.
+//! (`design::candidates_in_platform_box`); measured figures are in `docs/design.md`. With
+//! `--model FILE` they are those `kinecal plan --model FILE` samples in the file's workspace
+//! (`design::sample_candidates`: Halton points, tool poses solved by the inverse kinematics).
 //!
 //! The phases after candidate generation are in [`bench`], generic over any [`Mechanism`]: to
 //! benchmark another mechanism, generate its candidates (e.g. with
@@ -50,6 +53,10 @@ struct Args {
     /// workspace, filtered by IK, strokes, FK∘IK and the actuator-Jacobian condition).
     #[arg(long)]
     preset: Option<String>,
+    /// Benchmark a model file (e.g. a limbs machine) instead: candidates as `kinecal plan --model`
+    /// samples them in the file's workspace.
+    #[arg(long)]
+    model: Option<std::path::PathBuf>,
     /// Sample the pm5 workspace on the paper's grid of 304,920 points instead of Halton points.
     #[arg(long)]
     grid: bool,
@@ -163,10 +170,43 @@ fn bench_pm5(args: &Args) -> anyhow::Result<()> {
     bench(&mech, &cands, ObservationKind::Pose, args)
 }
 
+/// A model file: candidates in its workspace as `kinecal plan --model` makes them, then [`bench`].
+fn bench_model(path: &std::path::Path, args: &Args) -> anyhow::Result<()> {
+    use kinecal::design::{CandidateSampling, Points, PoseRanges, Region};
+    let file = kinecal::io::model_file::ModelFile::load(path)?;
+    let sampling = CandidateSampling {
+        region: Region::Poses(PoseRanges {
+            position: [None; 3],
+            angles: [None; 3],
+        }),
+        points: Points::Halton {
+            n: args.candidates,
+            seed: args.seed,
+        },
+        max_condition: None,
+    };
+    let (t, c0) = (Instant::now(), cpu_seconds());
+    let (mech, cands) = design::sample_candidates(&file, &sampling, None)?;
+    let rep = cands.report;
+    println!(
+        "candidates: {:.2} s wall, {:.2} s CPU  ({} sampled, {} kept, {} unreachable) on {}",
+        t.elapsed().as_secs_f64(),
+        cpu_seconds() - c0,
+        rep.sampled,
+        rep.kept,
+        rep.unreachable,
+        mech.name()
+    );
+    bench(&*mech, &cands.candidates, ObservationKind::Pose, args)
+}
+
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
     println!("threads: {}, load average: {}", rayon::current_num_threads(), load.trim());
+    if let Some(path) = &args.model {
+        return bench_model(path, &args);
+    }
     if let Some(p) = &args.preset {
         anyhow::ensure!(p == "pm5", "--preset: only pm5 is supported, got '{p}'");
         return bench_pm5(&args);

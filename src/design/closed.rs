@@ -52,8 +52,25 @@ fn condition_of(fx: DMatrix<f64>, fq: &DMatrix<f64>, rows: usize, length_scale: 
     if m.iter().any(|v| !v.is_finite()) {
         return None;
     }
-    let sv = crate::identifiability::singular_values(&m);
-    let (hi, lo) = (sv.first().copied()?, sv.last().copied()?);
+    // The square 5- and 6-input cases by fixed-size SVDs (no allocation; the same algorithm).
+    let sv: Vec<f64> = match (rows, fq.ncols()) {
+        (5, 5) => nalgebra::Matrix5::from_fn(|r, c| m[(r, c)])
+            .singular_values()
+            .iter()
+            .copied()
+            .collect(),
+        (6, 6) => nalgebra::Matrix6::from_fn(|r, c| m[(r, c)])
+            .singular_values()
+            .iter()
+            .copied()
+            .collect(),
+        _ => crate::identifiability::singular_values(&m),
+    };
+    if sv.is_empty() {
+        return None;
+    }
+    let hi = sv.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let lo = sv.iter().copied().fold(f64::INFINITY, f64::min);
     Some(if lo > 0.0 { hi / lo } else { f64::INFINITY })
 }
 

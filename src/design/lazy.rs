@@ -39,6 +39,8 @@ pub struct LazyGains<'a> {
     /// Whether the next [`Self::top`] brings every candidate up to date in one sequential pass
     /// (the last one evaluated most of them).
     full_pass_next: bool,
+    /// Whether `order` waits to be sorted again (every bound changed in a full pass).
+    order_stale: bool,
     /// Blocks older than this many additions are recomputed exactly: set when the design
     /// reaches full rank, because blocks of the rank-deficient phase are of order `1/ε` and
     /// updating them down to order 1 would cancel most of their digits.
@@ -127,6 +129,7 @@ impl<'a> LazyGains<'a> {
             excluded: vec![false; n],
             order,
             full_pass_next: false,
+            order_stale: false,
             exact_since: 0,
             evaluations: 0,
         })
@@ -224,6 +227,11 @@ impl<'a> LazyGains<'a> {
         if self.full_pass_next {
             return self.top_by_full_pass(need);
         }
+        if self.order_stale {
+            let len = self.order.len();
+            self.reorder(len);
+            self.order_stale = false;
+        }
         // `order` holds the unselected candidates by decreasing bound: walk it in batches, every
         // candidate not yet reached has a bound ≤ that of the next one.
         let mut best: Vec<(usize, f64)> = Vec::new();
@@ -261,7 +269,9 @@ impl<'a> LazyGains<'a> {
         let last = best.last().map_or(f64::NEG_INFINITY, |b| b.1);
         let walked = stale.iter().filter(|&&b| !settles(last, b)).count();
         self.full_pass_next = FULL_PASS * walked > idx.len();
-        self.reorder(idx.len());
+        // Every bound changed: the order is sorted again when a walk next needs it (before full
+        // rank every step is a full pass, and sorting after each was wasted).
+        self.order_stale = true;
         best
     }
 

@@ -38,7 +38,7 @@ use super::{check_inputs, Mechanism};
 use crate::error::KinError;
 use crate::params::{Param, Unit};
 use crate::se3::{self, Pose};
-use nalgebra::{DMatrix, DVector, Dyn, Matrix3, Matrix6xX, Rotation3, Translation3, UnitQuaternion, Vector3, LU};
+use nalgebra::{DMatrix, DVector, Matrix3, Matrix6, Matrix6xX, Rotation3, Translation3, UnitQuaternion, Vector3, LU, U6};
 use num_dual::DualNum;
 use rand::{Rng, RngExt};
 
@@ -46,6 +46,7 @@ use rand::{Rng, RngExt};
 pub trait Scalar: DualNum<Primitive = f64> + Copy + Send + Sync {}
 impl<T: DualNum<Primitive = f64> + Copy + Send + Sync> Scalar for T {}
 
+mod conditioning;
 mod derivatives;
 mod mechanism;
 mod reduced_inverse;
@@ -53,6 +54,7 @@ mod reduced_inverse;
 /// constraint equations once for `f64` and dual numbers.
 pub mod v3;
 
+use conditioning::ill_conditioned;
 use v3::{M3, V3};
 
 pub use crate::model::Task;
@@ -206,48 +208,13 @@ fn max_abs(v: &[f64]) -> f64 {
 /// Halvings of a Newton step before a solve gives up (the step is then 2⁻⁴⁰ of its length).
 const MAX_BACKTRACKS: usize = 40;
 
-/// Condition number of a square matrix; infinite when it holds a non-finite entry (nalgebra's
-/// SVD does not return on NaN input, so it must never see one).
-fn condition(m: &DMatrix<f64>) -> f64 {
-    if m.iter().any(|v| !v.is_finite()) {
-        return f64::INFINITY;
-    }
-    let s = m.clone().singular_values();
-    let hi = s.iter().cloned().fold(0.0, f64::max);
-    let lo = s.iter().cloned().fold(f64::INFINITY, f64::min);
-    if lo > 0.0 {
-        hi / lo
-    } else {
-        f64::INFINITY
-    }
-}
-
 /// Inputs, platform coordinates and the inverse-kinematics system's Jacobian at the solution
 /// ([`ClosedLoop::inverse_with_jacobian`]).
 pub type InverseSolution = (Vec<f64>, [f64; 6], DMatrix<f64>);
 
-/// LU factors of a square Jacobian.
-type Factors = LU<f64, Dyn, Dyn>;
-
-/// `Some(condition number)` when that of the square matrix `m` exceeds `limit`, `None` when it does
-/// not. The bound `cond₂ ≤ n·‖m‖₁·‖m⁻¹‖₁` from the inverse (by `lu`, the LU factors of `m`, which
-/// the caller reuses for its solves) settles the common, well-conditioned case without the SVD
-/// (several times dearer for a 6 × 6 matrix, and this runs once per forward kinematics); near the
-/// limit the SVD decides.
-fn ill_conditioned(m: &DMatrix<f64>, lu: &Factors, limit: f64) -> Option<f64> {
-    if m.iter().any(|v| !v.is_finite()) {
-        return Some(f64::INFINITY);
-    }
-    if let Some(inv) = lu.try_inverse() {
-        let norm1 = |a: &DMatrix<f64>| a.column_iter().map(|c| c.iter().map(|v| v.abs()).sum::<f64>()).fold(0.0, f64::max);
-        let bound = m.nrows() as f64 * norm1(m) * norm1(&inv);
-        if bound.is_finite() && bound <= limit {
-            return None;
-        }
-    }
-    let c = condition(m);
-    (c > limit).then_some(c)
-}
+/// LU factors of the 6 × 6 constraint Jacobian `F_X` (fixed size: no allocation, unrolled; the
+/// same elimination as the dynamic LU, so the same numbers).
+type Factors = LU<f64, U6, U6>;
 
 impl<C: ConstraintSystem> ClosedLoop<C> {
     /// The mechanism at its nominal geometry, with base and tool frame errors as parameters
@@ -450,14 +417,13 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
     /// Newton iterate.
     fn well_conditioned(&self, x: [f64; 6], q: &[f64]) -> Result<([f64; 6], Factors), KinError> {
         let fx = self.jacobian_x_raw(&x, q);
-        let lu = fx.clone().lu();
-        if let Some(cond) = ill_conditioned(&fx, &lu, self.solver.max_condition) {
+        if let Some(cond) = ill_conditioned(&fx, self.solver.max_condition) {
             return Err(KinError::Singular {
                 what: "forward kinematics (constraint Jacobian F_X)".into(),
                 condition: cond,
             });
         }
-        Ok((x, lu))
+        Ok((x, Matrix6::from_fn(|r, c| fx[(r, c)]).lu()))
     }
 
     /// Tool pose of platform coordinates `x` at the current frames.
@@ -627,8 +593,7 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
     /// singular pose of the task there), then the strokes.
     fn finish_inverse(&self, z: Vec<f64>, target: &Pose) -> Result<InverseSolution, KinError> {
         let jac = self.ik_jacobian(&z, target);
-        let lu = jac.clone().lu();
-        if let Some(cond) = ill_conditioned(&jac, &lu, self.solver.max_condition) {
+        if let Some(cond) = ill_conditioned(&jac, self.solver.max_condition) {
             return Err(KinError::Singular {
                 what: format!("{} inverse kinematics", self.system.name()),
                 condition: cond,

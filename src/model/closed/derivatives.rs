@@ -2,26 +2,30 @@
 //! `F_X`, `F_q`, `F_θ` of the constraints and the Jacobian of the inverse-kinematics system.
 //!
 //! Each is evaluated with vector dual numbers carrying [`LANES`] partial derivatives at once: the
-//! equations run `⌈columns / LANES⌉` times instead of once per column.
+//! equations run `⌈columns / LANES⌉` times instead of once per column. Only the variables asked
+//! for are seeded (the lanes past the last column stay empty). A lane's derivative is computed by
+//! the same operations whatever the lane count, so the width changes the cost, not the values.
 use super::{ClosedLoop, ConstraintSystem};
 use crate::se3::Pose;
 use nalgebra::DMatrix;
 use num_dual::DualSVec64;
 
-/// Partial derivatives carried by one evaluation.
-const LANES: usize = 8;
+/// Partial derivatives carried by one evaluation: 12 covers the inverse-kinematics system of a
+/// 6-input machine (or of pm5's 5 inputs, 11 variables) in one pass and a 35-parameter `F_θ` in
+/// three (with 8 lanes: two and five).
+const LANES: usize = 12;
 
 type D = DualSVec64<LANES>;
 
-/// Variables as duals, those of index `start..start + LANES` seeded.
-fn seeded(values: &[f64], offset: usize, start: usize) -> Vec<D> {
+/// Variables as duals, those of index `start..end` seeded (`end ≤ start + LANES`).
+fn seeded(values: &[f64], offset: usize, start: usize, end: usize) -> Vec<D> {
     values
         .iter()
         .enumerate()
         .map(|(i, &v)| {
             let d = D::from_re(v);
             let k = i + offset;
-            if k >= start && k < start + LANES {
+            if k >= start && k < end {
                 d.derivative(k - start)
             } else {
                 d
@@ -47,9 +51,10 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
     fn constraint_partials(&self, x: &[f64; 6], q: &[f64], from: usize, columns: usize) -> DMatrix<f64> {
         let mut m = DMatrix::zeros(6, columns);
         for start in (from..from + columns).step_by(LANES) {
-            let xd = seeded(x, 0, start);
-            let qd = seeded(q, 6, start);
-            let td = seeded(&self.geometry, 6 + q.len(), start);
+            let end = (start + LANES).min(from + columns);
+            let xd = seeded(x, 0, start, end);
+            let qd = seeded(q, 6, start, end);
+            let td = seeded(&self.geometry, 6 + q.len(), start, end);
             let f = self.system.equations(&[xd[0], xd[1], xd[2], xd[3], xd[4], xd[5]], &qd, &td);
             store(&mut m, &f, start - from);
         }
@@ -78,7 +83,7 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
         let mut m = DMatrix::zeros(n, n);
         let td: Vec<D> = self.geometry.iter().map(|&v| D::from_re(v)).collect();
         for start in (0..n).step_by(LANES) {
-            let zd = seeded(z, 0, start);
+            let zd = seeded(z, 0, start, (start + LANES).min(n));
             let x = [zd[0], zd[1], zd[2], zd[3], zd[4], zd[5]];
             let mut e: Vec<D> = self.system.equations(&x, &zd[6..], &td).to_vec();
             e.extend(self.task_equations(&x, target));
