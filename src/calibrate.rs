@@ -221,6 +221,13 @@ pub fn calibrate(
         path: format!("model '{}'", model.name).into(),
         message,
     })?;
+    if instrument.is_some() {
+        let start_file = model.with_geometry_of(&*start).map_err(|message| IoError::Invalid {
+            path: format!("model '{}'", model.name).into(),
+            message,
+        })?;
+        placed_as_drawn(&mut calibrated, &start_file, &raw.measurements);
+    }
     calibrated.description = Some(format!("calibrated from '{}' on {}", model.name, data.path.display()));
     calibrated.noise = Some(identification.noise);
     let start_tolerance_mm = START_COVERAGE * opts.noise.position.max(identification.sigma0 * identification.noise.position);
@@ -256,6 +263,32 @@ pub fn calibrate(
         starts: outcomes,
         start_tolerance_mm,
     })
+}
+
+/// Express an instrument calibration `calibrated` where the drawing puts the machine. No
+/// instrument here sees where the machine stands, so the fit may carry the whole machine along
+/// that rigid motion (the artifact with it) at no cost; left so, a target given in the robot's
+/// base frame would be compensated tens of millimetres off. The rigid motion that best takes
+/// the calibrated tool points at the data's configurations onto the starting model's (the
+/// nominal geometry with the started tool offset) is put into the measurement frame: the
+/// calibrated model then agrees with the drawing wherever the data do not say otherwise.
+/// Nothing changes when the tool points do not fix a rigid motion (fewer than three
+/// non-collinear places).
+fn placed_as_drawn(calibrated: &mut ModelFile, start: &ModelFile, measurements: &[Measurement]) {
+    let (fitted, drawn) = (calibrated.build(), start.build());
+    let points = |m: &dyn Mechanism| -> Option<Vec<nalgebra::Vector3<f64>>> {
+        measurements
+            .iter()
+            .map(|r| m.forward(&r.q).ok().map(|p| p.translation.vector))
+            .collect()
+    };
+    let (Some(a), Some(b)) = (points(&*fitted), points(&*drawn)) else {
+        return;
+    };
+    let (Some(motion), Some(frames)) = (crate::measure::register_points(&a, &b), calibrated.frames.as_mut()) else {
+        return;
+    };
+    frames.measurement = motion * frames.measurement;
 }
 
 /// The measurements as the fit uses them: as read, or each reflector triple as three points.
