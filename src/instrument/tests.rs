@@ -132,7 +132,36 @@ fn pivots_and_the_tool_offset_start_from_the_lengths() {
     assert!((sphere_centre(&sphere).unwrap() - c).norm() < 1e-8);
     let mut points = truth.points.clone();
     points[1].centre += Vector3::new(30.0, -20.0, 10.0);
-    let t = fit_offset_and_pivots(&rows, Vector3::zeros(), &mut points);
+    let (t, cost) = fit_offset_and_pivots(&rows, Vector3::zeros(), &mut points);
+    assert!(cost < 1e-12, "{cost}");
     assert!((t - truth.inner.tool.translation.vector).norm() < 1e-6, "{t:?}");
     assert!((points[1].centre - c).norm() < 1e-6);
+}
+
+/// Lengths off the sphere by up to ±1 mm (a model that is not the machine's): the sphere fit
+/// is the least-squares centre, not a point kilometres away. Its Gauss–Newton refinement once
+/// stepped the wrong way (the sign of its Jacobian), which the exact lengths above never showed.
+#[test]
+fn the_sphere_fit_is_least_squares_on_inexact_lengths() {
+    let c = Vector3::new(350.0, -80.0, 150.0);
+    let rows: Vec<(Vector3<f64>, f64)> = (0..40)
+        .map(|i| {
+            let f = i as f64;
+            // Directions within about 50° of +z, lengths 100 mm plus a wobble of ±1 mm.
+            let dir = Vector3::new(0.8 * (1.3 * f).sin() * (0.7 * f).cos(), 0.8 * (1.3 * f).cos(), 1.0).normalize();
+            (c + dir * (100.0 + 0.3 * f.cos()), 100.0 + (2.1 * f).sin())
+        })
+        .collect();
+    let fitted = sphere_centre(&rows).unwrap();
+    let cost = |c: &Vector3<f64>| rows.iter().map(|(p, l)| (l - (p - c).norm()).powi(2)).sum::<f64>();
+    assert!((fitted - c).norm() < 5.0, "{fitted:?}");
+    // A minimum: no small move lowers the cost.
+    for d in [Vector3::x(), Vector3::y(), Vector3::z()] {
+        for s in [-1e-3, 1e-3] {
+            assert!(
+                cost(&(fitted + d * s)) >= cost(&fitted) - 1e-9,
+                "{fitted:?} is not the least-squares centre"
+            );
+        }
+    }
 }
