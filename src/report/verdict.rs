@@ -320,6 +320,15 @@ impl CalibrationReport {
         }
     }
 
+    /// A warning for `reason`: "calibrated" becomes "usable with warnings" (a failed verdict
+    /// stays failed); the reason is added last.
+    pub fn warn(&mut self, reason: String) {
+        if self.verdict.status == Status::Calibrated {
+            self.verdict.status = Status::UsableWithWarnings;
+        }
+        self.verdict.reasons.push(reason);
+    }
+
     /// Fail the verdict for `reason` (put first among the reasons), whatever it was.
     pub fn fail(&mut self, reason: String) {
         self.verdict.status = Status::Failed;
