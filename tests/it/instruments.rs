@@ -511,3 +511,87 @@ fn cli_seats_simulate_identify_validate() {
     );
     assert!(bad.contains("'400,0'"), "{bad}");
 }
+
+/// pm5 with a telescoping ballbar from the command line (docs/instruments.md, "pm5 with a
+/// ballbar, from the command line"): `simulate --pivots` writes lengths that vary within the
+/// default ±0.8 mm, `identify` leaves out the perturbed starts that do not assemble (`--seed 1`:
+/// both, so "usable with warnings"; `--seed 3`: none, "calibrated"), `validate` of the calibrated
+/// file fits every held-out length, `compensate` turns targets into commands.
+#[test]
+fn cli_pm5_ballbar_simulate_identify_validate_compensate() {
+    use crate::cli::{json, ok};
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let sim = ok(
+        dir,
+        &[
+            "simulate",
+            "pm5",
+            "--pivots",
+            "0,-30,370;40,-30,380;-30,20,375",
+            "--ballbar-mm",
+            "100",
+            "--tool-mm",
+            "10,-5,60",
+            "--tilt-deg",
+            "15",
+            "--per-pivot",
+            "40",
+            "--out",
+            "d.csv",
+            "--truth",
+            "t.toml",
+            "--validation-poses",
+            "20",
+            "--validation-out",
+            "v.csv",
+        ],
+    );
+    assert!(sim.contains("ballbar 100 mm ± 0.8 mm"), "{sim}");
+    let lengths: Vec<f64> = std::fs::read_to_string(dir.join("d.csv"))
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| l.rsplit(',').next().unwrap().parse().unwrap())
+        .collect();
+    let (lo, hi) = lengths.iter().fold((f64::MAX, f64::MIN), |(a, b), &l| (a.min(l), b.max(l)));
+    assert!(lengths.len() == 120 && lo >= 99.2 && hi <= 100.8 && hi - lo > 1.0, "{lo}..{hi}");
+    let first = ok(dir, &["identify", "pm5", "d.csv", "--out", "cal.toml", "--noise-mm", "0.01"]);
+    assert!(
+        first.contains("start 2 left out of the agreement check")
+            && first.contains("verdict: usable with warnings: no other start could be compared"),
+        "{first}"
+    );
+    let other = ok(
+        dir,
+        &[
+            "identify",
+            "pm5",
+            "d.csv",
+            "--out",
+            "cal3.toml",
+            "--noise-mm",
+            "0.01",
+            "--seed",
+            "3",
+        ],
+    );
+    assert!(other.contains("3 starts agree") && other.contains("verdict: calibrated"), "{other}");
+    let worst = |model: &str| -> f64 {
+        let v = json(dir, &["validate", model, "v.csv"]);
+        let pivots = v["instrument"]["pivots"].as_array().unwrap();
+        assert_eq!(pivots.len(), 3);
+        pivots.iter().map(|p| p["max_mm"].as_f64().unwrap()).fold(0.0, f64::max)
+    };
+    let (nominal, calibrated) = (worst("pm5"), worst("cal.toml"));
+    eprintln!("pm5 ballbar via the CLI: held-out worst length error {nominal:.4} mm (nominal) → {calibrated:.2e} mm (calibrated)");
+    assert!(nominal > 1.0 && calibrated < 1e-6, "{nominal} → {calibrated} mm");
+    std::fs::write(
+        dir.join("targets.csv"),
+        "id,x_mm,y_mm,z_mm,roll_deg,pitch_deg,yaw_deg\n0,10,-5,460,0,0,0\n1,30,5,450,5,0,0\n2,-15,5,470,0,-5,0\n",
+    )
+    .unwrap();
+    let comp = ok(dir, &["compensate", "cal.toml", "targets.csv", "--out", "cmd.csv"]);
+    assert!(comp.contains("3 targets → 3 commands"), "{comp}");
+    assert_eq!(std::fs::read_to_string(dir.join("cmd.csv")).unwrap().lines().count(), 4);
+}
