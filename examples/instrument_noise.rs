@@ -3,7 +3,8 @@
 //! 120 mm out and off the flange axis), each calibrated through `calibrate()` from 120 rows of
 //!
 //! - four seats × 30 orientations (tilt ≤ 35°), 10 µm per axis, the seats' distances known;
-//! - a 100 mm ballbar at three pivots × 40, 1 µm along the bar;
+//! - a 100 mm ballbar at three pivots × 40, 1 µm along the bar: fixed (every row 100 mm), and
+//!   telescoping (each row's length uniform in 100 ± 0.8 mm);
 //! - a tracker 2 m away measuring the ball's position at 120 random configurations, 20 µm per axis;
 //!
 //! then judged (median of N prototypes) on held-out tool points against the truth's, after the rigid motion none of
@@ -12,7 +13,7 @@
 //! drawn as the instruments' are (near the seats, new orientations). Prototypes seeded 1..=N.
 //!
 //! ```text
-//! cargo run --release --example instrument_noise -- 5
+//! cargo run --release --example instrument_noise -- 7
 //! ```
 mod common;
 
@@ -31,6 +32,8 @@ use rand_chacha::ChaCha8Rng;
 
 /// Rows per calibration, every kind.
 const ROWS: usize = 120;
+/// The telescoping ballbar's range (mm, ±): each row's length uniform in 100 ± RANGE.
+const RANGE: f64 = 0.8;
 
 fn main() {
     let draws: u64 = std::env::args().nth(1).and_then(|a| a.parse().ok()).unwrap_or(5);
@@ -39,8 +42,13 @@ fn main() {
     let free = file.free_indices().unwrap();
     let inputs = file.inputs();
     let ball = common::ball();
-    let names = ["seats 4 × 30, 10 µm", "ballbar 3 × 40, 1 µm", "tracker 120 positions, 20 µm"];
-    let mut table: Vec<Vec<Outcome>> = vec![Vec::new(); 3];
+    let names = [
+        "seats 4 × 30, 10 µm",
+        "ballbar 3 × 40, fixed 100 mm, 1 µm",
+        "ballbar 3 × 40, 100 ± 0.8 mm, 1 µm",
+        "tracker 120 positions, 20 µm",
+    ];
+    let mut table: Vec<Vec<Outcome>> = vec![Vec::new(); names.len()];
     for seed in 1..=draws {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let (proto, _) = virtual_prototype(&nominal, &free, 0.5, 0.1f64.to_radians(), &mut rng);
@@ -71,14 +79,17 @@ fn main() {
             ..CalibrationOptions::default()
         };
         table[0].push(run(&file, seat_data, 0.01, seat_opts, &truth, &whole, &near));
-        let bar = data_set(
-            distance_rows(&truth, &pivots, 100.0, &how(ROWS / 3, 0.001, seed)).unwrap(),
-            MeasurementFormat::Distance,
-        );
-        table[1].push(run(&file, bar, 0.001, CalibrationOptions::default(), &truth, &whole, &near));
+        // The same bar fixed at 100 mm (every row one length), then telescoping over ±0.8 mm.
+        for (k, range) in [(1, 0.0), (2, RANGE)] {
+            let bar = data_set(
+                distance_rows(&truth, &pivots, 100.0, range, &how(ROWS / 3, 0.001, seed)).unwrap(),
+                MeasurementFormat::Distance,
+            );
+            table[k].push(run(&file, bar, 0.001, CalibrationOptions::default(), &truth, &whole, &near));
+        }
         let tracked = Framed::new(proto, tracker(), ball);
         let rows = tracker_rows(&tracked, &*nominal, &inputs, ROWS, 0.02, &mut rng);
-        table[2].push(run(
+        table[3].push(run(
             &file,
             data_set(rows, MeasurementFormat::Position),
             0.02,
@@ -89,7 +100,7 @@ fn main() {
         ));
         eprintln!(
             "prototype {seed}: {}",
-            (0..3)
+            (0..names.len())
                 .map(|k| {
                     let (w, n, status) = &table[k][seed as usize - 1];
                     format!("{w:.4} / {n:.4} mm ({status})")

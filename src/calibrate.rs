@@ -166,10 +166,13 @@ pub struct StartOutcome {
     /// Whether that identification converged.
     pub converged: bool,
     /// Largest distance (mm) between this start's predicted tool positions and the kept
-    /// solution's, over the identification poses; NaN for a start that could not be evaluated
-    /// (the perturbed machine did not assemble at some pose), which neither agrees nor
-    /// disagrees.
-    pub max_difference_mm: f64,
+    /// solution's, over the identification poses; `None` when this start could not be compared
+    /// ([`Self::unchecked`]).
+    pub max_difference_mm: Option<f64>,
+    /// Why this start was left out of the agreement check: its fit failed (a perturbed machine
+    /// that does not assemble at some pose), or its solution cannot be evaluated at some pose.
+    /// Such a start says nothing about other minima; it neither agrees nor disagrees.
+    pub unchecked: Option<String>,
 }
 
 /// Calibrate `model` from `data` (and judge it on `validation`): the stages below, in order —
@@ -435,8 +438,8 @@ fn nominal_mechanism(model: &ModelFile) -> Result<Nominal, IoError> {
 }
 
 /// The starting model for instrument data: the nominal mechanism with its tool-point offset
-/// and the artifact points started from the data ([`crate::instrument::start_points`]); free:
-/// the tool point's offset, the model's free parameters and the artifact points. The base is not
+/// and the artifact points started from the data ([`crate::instrument::start_points`]); free,
+/// in priority order: the artifact points, the tool point's offset, the model's free parameters. The base is not
 /// placed (no instrument here sees it): the measurement frame stays the identity.
 fn instrument_start(model: &ModelFile, i: &InstrumentData) -> Result<StartingModel, IoError> {
     let only_seats = i.points.iter().all(|p| p.kind == crate::instrument::PointKind::Seat);
@@ -454,10 +457,15 @@ fn instrument_start(model: &ModelFile, i: &InstrumentData) -> Result<StartingMod
     let framed = Framed::new(inner, Pose::identity(), tool_guess);
     let artifact =
         crate::instrument::start_points(framed, i.points.clone(), i.pairs.clone(), &i.data.measurements).map_err(|e| i.data.locate(e))?;
+    // The artifact points come first in priority: a rigid motion of the machine together with
+    // its artifact changes nothing measured, and the rank analysis then names the machine's own
+    // placement (its base) redundant rather than artifact coordinates, so that stays nominal.
+    // The calibrated model stands where the nominal stood: its home still assembles, and
+    // targets in its base frame mean what they meant.
     let p_inner = FRAME_PARAMS + artifact.inner.inner.n_params();
-    let mut free: Vec<usize> = crate::model::framed::TOOL_TRANSLATION.collect();
+    let mut free: Vec<usize> = (p_inner..p_inner + 3 * artifact.points.len()).collect();
+    free.extend(crate::model::framed::TOOL_TRANSLATION);
     free.extend(inner_free.iter().map(|k| k + FRAME_PARAMS));
-    free.extend(p_inner..p_inner + 3 * artifact.points.len());
     Ok((Box::new(artifact), free, None))
 }
 
@@ -507,20 +515,30 @@ fn judge<M: Mechanism + Clone>(
     report.tolerance_check = Some(tolerances::tolerance_check(j.identification, j.free, &model.tolerances));
     report.serial_chain = matches!(model.mechanism, MechanismSpec::Serial(_));
     report.assess(&opts.noise, &model.tolerances);
-    let spread = j.outcomes.iter().map(|s| s.max_difference_mm).fold(0.0, f64::max);
-    let unevaluated = j.outcomes.iter().filter(|s| s.max_difference_mm.is_nan()).count();
-    if unevaluated > 0 {
-        report.warn(format!(
-            "{unevaluated} of the {} starts could not be evaluated (the perturbed machine does not assemble at every pose): agreement was checked with {} of them",
+    let spread = j.outcomes.iter().filter_map(|s| s.max_difference_mm).fold(0.0, f64::max);
+    let unchecked: Vec<String> = (j.outcomes.iter().enumerate())
+        .filter_map(|(k, s)| s.unchecked.as_ref().map(|why| format!("start {} ({why})", k + 1)))
+        .collect();
+    if !unchecked.is_empty() {
+        report.flags.push(format!(
+            "{} of {} starts left out of the agreement check, not comparable: {}",
+            unchecked.len(),
             j.outcomes.len(),
-            j.outcomes.len() - unevaluated
+            unchecked.join("; ")
         ));
+        if unchecked.len() + 1 == j.outcomes.len() {
+            report.warn(format!(
+                "no other start could be compared with the kept solution ({} left out: their perturbed machines could not be evaluated at every pose), so whether the fit has other minima was not checked: run again with another --seed or more --starts",
+                unchecked.len()
+            ));
+        }
     }
     if spread > j.start_tolerance_mm {
-        let sigmas: Vec<String> = j.outcomes.iter().map(|s| format!("{:.3}", s.sigma0)).collect();
+        let compared: Vec<&StartOutcome> = j.outcomes.iter().filter(|s| s.max_difference_mm.is_some()).collect();
+        let sigmas: Vec<String> = compared.iter().map(|s| format!("{:.3}", s.sigma0)).collect();
         report.fail(format!(
             "the {} starts disagree: their predictions differ by up to {spread:.4} mm (more than the noise, {:.4} mm; σ̂₀ {}): the fit has several minima here and the kept one (the lowest) may not be the true geometry: check the nominal model and the tolerances, add or spread the poses, or fix parameters",
-            j.outcomes.len(),
+            compared.len(),
             j.start_tolerance_mm,
             sigmas.join(" / ")
         ));

@@ -238,51 +238,33 @@ pub fn start_points<M: Mechanism + Clone + 'static>(
                 _ => None,
             })
             .collect();
-        // Each pivot by a sphere fit of the tool points with offset `t`: `None` names a pivot
-        // whose rows do not place it.
-        let place = |t: Vector3<f64>, points: &mut [ArtifactPoint]| -> Result<(), usize> {
-            for &k in &pivots {
-                let sphere: Vec<(Vector3<f64>, f64)> = rows
-                    .iter()
-                    .filter(|(j, ..)| *j == k)
-                    .map(|(_, pose, l)| (pose.translation.vector + pose.rotation * t, *l))
-                    .collect();
-                points[k].centre = sphere_centre(&sphere).ok_or(k)?;
-            }
-            Ok(())
-        };
-        place(t, &mut points).map_err(|k| {
-            CalibError::InvalidOption(format!(
-                "pivot {}: its rows do not place it (the tool points lie in a plane or on a line); measure from more spread poses",
-                points[k].id
-            ))
-        })?;
-        // Without seats the tool-point offset is found with the pivots: Levenberg–Marquardt on
-        // the lengths over the offset and every pivot's centre. A machine that turns its tool
-        // little has a mirrored minimum (the ball as far below the centre of turning as it is
-        // above), so the offset starts from zero and from a bar's length along each tool axis
-        // either way (the pivots placed anew for each), and a clearly lower cost is kept.
+        place_pivots(&rows, &t, &pivots, &mut points)?;
+        // Without seats the tool-point offset is found with the pivots (Levenberg–Marquardt on
+        // the lengths over the offset and every pivot's centre, [`offset_and_pivots`]). That fit
+        // has local minima (a head that only tilts, started at its platform's centre, stops
+        // 100 mm off), so it starts from the flange origin and from one bar length along each
+        // axis of the tool frame either way, and keeps a clearly lower cost.
         if seats.is_empty() {
-            let reach = rows.iter().map(|(.., l)| l.abs()).sum::<f64>() / rows.len().max(1) as f64;
-            let mut best: Option<(f64, Vector3<f64>, Vec<ArtifactPoint>)> = None;
+            let bar = rows.iter().map(|r| r.2).sum::<f64>() / rows.len().max(1) as f64;
+            let mut best: Option<(Vector3<f64>, f64, Vec<ArtifactPoint>)> = None;
             for t0 in std::iter::once(Vector3::zeros()).chain((0..6).map(|k| {
-                let sign = if k % 2 == 0 { 1.0 } else { -1.0 };
-                Vector3::ith(k / 2, sign * reach)
+                let mut v = Vector3::zeros();
+                v[k / 2] = if k % 2 == 0 { bar } else { -bar };
+                v
             })) {
-                let mut tried = points.clone();
-                if place(t0, &mut tried).is_err() {
-                    continue;
-                }
-                let (offset, cost) = fit_offset_and_pivots(&rows, t0, &mut tried);
-                // Another start replaces the zero offset only at a clearly lower cost: a
-                // machine that never turns its tool (a delta) cannot tell the offset from
-                // the pivots, and keeps zero.
-                if best.as_ref().is_none_or(|(c, ..)| cost < 0.5 * *c) {
-                    best = Some((cost, offset, tried));
+                let mut candidate = points.clone();
+                if let Some((t, cost)) = offset_and_pivots(&rows, t0, &pivots, &mut candidate) {
+                    // Another start replaces the first (the flange origin) only at a clearly
+                    // lower cost: a machine that never turns its tool (a delta) cannot tell
+                    // the offset from the pivots, and keeps the flange origin.
+                    if best.as_ref().is_none_or(|b| cost < 0.5 * b.1) {
+                        best = Some((t, cost, candidate));
+                    }
                 }
             }
-            let (_, offset, placed) = best.expect("the zero offset places every pivot");
-            (t, points) = (offset, placed);
+            if let Some((t_best, _, placed)) = best {
+                (t, points) = (t_best, placed);
+            }
             framed.tool *= Translation3::from(t);
         }
     }
@@ -291,6 +273,57 @@ pub fn start_points<M: Mechanism + Clone + 'static>(
         points,
         pairs,
     })
+}
+
+/// Rounds of placing the pivots for the current tool-point offset and fitting both again
+/// ([`start_points`] without seats).
+const OFFSET_ROUNDS: usize = 5;
+
+/// Each pivot of `pivots` (indices into `points`) placed by a sphere fit of the tool points at
+/// offset `t` to its rows' lengths (rows: point index, flange pose, length).
+fn place_pivots(rows: &[(usize, Pose, f64)], t: &Vector3<f64>, pivots: &[usize], points: &mut [ArtifactPoint]) -> Result<(), CalibError> {
+    for &k in pivots {
+        let sphere: Vec<(Vector3<f64>, f64)> = rows
+            .iter()
+            .filter(|(j, ..)| *j == k)
+            .map(|(_, pose, l)| (pose.translation.vector + pose.rotation * t, *l))
+            .collect();
+        points[k].centre = sphere_centre(&sphere).ok_or_else(|| {
+            CalibError::InvalidOption(format!(
+                "pivot {}: its rows do not place it (the tool points lie in a plane or on a line); measure from more spread poses",
+                points[k].id
+            ))
+        })?;
+    }
+    Ok(())
+}
+
+/// The tool-point offset and the pivots from offset `t0`: the pivots placed for the offset,
+/// then both fitted together; where that stalls with pivots placed for an offset far from the
+/// one it reached, placing them again and fitting again moves on (rounds while the cost falls).
+/// The offset and the cost `Σ r²` reached, the centres moved; `None` when no pivot could be placed.
+fn offset_and_pivots(
+    rows: &[(usize, Pose, f64)],
+    t0: Vector3<f64>,
+    pivots: &[usize],
+    points: &mut [ArtifactPoint],
+) -> Option<(Vector3<f64>, f64)> {
+    place_pivots(rows, &t0, pivots, points).ok()?;
+    let (mut t, mut cost, mut best) = (t0, f64::INFINITY, None);
+    for _ in 0..OFFSET_ROUNDS {
+        let (t_next, c) = fit_offset_and_pivots(rows, t, points);
+        if c.is_nan() || c >= cost * (1.0 - 1e-9) {
+            break;
+        }
+        (cost, t) = (c, t_next);
+        best = Some((t, c, points.to_vec()));
+        if place_pivots(rows, &t, pivots, points).is_err() {
+            break;
+        }
+    }
+    let (t, c, placed) = best?;
+    points.clone_from_slice(&placed);
+    Some((t, c))
 }
 
 /// A fitted tool point counts as collapsed onto its pivot's other rows when its spread is below
@@ -338,8 +371,8 @@ pub fn spread(points: &[Vector3<f64>]) -> (Vector3<f64>, f64, f64) {
 }
 
 /// Levenberg–Marquardt on `L_i − |p_i + R_i·t − c_k|` over the tool-point offset `t` and the
-/// pivots' centres (rows: pivot index, flange pose, length); returns the offset and the cost
-/// (sum of squared residuals, mm²), moves the centres. Stops where the cost no longer falls.
+/// pivots' centres (rows: pivot index, flange pose, length); returns the offset, moves the
+/// centres, and returns the cost `Σ r²` reached too. Stops where the cost no longer falls.
 fn fit_offset_and_pivots(rows: &[(usize, Pose, f64)], t0: Vector3<f64>, points: &mut [ArtifactPoint]) -> (Vector3<f64>, f64) {
     let n = 3 + 3 * points.len();
     let residual = |x: &DVector<f64>| -> DVector<f64> {
@@ -433,20 +466,31 @@ pub fn sphere_centre(rows: &[(Vector3<f64>, f64)]) -> Option<Vector3<f64>> {
     }
     let x = svd.solve(&b, 0.0).ok()?;
     let mut c = Vector3::new(x[0], x[1], x[2]);
-    for _ in 0..20 {
+    // The residuals `L_i − |p_i − c|` and their Jacobian: moving c by δ along the unit vector
+    // u_i = (p_i − c)/|p_i − c| shortens |p_i − c| by u_i·δ, so the row is +u_i.
+    let linearise = |c: &Vector3<f64>| -> Option<(DMatrix<f64>, DVector<f64>)> {
         let mut j = DMatrix::zeros(n, 3);
         let mut r = DVector::zeros(n);
         for (k, (p, l)) in rows.iter().enumerate() {
             let d = p - c;
             let u = d.try_normalize(1e-12)?;
             r[k] = l - d.norm();
-            // ∂r/∂c = +u: the residual grows as the centre moves toward the point.
             for i in 0..3 {
                 j[(k, i)] = u[i];
             }
         }
-        let step = j.svd(true, true).solve(&(-r), 1e-12).ok()?;
-        c += Vector3::new(step[0], step[1], step[2]);
+        Some((j, r))
+    };
+    let (mut j, mut r) = linearise(&c)?;
+    for _ in 0..20 {
+        let step = j.clone().svd(true, true).solve(&r, 1e-12).ok()?;
+        // Gauss–Newton: c − (JᵀJ)⁻¹Jᵀr, kept only while it lowers the cost.
+        let trial = c - Vector3::new(step[0], step[1], step[2]);
+        let Some((jt, rt)) = linearise(&trial) else { break };
+        if rt.norm_squared().is_nan() || rt.norm_squared() >= r.norm_squared() {
+            break;
+        }
+        (c, j, r) = (trial, jt, rt);
         if step.norm() < 1e-13 * (1.0 + c.norm()) {
             break;
         }

@@ -26,14 +26,21 @@ fn perturbation(model: &dyn Mechanism, free: &[usize], tol: &Tolerances, seed: u
     d
 }
 
-/// Largest distance (mm) between the tool positions two models predict at the poses of `data`.
-fn max_prediction_difference(a: &dyn Mechanism, b: &dyn Mechanism, data: &[Measurement]) -> f64 {
-    data.iter()
-        .map(|m| match (a.forward(&m.q), b.forward(&m.q)) {
-            (Ok(x), Ok(y)) => (crate::measure::compared_point(&m.obs, &x) - crate::measure::compared_point(&m.obs, &y)).norm(),
-            _ => f64::INFINITY,
-        })
-        .fold(0.0, f64::max)
+/// Largest distance (mm) between the tool positions two models predict at the poses of `data`;
+/// the first pose where `a` (a start's solution) or `b` (the kept one) cannot be evaluated is
+/// the error.
+fn max_prediction_difference(a: &dyn Mechanism, b: &dyn Mechanism, data: &[Measurement]) -> Result<f64, String> {
+    let mut max: f64 = 0.0;
+    for (i, m) in data.iter().enumerate() {
+        let x = a
+            .forward(&m.q)
+            .map_err(|e| format!("its solution at identification pose {i}: {e}"))?;
+        let y = b
+            .forward(&m.q)
+            .map_err(|e| format!("the kept solution at identification pose {i}: {e}"))?;
+        max = max.max((crate::measure::compared_point(&m.obs, &x) - crate::measure::compared_point(&m.obs, &y)).norm());
+    }
+    Ok(max)
 }
 
 /// What the starts gave: the kept identification and each start's outcome (the kept one first).
@@ -98,31 +105,36 @@ pub fn other_starts(
         let mut perturbed = setup.start.box_clone();
         perturbed.retract(&pert);
         // A start that fails outright (the perturbed machine does not assemble at some pose)
-        // is not evaluated: it says nothing about the kept solution ([`StartOutcome`]).
-        let outcome = identify(&perturbed, &subset, &agree_opts).ok().map(|r| {
-            let delta = pert + &r.delta;
-            Identification { delta, ..r }
-        });
+        // cannot be compared: it is dropped from the agreement check, with its reason.
+        let outcome = identify(&perturbed, &subset, &agree_opts)
+            .map(|r| {
+                let delta = pert + &r.delta;
+                Identification { delta, ..r }
+            })
+            .map_err(|e| e.to_string());
         others.push(outcome);
     }
     // On a subset, the fit on every pose is compared with the other starts on the same poses:
     // polished there first (one or two iterations from its solution).
     let (first, full_fit) = if stride > 1 {
-        let on_subset = identify(&fit.model, &subset, id_opts).ok().map(|r| {
-            let delta = fit.delta.clone() + &r.delta;
-            Identification { delta, ..r }
-        });
+        let on_subset = identify(&fit.model, &subset, id_opts)
+            .map(|r| {
+                let delta = fit.delta.clone() + &r.delta;
+                Identification { delta, ..r }
+            })
+            .map_err(|e| e.to_string());
         (on_subset, Some(fit))
     } else {
-        (Some(fit), None)
+        (Ok(fit), None)
     };
-    let mut all: Vec<Option<Identification<Box<dyn Mechanism>>>> = vec![first];
+    let mut all: Vec<Result<Identification<Box<dyn Mechanism>>, String>> = vec![first];
     all.extend(others);
     // The registered start is kept unless another reaches a clearly lower residual: equal fits
     // from perturbed starts differ only in how redundant directions were split.
     let sigma = |k: usize| {
         all[k]
             .as_ref()
+            .ok()
             .filter(|r| r.converged && r.sigma0.is_finite())
             .map_or(f64::INFINITY, |r| r.sigma0)
     };
@@ -132,32 +144,26 @@ pub fn other_starts(
             best = k;
         }
     }
-    let reference = all[best].as_ref().map(|r| r.model.box_clone());
+    let reference = all[best].as_ref().ok().map(|r| r.model.box_clone());
     let outcomes: Vec<StartOutcome> = std::iter::once(best)
         .chain((0..all.len()).filter(|&k| k != best))
-        .map(|k| match (&all[k], &reference) {
-            (Some(r), Some(reference)) => StartOutcome {
-                sigma0: r.sigma0,
-                converged: r.converged,
-                max_difference_mm: if k == best {
-                    0.0
-                } else {
-                    max_prediction_difference(&*r.model, &**reference, &subset)
-                },
-            },
-            (Some(r), None) => StartOutcome {
-                sigma0: r.sigma0,
-                converged: r.converged,
-                max_difference_mm: 0.0,
-            },
-            (None, _) => StartOutcome {
-                sigma0: f64::NAN,
-                converged: false,
-                max_difference_mm: if k == best { 0.0 } else { f64::NAN },
-            },
+        .map(|k| {
+            let compared = match (&all[k], &reference) {
+                _ if k == best => Ok(0.0),
+                (Ok(r), Some(reference)) => max_prediction_difference(&*r.model, &**reference, &subset),
+                (Ok(_), None) => Ok(0.0),
+                (Err(e), _) => Err(format!("its fit failed: {e}")),
+            };
+            let (sigma0, converged) = all[k].as_ref().map_or((f64::NAN, false), |r| (r.sigma0, r.converged));
+            StartOutcome {
+                sigma0,
+                converged,
+                max_difference_mm: compared.as_ref().ok().copied(),
+                unchecked: compared.err(),
+            }
         })
         .collect();
-    let chosen = all[best].take();
+    let chosen = std::mem::replace(&mut all[best], Err(String::new())).ok();
     let identification = match (full_fit, best) {
         (Some(full), 0) => full,
         // Another start won on the subset: its solution, refitted on every kept pose.

@@ -291,21 +291,27 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         );
     }
     if cal.starts.len() > 1 {
-        let spread = cal.starts.iter().map(|s| s.max_difference_mm).fold(0.0, f64::max);
+        let spread = cal.starts.iter().filter_map(|s| s.max_difference_mm).fold(0.0, f64::max);
+        let compared = cal.starts.iter().filter(|s| s.max_difference_mm.is_some()).count();
         let agree = if spread <= cal.start_tolerance_mm { "agree" } else { "DISAGREE" };
-        println!(
-            "{} starts {agree}: predictions within {spread:.2e} mm of the kept solution (σ̂₀ {}){}",
-            cal.starts.len(),
-            cal.starts
-                .iter()
-                .map(|s| format!("{:.4}", s.sigma0))
-                .collect::<Vec<_>>()
-                .join(" / "),
-            match cal.starts.iter().filter(|s| s.max_difference_mm.is_nan()).count() {
-                0 => String::new(),
-                n => format!("; {n} not evaluated: the perturbed machine does not assemble at every pose"),
+        if compared > 1 {
+            println!(
+                "{compared} starts {agree}: predictions within {spread:.2e} mm of the kept solution (σ̂₀ {})",
+                cal.starts
+                    .iter()
+                    .filter(|s| s.max_difference_mm.is_some())
+                    .map(|s| format!("{:.4}", s.sigma0))
+                    .collect::<Vec<_>>()
+                    .join(" / ")
+            );
+        } else {
+            println!("no other start could be compared with the kept solution:");
+        }
+        for (k, s) in cal.starts.iter().enumerate() {
+            if let Some(why) = &s.unchecked {
+                println!("start {} left out of the agreement check: {why}", k + 1);
             }
-        );
+        }
     }
     if !cal.blunders.is_empty() {
         // At most 50 ids on the line (--json lists every one).

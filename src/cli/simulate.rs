@@ -102,9 +102,14 @@ pub struct SimulateArgs {
     /// direction toward the reference tool point); columns `pivot,length_mm`. Needs `--ballbar-mm`.
     #[arg(long, value_name = "X,Y,Z;…", requires = "ballbar_mm", conflicts_with_all = ["measure", "cycles"])]
     pub pivots: Option<String>,
-    /// The ballbar's length (mm).
+    /// The ballbar's length (mm): its certified length, about which it measures.
     #[arg(long, value_name = "L", requires = "pivots")]
     pub ballbar_mm: Option<f64>,
+    /// The ballbar's measuring range (mm, ±): each row's length is drawn uniformly in
+    /// L ± R (a telescoping bar's travel). 0: a fixed bar, every row the same length, which
+    /// does not rule out a machine that stands still over a pivot's rows.
+    #[arg(long, value_name = "R", requires = "pivots", default_value_t = kinecal::instrument::simulate::DEFAULT_BALLBAR_RANGE_MM)]
+    pub ballbar_range_mm: f64,
     /// Instrument data: rows per seat or pivot.
     #[arg(long, visible_aliases = ["per-seat", "per-pivot"], default_value_t = 15)]
     pub per_point: usize,
@@ -398,7 +403,7 @@ fn instrument_run(
     let points = parse_points(text).map_err(|e| anyhow::anyhow!("{option} {e}"))?;
     let draw = |how: &Placement| -> anyhow::Result<Vec<kinecal::measure::Measurement>> {
         let rows = match a.ballbar_mm {
-            Some(length) if a.seats.is_none() => distance_rows(truth, &points, length, how),
+            Some(length) if a.seats.is_none() => distance_rows(truth, &points, length, a.ballbar_range_mm, how),
             _ => seat_rows(truth, &points, how),
         };
         rows.map_err(|e| match e {
@@ -447,6 +452,7 @@ fn instrument_run(
             serde_json::to_string_pretty(&serde_json::json!({
                 "model": file.name, "seed": a.seed, "error_mm": a.error_mm, "error_deg": a.error_deg,
                 "noise_mm": a.noise_mm, "instrument": kind, "points": points.len(), "ballbar_mm": a.ballbar_mm,
+                "ballbar_range_mm": a.pivots.as_ref().map(|_| a.ballbar_range_mm),
                 "seat_distances": distances, "truth": a.truth, "data": files,
             }))?
         );
@@ -471,6 +477,12 @@ fn instrument_run(
             },
             a.noise_mm,
             w.path.display()
+        );
+    }
+    if let (Some(length), None) = (a.ballbar_mm, &a.seats) {
+        println!(
+            "ballbar {length} mm ± {} mm (each row's length uniform in that range)",
+            a.ballbar_range_mm
         );
     }
     if !distances.is_empty() {

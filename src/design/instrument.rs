@@ -169,7 +169,7 @@ pub fn instrument_candidates(file: &ModelFile, layout: &InstrumentLayout, draw: 
         ..draw.clone()
     };
     match layout.bar_length {
-        Some(l) => distance_rows(&model.inner, &layout.points, l, &exact),
+        Some(l) => distance_rows(&model.inner, &layout.points, l, 0.0, &exact),
         None => seat_rows(&model.inner, &layout.points, &exact),
     }
 }

@@ -56,19 +56,50 @@ pub fn seat_rows(truth: &dyn Mechanism, seats: &[Vector3<f64>], how: &Placement)
     draw_rows(truth, seats, how, "seat", |_, _| None)
 }
 
-/// Configurations of `truth` whose tool point lies at `length` (mm) from each pivot of `pivots`,
-/// in directions within 60° of the pivot's direction toward the reference tool point; one
-/// [`Observation::Distance`] row each with the true length plus noise along the bar.
-pub fn distance_rows(truth: &dyn Mechanism, pivots: &[Vector3<f64>], length: f64, how: &Placement) -> Result<Vec<Measurement>, CalibError> {
+/// The range a telescoping ballbar measures over (mm, ±, about its certified length) when none
+/// is given: a little inside the ±1 mm of common ballbars, so that every commanded length is
+/// within the sensor's travel.
+pub const DEFAULT_BALLBAR_RANGE_MM: f64 = 0.8;
+
+/// Configurations of `truth` whose tool point lies at a length from each pivot of `pivots`
+/// drawn uniformly in `length ± range` (mm; a telescoping ballbar's travel about its certified
+/// length, 0 for a fixed bar), in directions within 60° of the pivot's direction toward the
+/// reference tool point; one [`Observation::Distance`] row each with the true length plus noise
+/// along the bar.
+///
+/// With one fixed length every row of a pivot reads the same, and a machine whose tool point
+/// stands still over those rows fits them exactly ([`crate::instrument::collapsed_pivots`]);
+/// lengths that vary rule such a machine out.
+///
+/// A machine that does not command the whole tool position (e.g. a head commanding its height
+/// and axis) is then moved along its inputs until the tool point is at the drawn length, wherever
+/// that puts it.
+pub fn distance_rows(
+    truth: &dyn Mechanism,
+    pivots: &[Vector3<f64>],
+    length: f64,
+    range: f64,
+    how: &Placement,
+) -> Result<Vec<Measurement>, CalibError> {
     if length.is_nan() || length <= 0.0 {
         return Err(CalibError::InvalidOption(format!("ballbar length {length} mm: must be positive")));
+    }
+    if !(range.is_finite() && range >= 0.0 && range < length) {
+        return Err(CalibError::InvalidOption(format!(
+            "ballbar range ±{range} mm: must be at least 0 and below the length ({length} mm)"
+        )));
     }
     let home = truth
         .forward(&how.reference)
         .map_err(|source| CalibError::Kinematics { pose: 0, source })?;
     draw_rows(truth, pivots, how, "pivot", |pivot, rng| {
         let axis = (home.translation.vector - pivot).try_normalize(1e-9).unwrap_or_else(Vector3::z);
-        Some(pivot + se3::so3_exp(&random_tilt(rng, 60f64.to_radians())) * axis * length)
+        let l = if range > 0.0 {
+            rng.random_range(length - range..=length + range)
+        } else {
+            length
+        };
+        Some(pivot + se3::so3_exp(&random_tilt(rng, 60f64.to_radians())) * axis * l)
     })
 }
 
@@ -115,9 +146,16 @@ fn draw_rows(
             else {
                 continue;
             };
-            let Ok(reached) = truth.forward(&q) else { continue };
+            let Ok(mut reached) = truth.forward(&q) else { continue };
+            let mut q = q;
             if (reached.translation.vector - place).norm() > 1e-9 {
-                continue;
+                // A machine that does not command the whole tool position (a head commanding its
+                // height and axis) puts the point elsewhere. A seat needs the point itself; a
+                // distance row only its length, reached by moving the inputs.
+                let Some(at) = aim.and_then(|aim| onto_length(truth, &q, point, (aim - point).norm(), &how.inputs)) else {
+                    continue;
+                };
+                (q, reached) = at;
             }
             let obs = match aim {
                 None => Observation::Seat(k),
@@ -171,6 +209,37 @@ fn approached(truth: &dyn Mechanism, goal: &Pose, mut q: Vec<f64>, previous: Opt
     }
     let q = within_limits(truth.inverse(goal, Some(&q)).ok()?, inputs)?;
     (directions(&q) == wanted && wanted.iter().all(|&(k, d)| q[k] == d)).then_some(q)
+}
+
+/// Inputs near `q` whose tool point lies at `length` from `pivot`, and the pose there: Newton on
+/// the distance over the inputs (minimum-norm steps, the gradient by central differences),
+/// within the limits of `inputs`; `None` when it does not get there.
+fn onto_length(truth: &dyn Mechanism, q: &[f64], pivot: &Vector3<f64>, length: f64, inputs: &[InputSpec]) -> Option<(Vec<f64>, Pose)> {
+    let distance = |q: &[f64]| truth.forward(q).ok().map(|p| ((p.translation.vector - pivot).norm(), p));
+    let mut q = q.to_vec();
+    for _ in 0..30 {
+        let (d, pose) = distance(&q)?;
+        if (d - length).abs() < 1e-11 * length {
+            return within_limits(q, inputs).map(|q| (q, pose));
+        }
+        let h = 1e-6;
+        let mut g = vec![0.0; q.len()];
+        for k in 0..q.len() {
+            let (mut up, mut down) = (q.clone(), q.clone());
+            up[k] += h;
+            down[k] -= h;
+            g[k] = (distance(&up)?.0 - distance(&down)?.0) / (2.0 * h);
+        }
+        let gg: f64 = g.iter().map(|v| v * v).sum();
+        if gg.is_nan() || gg <= 1e-18 {
+            return None;
+        }
+        let s = (length - d) / gg;
+        for (v, gk) in q.iter_mut().zip(&g) {
+            *v += s * gk;
+        }
+    }
+    None
 }
 
 /// Points (mm) from text `X,Y,Z;X,Y,Z;…` (e.g. `400,0,300;400,100,300`), for a command line.

@@ -320,18 +320,18 @@ impl CalibrationReport {
         }
     }
 
-    /// Fail the verdict for `reason` (put first among the reasons), whatever it was.
-    pub fn fail(&mut self, reason: String) {
-        self.verdict.status = Status::Failed;
-        self.verdict.reasons.insert(0, reason);
-    }
-
-    /// Add a warning to the verdict: a calibrated result becomes usable with warnings; a failed
-    /// one stays failed, the warning after its reasons.
+    /// A warning for `reason`: "calibrated" becomes "usable with warnings" (a failed verdict
+    /// stays failed); the reason is added last.
     pub fn warn(&mut self, reason: String) {
         if self.verdict.status == Status::Calibrated {
             self.verdict.status = Status::UsableWithWarnings;
         }
         self.verdict.reasons.push(reason);
+    }
+
+    /// Fail the verdict for `reason` (put first among the reasons), whatever it was.
+    pub fn fail(&mut self, reason: String) {
+        self.verdict.status = Status::Failed;
+        self.verdict.reasons.insert(0, reason);
     }
 }

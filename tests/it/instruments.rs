@@ -1,7 +1,7 @@
 //! Instruments without a tracker (issue 30): seats and ballbar distances through the general
 //! `calibrate`, noise-free, recover the machine up to what the instrument cannot see.
 use kinecal::calibrate::{calibrate, CalibrationOptions};
-use kinecal::instrument::simulate::{distance_rows, seat_rows, Placement};
+use kinecal::instrument::simulate::{distance_rows, middle_of_limits, seat_rows, Placement, DEFAULT_BALLBAR_RANGE_MM};
 use kinecal::io::builtin;
 use kinecal::io::data_file::{DataSet, MeasurementFormat};
 use kinecal::io::model_file::ModelFile;
@@ -40,6 +40,8 @@ struct Outcome {
     held_out_max_mm: f64,
     sigma0: f64,
     status: String,
+    /// Starts left out of the agreement check (their fit could not be evaluated).
+    unchecked: usize,
 }
 
 impl Outcome {
@@ -113,6 +115,7 @@ fn run(
         held_out_max_mm: aligned_max(&fitted, &true_points),
         sigma0: cal.identification.sigma0,
         status: format!("{:?}: {}", cal.report.verdict.status, cal.report.verdict.reasons.join(" | ")),
+        unchecked: cal.starts.iter().filter(|s| s.unchecked.is_some()).count(),
     }
 }
 
@@ -146,11 +149,14 @@ fn seats_and_one_known_distance_recover_a_serial_arm() {
 fn a_ballbar_recovers_a_serial_arm_up_to_a_rigid_motion() {
     let o = run("irb120", &IRB120_REFERENCE, 40, |truth, how| {
         let centres = irb120_points(truth, &[[0.0, 0.0, 0.0], [0.5, 0.1, -0.1], [-0.5, -0.1, 0.2]]);
-        // Pivots 100 mm below the tool points, a 100 mm ballbar.
+        // Pivots 100 mm below the tool points, a ballbar of 100 ± 0.8 mm.
         let pivots: Vec<Vector3<f64>> = centres.iter().map(|c| c - Vector3::new(0.0, 0.0, 100.0)).collect();
-        (distance_rows(truth, &pivots, 100.0, how).unwrap(), MeasurementFormat::Distance)
+        (
+            distance_rows(truth, &pivots, 100.0, DEFAULT_BALLBAR_RANGE_MM, how).unwrap(),
+            MeasurementFormat::Distance,
+        )
     });
-    o.exact("irb120, 3 pivots × 40, 100 mm ballbar");
+    o.exact("irb120, 3 pivots × 40, 100 ± 0.8 mm ballbar");
 }
 
 /// A limbs machine (the 6-RUS hexapod, written as limbs): six seats where the platform's tool
@@ -174,6 +180,70 @@ fn seats_and_one_known_distance_recover_a_parallel_machine() {
         (seat_rows(truth, &seats, &how).unwrap(), MeasurementFormat::Seat)
     });
     o.exact("hexapod-6rus, 6 seats × 20 and the distance of two");
+}
+
+/// The tool points of the true machine at the middle of its inputs' limits and at four random
+/// configurations (seed 5): seats there, or pivots 100 mm below the first three.
+fn points_of(truth: &dyn Mechanism, file: &ModelFile) -> Vec<Vector3<f64>> {
+    let mut qs = vec![middle_of_limits(&file.inputs())];
+    qs.extend(random_configurations(&*file.build(), &file.inputs(), 4, &mut ChaCha8Rng::seed_from_u64(5)).unwrap());
+    qs.iter().map(|q| truth.forward(q).unwrap().translation.vector).collect()
+}
+
+/// A ballbar of 100 ± 0.8 mm at three pivots 100 mm below tool points of `name`, 40 rows each,
+/// the tool tilted up to 15° from its orientation at the middle of the inputs' limits (within
+/// those limits).
+fn ballbar_on(name: &str) -> Outcome {
+    let file: ModelFile = builtin::model_file(name).unwrap();
+    run(name, &middle_of_limits(&file.inputs()), 40, |truth, how| {
+        let how = Placement {
+            max_tilt: 15f64.to_radians(),
+            inputs: file.inputs(),
+            ..how.clone()
+        };
+        let pivots: Vec<Vector3<f64>> = points_of(truth, &file)[..3]
+            .iter()
+            .map(|c| c - Vector3::new(0.0, 0.0, 100.0))
+            .collect();
+        (
+            distance_rows(truth, &pivots, 100.0, DEFAULT_BALLBAR_RANGE_MM, &how).unwrap(),
+            MeasurementFormat::Distance,
+        )
+    })
+}
+
+/// pm5 (the built-in 5-axis parallel machine, a closed loop with its own base and tool
+/// parameters) with a ballbar: the calibrated file loads back and its tool points are the
+/// truth's up to where the machine stands.
+#[test]
+fn a_ballbar_recovers_the_pm5_machine() {
+    ballbar_on("pm5").exact("pm5, 3 pivots × 40, 100 ± 0.8 mm ballbar");
+}
+
+/// A limbs machine that commands only its height and tool axis (the 3-PRS head): its tool point
+/// cannot be put at a chosen point from many orientations (no seats), but a ballbar's rows are
+/// drawn by moving its inputs to each length.
+#[test]
+fn a_ballbar_recovers_a_head_that_only_tilts() {
+    ballbar_on("head-3prs").exact("head-3prs, 3 pivots × 40, 100 ± 0.8 mm ballbar");
+}
+
+/// pm5 with five seats (tilt up to 35°, one seat distance). One perturbed start does not
+/// assemble at some pose: it is left out of the agreement check (it neither agrees nor
+/// disagrees), and the verdict stays "calibrated".
+#[test]
+fn seats_recover_the_pm5_machine_and_a_start_that_does_not_assemble_is_left_out() {
+    let file: ModelFile = builtin::model_file("pm5").unwrap();
+    let o = run("pm5", &middle_of_limits(&file.inputs()), 40, |truth, how| {
+        let how = Placement {
+            inputs: file.inputs(),
+            ..how.clone()
+        };
+        (seat_rows(truth, &points_of(truth, &file), &how).unwrap(), MeasurementFormat::Seat)
+    });
+    o.exact("pm5, 5 seats × 40 and the distance of two");
+    assert_eq!(o.unchecked, 1, "{}", o.status);
+    assert!(o.status.starts_with("Calibrated"), "{}", o.status);
 }
 
 /// Real seat data (tests/data/mukca-panda: a Franka Panda, a printed tool with two sockets 50 mm
@@ -290,9 +360,8 @@ fn seats_without_a_known_distance_on_a_turning_machine_are_refused() {
     );
 }
 
-/// A UR5e from its URDF (`ur_description`'s layout, tests/it/urdf.rs): seats with one known
-/// distance, noise-free through `calibrate()`; and a ballbar whose pivots sit too close
-/// together to determine it, which fails instead of passing a wrong machine.
+/// A UR5e from its URDF (`ur_description`'s layout, tests/it/urdf.rs), noise-free through
+/// `calibrate()`: seats with one known distance, and a fixed-length ballbar.
 #[test]
 fn a_ur5e_from_its_urdf_with_seats_and_with_a_ballbar() {
     let file = kinecal::io::urdf::import(&crate::urdf::ur5e_urdf(), Some("base_link_inertia"), Some("tool0")).unwrap();
@@ -353,16 +422,15 @@ fn a_ur5e_from_its_urdf_with_seats_and_with_a_ballbar() {
         known,
         "4 seats × 25 and one seat distance",
     );
-    // A 100 mm ballbar at 4 pivots below these seats, 60 rows each. (Before the sphere fit's
-    // Gauss–Newton step had its sign right, the pivots started far off and the fit matched every
-    // length with a machine 250 mm / 100° away, its tool point standing still over each pivot's
-    // rows; `instrument::collapsed_pivots` still fails such a fit.)
+    // A fixed 100 mm ballbar at 4 pivots below these seats (60 rows each). It once failed
+    // here (a machine 250 mm / 100° away matching every length): the pivots' sphere fit, which
+    // starts the fit, stepped the wrong way. Started right, the same rows determine the arm.
     let pivots: Vec<Vector3<f64>> = points.iter().map(|c| c - Vector3::new(0.0, 0.0, 100.0)).collect();
     check(
-        distance_rows(&truth, &pivots, 100.0, &Placement { per_point: 60, ..how }).unwrap(),
+        distance_rows(&truth, &pivots, 100.0, 0.0, &Placement { per_point: 60, ..how }).unwrap(),
         MeasurementFormat::Distance,
         Vec::new(),
-        "a 100 mm ballbar, 4 pivots × 60",
+        "fixed 100 mm ballbar, 4 pivots × 60",
     );
 }
 
@@ -454,4 +522,88 @@ fn cli_seats_simulate_identify_validate() {
         ],
     );
     assert!(bad.contains("'400,0'"), "{bad}");
+}
+
+/// pm5 with a telescoping ballbar from the command line (docs/instruments.md, "pm5 with a
+/// ballbar, from the command line"): `simulate --pivots` writes lengths that vary within the
+/// default ±0.8 mm, `identify` leaves out the perturbed starts that do not assemble (`--seed 1`:
+/// both, so "usable with warnings"; `--seed 3`: none, "calibrated"), `validate` of the calibrated
+/// file fits every held-out length, `compensate` turns targets into commands.
+#[test]
+fn cli_pm5_ballbar_simulate_identify_validate_compensate() {
+    use crate::cli::{json, ok};
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let sim = ok(
+        dir,
+        &[
+            "simulate",
+            "pm5",
+            "--pivots",
+            "0,-30,370;40,-30,380;-30,20,375",
+            "--ballbar-mm",
+            "100",
+            "--tool-mm",
+            "10,-5,60",
+            "--tilt-deg",
+            "15",
+            "--per-pivot",
+            "40",
+            "--out",
+            "d.csv",
+            "--truth",
+            "t.toml",
+            "--validation-poses",
+            "20",
+            "--validation-out",
+            "v.csv",
+        ],
+    );
+    assert!(sim.contains("ballbar 100 mm ± 0.8 mm"), "{sim}");
+    let lengths: Vec<f64> = std::fs::read_to_string(dir.join("d.csv"))
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| l.rsplit(',').next().unwrap().parse().unwrap())
+        .collect();
+    let (lo, hi) = lengths.iter().fold((f64::MAX, f64::MIN), |(a, b), &l| (a.min(l), b.max(l)));
+    assert!(lengths.len() == 120 && lo >= 99.2 && hi <= 100.8 && hi - lo > 1.0, "{lo}..{hi}");
+    let first = ok(dir, &["identify", "pm5", "d.csv", "--out", "cal.toml", "--noise-mm", "0.01"]);
+    assert!(
+        first.contains("start 2 left out of the agreement check")
+            && first.contains("verdict: usable with warnings: no other start could be compared"),
+        "{first}"
+    );
+    let other = ok(
+        dir,
+        &[
+            "identify",
+            "pm5",
+            "d.csv",
+            "--out",
+            "cal3.toml",
+            "--noise-mm",
+            "0.01",
+            "--seed",
+            "3",
+        ],
+    );
+    assert!(other.contains("3 starts agree") && other.contains("verdict: calibrated"), "{other}");
+    let worst = |model: &str| -> f64 {
+        let v = json(dir, &["validate", model, "v.csv"]);
+        let pivots = v["instrument"]["pivots"].as_array().unwrap();
+        assert_eq!(pivots.len(), 3);
+        pivots.iter().map(|p| p["max_mm"].as_f64().unwrap()).fold(0.0, f64::max)
+    };
+    let (nominal, calibrated) = (worst("pm5"), worst("cal.toml"));
+    eprintln!("pm5 ballbar via the CLI: held-out worst length error {nominal:.4} mm (nominal) → {calibrated:.2e} mm (calibrated)");
+    assert!(nominal > 1.0 && calibrated < 1e-6, "{nominal} → {calibrated} mm");
+    std::fs::write(
+        dir.join("targets.csv"),
+        "id,x_mm,y_mm,z_mm,roll_deg,pitch_deg,yaw_deg\n0,10,-5,460,0,0,0\n1,30,5,450,5,0,0\n2,-15,5,470,0,-5,0\n",
+    )
+    .unwrap();
+    let comp = ok(dir, &["compensate", "cal.toml", "targets.csv", "--out", "cmd.csv"]);
+    assert!(comp.contains("3 targets → 3 commands"), "{comp}");
+    assert_eq!(std::fs::read_to_string(dir.join("cmd.csv")).unwrap().lines().count(), 4);
 }
