@@ -117,7 +117,11 @@ pub fn join_seat_exports(seats: &[PathBuf], angles: AngleUnit, lengths: LengthUn
     for (m, q) in measurements.iter_mut().zip(qs) {
         m.q = q;
     }
-    let mut set = DataSet::from_measurements(&seats.first().map_or("seats".into(), |p| p.display().to_string()), measurements);
+    let name = match seats {
+        [one] => one.display().to_string(),
+        _ => format!("{} seat exports", seats.len()),
+    };
+    let mut set = DataSet::from_measurements(&name, measurements);
     set.ids = (1..=set.measurements.len() as i64).collect();
     set.lines = lines;
     Ok(set)
