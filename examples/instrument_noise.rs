@@ -17,7 +17,7 @@
 //! ```
 mod common;
 
-use common::{data_set, run, seats_near_reference, table_row, tracker, tracker_rows, Outcome, REFERENCE};
+use common::{data_set, print_progress, print_table, run, seats_near_reference, tracker, tracker_rows, Outcome, REFERENCE};
 use kinecal::calibrate::CalibrationOptions;
 use kinecal::instrument::simulate::{distance_rows, seat_distances, seat_rows, Placement};
 use kinecal::io::builtin;
@@ -98,21 +98,13 @@ fn main() {
             &whole,
             &near,
         ));
-        eprintln!(
-            "prototype {seed}: {}",
-            (0..names.len())
-                .map(|k| {
-                    let (w, n, status) = &table[k][seed as usize - 1];
-                    format!("{w:.4} / {n:.4} mm ({status})")
-                })
-                .collect::<Vec<_>>()
-                .join(", ")
-        );
+        print_progress(seed, "", &table);
     }
-    println!("IRB 120, {draws} prototypes, {ROWS} rows each: held-out 3-D position error RMS (mm) after a rigid motion, median [min–max]");
-    println!("| instrument | whole workspace (30 random configurations) | near the seats (40 new orientations) | verdict \"calibrated\" |");
-    println!("|---|---|---|---|");
-    for (k, name) in names.iter().enumerate() {
-        println!("{}", table_row(name, &table[k]));
-    }
+    print_table(
+        &format!(
+            "IRB 120, {draws} prototypes, {ROWS} rows each: held-out 3-D position error RMS (mm) after a rigid motion, median [min–max]"
+        ),
+        &names,
+        &table,
+    );
 }

@@ -17,7 +17,7 @@
 //! ```
 mod common;
 
-use common::{data_set, run, seats_near_reference, table_row, tracker, tracker_rows, Outcome, REFERENCE};
+use common::{data_set, print_progress, print_table, run, seats_near_reference, tracker, tracker_rows, Outcome, REFERENCE};
 use kinecal::calibrate::CalibrationOptions;
 use kinecal::design::{instrument_blocks, plan_instrument, Criterion, InstrumentLayout, InstrumentPlanOptions, ObservabilityIndices};
 use kinecal::design::{SelectOptions, SelectionMethod};
@@ -135,21 +135,11 @@ fn main() {
             &whole,
             &near,
         ));
-        eprintln!(
-            "prototype {seed}: {criterion} planned {vp:.4e} random {vr:.4e}; {}",
-            (0..3)
-                .map(|k| {
-                    let (w, n, status) = &table[k][seed as usize - 1];
-                    format!("{w:.4} / {n:.4} mm ({status})")
-                })
-                .collect::<Vec<_>>()
-                .join(", ")
-        );
+        print_progress(seed, &format!("{criterion} planned {vp:.4e} random {vr:.4e}; "), &table);
     }
-    println!("IRB 120, {draws} prototypes, {n} rows each: held-out 3-D position error RMS (mm) after a rigid motion, median [min–max]");
-    println!("| instrument | whole workspace (30 random configurations) | near the seats (40 new orientations) | verdict \"calibrated\" |");
-    println!("|---|---|---|---|");
-    for (k, name) in names.iter().enumerate() {
-        println!("{}", table_row(name, &table[k]));
-    }
+    print_table(
+        &format!("IRB 120, {draws} prototypes, {n} rows each: held-out 3-D position error RMS (mm) after a rigid motion, median [min–max]"),
+        &names,
+        &table,
+    );
 }

@@ -133,3 +133,26 @@ pub fn table_row(name: &str, runs: &[Outcome]) -> String {
     let calibrated = runs.iter().filter(|r| r.2 == "calibrated").count();
     format!("| {name} | {} | {} | {calibrated} of {} |", col(|r| r.0), col(|r| r.1), runs.len())
 }
+
+/// One line on stderr with prototype `seed`'s outcome in every column of `table` (`prefix`
+/// first).
+pub fn print_progress(seed: u64, prefix: &str, table: &[Vec<Outcome>]) {
+    let cells: Vec<String> = table
+        .iter()
+        .map(|column| {
+            let (w, n, status) = &column[seed as usize - 1];
+            format!("{w:.4} / {n:.4} mm ({status})")
+        })
+        .collect();
+    eprintln!("prototype {seed}: {prefix}{}", cells.join(", "));
+}
+
+/// The markdown table of `table` (one row per instrument, named by `names`) under `title`.
+pub fn print_table<S: AsRef<str>>(title: &str, names: &[S], table: &[Vec<Outcome>]) {
+    println!("{title}");
+    println!("| instrument | whole workspace (30 random configurations) | near the seats (40 new orientations) | verdict \"calibrated\" |");
+    println!("|---|---|---|---|");
+    for (name, column) in names.iter().zip(table) {
+        println!("{}", table_row(name.as_ref(), column));
+    }
+}

@@ -7,10 +7,9 @@
 use super::plan::PlanArgs;
 use clap::Args;
 use kinecal::design::{plan_instrument, InstrumentLayout, InstrumentPlanOptions, SelectOptions};
-use kinecal::instrument::simulate::{middle_of_limits, parse_points, Placement};
-use kinecal::io::data_file::{data_text, input_headers};
+use kinecal::instrument::simulate::{parse_points, Placement};
+use kinecal::io::data_file::data_text;
 use kinecal::io::{model_file::ModelFile, output::Outputs};
-use kinecal::params::Unit;
 use nalgebra::Vector3;
 
 /// The arguments of an instrument plan.
@@ -52,34 +51,6 @@ impl InstrumentArgs {
     }
 }
 
-/// The reference configuration of `text` (deg / mm) in the model's units, or the middle of the
-/// limits without one.
-fn reference(text: Option<&str>, inputs: &[kinecal::model::kind::InputSpec]) -> anyhow::Result<Vec<f64>> {
-    let Some(text) = text else { return Ok(middle_of_limits(inputs)) };
-    let values: Vec<f64> = text
-        .split(',')
-        .map(|v| v.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| {
-            anyhow::anyhow!(
-                "--reference '{text}': the model's {} inputs in deg / mm, comma-separated",
-                inputs.len()
-            )
-        })?;
-    anyhow::ensure!(
-        values.len() == inputs.len(),
-        "--reference '{text}': {} values, the model has {} inputs ({})",
-        values.len(),
-        inputs.len(),
-        input_headers(inputs).join(", ")
-    );
-    Ok(inputs
-        .iter()
-        .zip(values)
-        .map(|(i, v)| if i.unit == Unit::Angle { v.to_radians() } else { v })
-        .collect())
-}
-
 /// Run an instrument plan.
 pub fn run(args: &PlanArgs, file: ModelFile) -> anyhow::Result<()> {
     let a = &args.instrument;
@@ -111,7 +82,8 @@ pub fn run(args: &PlanArgs, file: ModelFile) -> anyhow::Result<()> {
     let opts = InstrumentPlanOptions {
         draw: Placement {
             per_point: a.candidates_per_point,
-            reference: reference(a.reference.as_deref(), &inputs)?,
+            reference: kinecal::instrument::simulate::reference_configuration(a.reference.as_deref(), &inputs)
+                .map_err(anyhow::Error::msg)?,
             max_tilt: a.tilt_deg.to_radians(),
             noise_mm: args.noise_position_mm,
             seed: args.sampling.seed,

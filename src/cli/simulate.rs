@@ -3,7 +3,7 @@
 use super::progress;
 use clap::{Args, ValueEnum};
 use kinecal::error::CalibError;
-use kinecal::instrument::simulate::{distance_rows, middle_of_limits, parse_points, seat_distances, seat_rows, Placement};
+use kinecal::instrument::simulate::{distance_rows, parse_points, seat_distances, seat_rows, Placement};
 use kinecal::io::data_file::data_text;
 use kinecal::io::model_file::ModelFile;
 use kinecal::io::output::Outputs;
@@ -351,39 +351,7 @@ fn instrument_run(
         a.tilt_deg
     );
     let inputs = file.inputs();
-    let reference = match &a.reference {
-        Some(text) => {
-            let values: Vec<f64> = text
-                .split(',')
-                .map(|v| v.trim().parse::<f64>())
-                .collect::<Result<_, _>>()
-                .map_err(|_| {
-                    anyhow::anyhow!(
-                        "--reference '{text}': the model's {} inputs in deg / mm, comma-separated",
-                        inputs.len()
-                    )
-                })?;
-            anyhow::ensure!(
-                values.len() == inputs.len(),
-                "--reference '{text}': {} values, the model has {} inputs ({})",
-                values.len(),
-                inputs.len(),
-                kinecal::io::data_file::input_headers(&inputs).join(", ")
-            );
-            inputs
-                .iter()
-                .zip(values)
-                .map(|(i, v)| {
-                    if i.unit == kinecal::params::Unit::Angle {
-                        v.to_radians()
-                    } else {
-                        v
-                    }
-                })
-                .collect()
-        }
-        None => middle_of_limits(&inputs),
-    };
+    let reference = kinecal::instrument::simulate::reference_configuration(a.reference.as_deref(), &inputs).map_err(anyhow::Error::msg)?;
     truth
         .forward(&reference)
         .map_err(|e| anyhow::anyhow!("the reference configuration: {e} (give one the machine reaches with --reference)"))?;

@@ -285,6 +285,37 @@ pub fn seat_distances(seats: &[Vector3<f64>]) -> Vec<SeatDistance> {
         .collect()
 }
 
+/// The configuration of `text` (the model's inputs in file units, deg for angles and mm for
+/// lengths, comma-separated) in the model's units (rad, mm), or the middle of each input's
+/// limits without one ([`middle_of_limits`]): a reference configuration for a command line. The
+/// error names the option and what it expects.
+pub fn reference_configuration(text: Option<&str>, inputs: &[InputSpec]) -> Result<Vec<f64>, String> {
+    let Some(text) = text else { return Ok(middle_of_limits(inputs)) };
+    let values: Vec<f64> = text
+        .split(',')
+        .map(|v| v.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| {
+            format!(
+                "--reference '{text}': the model's {} inputs in deg / mm, comma-separated",
+                inputs.len()
+            )
+        })?;
+    if values.len() != inputs.len() {
+        return Err(format!(
+            "--reference '{text}': {} values, the model has {} inputs ({})",
+            values.len(),
+            inputs.len(),
+            crate::io::data_file::input_headers(inputs).join(", ")
+        ));
+    }
+    Ok(inputs
+        .iter()
+        .zip(values)
+        .map(|(i, v)| if i.unit == crate::params::Unit::Angle { v.to_radians() } else { v })
+        .collect())
+}
+
 /// The middle of each input's limits (0 where it has none, and for an approach direction): a reference configuration
 /// ([`Placement::reference`]) when none is given.
 pub fn middle_of_limits(inputs: &[InputSpec]) -> Vec<f64> {
