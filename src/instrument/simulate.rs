@@ -138,9 +138,21 @@ fn draw_rows(
             let place = aim.unwrap_or(*point) + if aim.is_none() { settle } else { Vector3::zeros() };
             let rotation = se3::so3_exp(&random_tilt(&mut rng, how.max_tilt)) * home.rotation;
             let goal = Pose::from_parts(place.into(), rotation);
-            let Some(q) = truth
-                .inverse(&goal, Some(&how.reference))
-                .ok()
+            // A machine with fewer inputs than its task commands (a 5-axis serial arm) reaches a
+            // point, not an arbitrary orientation there: it is moved onto the point from the
+            // reference turned at random, the orientation being what it reaches.
+            let solved = match truth.inverse(&goal, Some(&how.reference)) {
+                Err(_) if aim.is_none() && truth.input_names().len() < truth.task().dof() => {
+                    let start: Vec<f64> = how
+                        .reference
+                        .iter()
+                        .map(|v| v + rng.random_range(-how.max_tilt..=how.max_tilt))
+                        .collect();
+                    onto_point(truth, &start, &place)
+                }
+                other => other.ok(),
+            };
+            let Some(q) = solved
                 .and_then(|q| within_limits(q, &how.inputs))
                 .and_then(|q| approached(truth, &goal, q, out.last().map(|m: &Measurement| m.q.as_slice()), &how.inputs))
             else {
@@ -209,6 +221,35 @@ fn approached(truth: &dyn Mechanism, goal: &Pose, mut q: Vec<f64>, previous: Opt
     }
     let q = within_limits(truth.inverse(goal, Some(&q)).ok()?, inputs)?;
     (directions(&q) == wanted && wanted.iter().all(|&(k, d)| q[k] == d)).then_some(q)
+}
+
+/// Inputs near `q` whose tool point is at `point`: Gauss–Newton on the position over the inputs
+/// (minimum-norm steps, the Jacobian by central differences); `None` when it does not get there.
+fn onto_point(truth: &dyn Mechanism, q: &[f64], point: &Vector3<f64>) -> Option<Vec<f64>> {
+    let at = |q: &[f64]| truth.forward(q).ok().map(|p| p.translation.vector);
+    let mut q = q.to_vec();
+    for _ in 0..50 {
+        let e = point - at(&q)?;
+        if e.norm() < 1e-11 {
+            return Some(q);
+        }
+        let h = 1e-6;
+        let mut j = nalgebra::DMatrix::zeros(3, q.len());
+        for k in 0..q.len() {
+            let (mut up, mut down) = (q.clone(), q.clone());
+            up[k] += h;
+            down[k] -= h;
+            j.set_column(k, &((at(&up)? - at(&down)?) / (2.0 * h)));
+        }
+        let step = j
+            .svd(true, true)
+            .solve(&nalgebra::DVector::from_column_slice(e.as_slice()), 1e-9)
+            .ok()?;
+        for (v, d) in q.iter_mut().zip(step.iter()) {
+            *v += d;
+        }
+    }
+    None
 }
 
 /// Inputs near `q` whose tool point lies at `length` from `pivot`, and the pose there: Newton on
