@@ -152,7 +152,7 @@ pub fn index_points(measurements: &[Measurement], distances: &[SeatDistance]) ->
             }
             if n >= MIN_ZERO_PIVOT_ROWS && hi - lo < zero::MIN_READING_SPREAD_MM {
                 return Err(CalibError::InvalidOption(format!(
-                    "pivot {id}: every reading is {lo} mm; with its zero unknown equal readings only say the tool point stays on some sphere (they do not give the scale): vary the length, or give its certified length (length_mm instead of reading_mm)"
+                    "pivot {id}: every reading is {lo:.4} mm; with its zero unknown equal readings only say the tool point stays on some sphere (they do not give the scale): vary the length, or give its certified length (length_mm instead of reading_mm)"
                 )));
             }
         }

@@ -167,7 +167,7 @@ fn reading_mistakes_are_one_line() {
     let e = fail((0..6).map(|k| row(0, k as f64, k % 2 == 0)).collect());
     assert!(e.contains("pivot 0 has 3 reading rows (zero unknown) and 3 length rows"), "{e}");
     let e = fail((0..6).map(|_| row(2, 12.5, true)).collect());
-    assert!(e.contains("pivot 2: every reading is 12.5 mm"), "{e}");
+    assert!(e.contains("pivot 2: every reading is 12.5000 mm"), "{e}");
 }
 
 /// `simulate --pivots … --length-zero-mm` writes readings (`reading_mm`), `identify` estimates
