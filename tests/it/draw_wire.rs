@@ -212,6 +212,11 @@ fn cli_draw_wire_simulate_identify_validate() {
     eprintln!("{sim}");
     let data = std::fs::read_to_string(dir.join("d.csv")).unwrap();
     assert!(data.lines().next().unwrap().ends_with(",pivot,reading_mm"), "{data}");
+    let check = ok(dir, &["data", "check", "irb120", "d.csv"]);
+    assert!(
+        check.contains("120 poses, measured: readings relative to an unknown zero"),
+        "{check}"
+    );
     let out = ok(dir, &["identify", "irb120", "d.csv", "--out", "cal.toml", "--noise-mm", "0.01"]);
     eprintln!("{out}");
     for (k, z) in ["250.0000", "140.0000", "-35.5000"].iter().enumerate() {
@@ -234,6 +239,11 @@ fn cli_draw_wire_simulate_identify_validate() {
     // A pivot with too few rows is one line.
     let short: String = data.lines().take(5).map(|l| format!("{l}\n")).collect();
     std::fs::write(dir.join("short.csv"), short).unwrap();
-    let e = fails(dir, &["identify", "irb120", "short.csv", "--out", "x.toml"]);
-    assert!(e.trim().lines().count() == 1 && e.contains("has 4 rows; at least 5"), "{e}");
+    for command in [
+        &["identify", "irb120", "short.csv", "--out", "x.toml"][..],
+        &["data", "check", "irb120", "short.csv"],
+    ] {
+        let e = fails(dir, command);
+        assert!(e.trim().lines().count() == 1 && e.contains("pivot 0 has 4 rows; at least 5"), "{e}");
+    }
 }
