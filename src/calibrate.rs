@@ -385,6 +385,23 @@ impl InstrumentData {
                             ),
                         })?;
                     m.q.push(k as f64);
+                    // A reading's row carries its pivot's reference: the identification's.
+                    if let Measurement {
+                        obs: crate::measure::Observation::Distance { length, .. },
+                        ..
+                    } = m
+                    {
+                        match (p.zero, points[k].zero) {
+                            (Some(held), Some(fit)) => *length += fit.reference - held.reference,
+                            (None, None) => {}
+                            _ => {
+                                return Err(IoError::Invalid {
+                                    path: v.path.clone(),
+                                    message: format!("pivot {}: give lengths (length_mm) in both the identification and the validation data, or readings (reading_mm) in both", p.id),
+                                })
+                            }
+                        }
+                    }
                 }
                 Some(DataSet { measurements, ..v.clone() })
             }
@@ -463,7 +480,7 @@ fn instrument_start(model: &ModelFile, i: &InstrumentData) -> Result<StartingMod
     // The calibrated model stands where the nominal stood: its home still assembles, and
     // targets in its base frame mean what they meant.
     let p_inner = FRAME_PARAMS + artifact.inner.inner.n_params();
-    let mut free: Vec<usize> = (p_inner..p_inner + 3 * artifact.points.len()).collect();
+    let mut free: Vec<usize> = (p_inner..p_inner + 3 * artifact.points.len() + artifact.n_zeros()).collect();
     free.extend(crate::model::framed::TOOL_TRANSLATION);
     free.extend(inner_free.iter().map(|k| k + FRAME_PARAMS));
     Ok((Box::new(artifact), free, None))

@@ -10,6 +10,9 @@
 //! wrapper predicts the tool frame *relative to* that point: a seat's residual is then `c − p`,
 //! a distance's `L − |p − c|` ([`crate::measure::residual`]).
 //!
+//! A draw-wire's readings relative to an unknown zero (`reading_mm`) add one unknown per pivot,
+//! its zero (`pivot3.zero`, [`zero`]).
+//!
 //! The points are started from the data, not from a guess ([`start_points`]): the seats and the
 //! tool offset together by the linear pivot calibration (`R_i·t − c_s = −p_i` over every row of
 //! every seat), each pivot by a sphere fit of the nominal tool points to the measured lengths.
@@ -30,10 +33,14 @@ use nalgebra::{DMatrix, DVector, Matrix6xX, Translation3, Vector3};
 use std::collections::BTreeMap;
 
 mod held_out;
+mod offset;
 mod planned;
 pub mod simulate;
+pub mod zero;
 pub use held_out::{held_out, HeldOut, PivotFit, SeatSpread};
+use offset::fit_offset_and_pivots;
 pub use planned::measure_planned;
+pub use zero::{sphere_and_zero, Zero, MIN_ZERO_PIVOT_ROWS};
 
 pub use crate::measure::PointKind;
 pub use crate::params::ARTIFACT_GROUP;
@@ -85,6 +92,9 @@ pub struct ArtifactPoint {
     pub id: usize,
     /// Its centre (mm).
     pub centre: Vector3<f64>,
+    /// A pivot whose rows are readings relative to an unknown zero: that zero ([`zero`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub zero: Option<Zero>,
 }
 
 /// A mechanism with the artifact points of its instrument as extra parameters (module docs).
@@ -121,11 +131,36 @@ pub fn index_points(measurements: &[Measurement], distances: &[SeatDistance]) ->
         ));
     }
     let mut counts: BTreeMap<(PointKind, usize), usize> = BTreeMap::new();
+    // Per pivot: rows with a reading relative to an unknown zero, the least and greatest.
+    let mut relative: BTreeMap<usize, (usize, f64, f64)> = BTreeMap::new();
     for m in measurements {
-        *counts.entry(m.obs.artifact_point().expect("counted above")).or_default() += 1;
+        let key = m.obs.artifact_point().expect("counted above");
+        *counts.entry(key).or_default() += 1;
+        if let Some((true, r)) = zero::readings(&m.obs) {
+            let e = relative.entry(key.1).or_insert((0, r, r));
+            *e = (e.0 + 1, e.1.min(r), e.2.max(r));
+        }
     }
     for (&(kind, id), &n) in &counts {
-        let least = if kind == PointKind::Seat { MIN_SEAT_ROWS } else { MIN_PIVOT_ROWS };
+        let rel = relative.get(&id).filter(|_| kind == PointKind::Pivot);
+        if let Some(&(n_rel, lo, hi)) = rel {
+            if n_rel < n {
+                return Err(CalibError::InvalidOption(format!(
+                    "pivot {id} has {n_rel} reading rows (zero unknown) and {} length rows; give one kind per pivot",
+                    n - n_rel
+                )));
+            }
+            if n >= MIN_ZERO_PIVOT_ROWS && hi - lo < zero::MIN_READING_SPREAD_MM {
+                return Err(CalibError::InvalidOption(format!(
+                    "pivot {id}: every reading is {lo:.4} mm; with its zero unknown equal readings only say the tool point stays on some sphere (they do not give the scale): vary the length, or give its certified length (length_mm instead of reading_mm)"
+                )));
+            }
+        }
+        let least = match (kind, rel) {
+            (PointKind::Seat, _) => MIN_SEAT_ROWS,
+            (_, Some(_)) => MIN_ZERO_PIVOT_ROWS,
+            _ => MIN_PIVOT_ROWS,
+        };
         if n < least {
             return Err(CalibError::InvalidOption(format!(
                 "{} {id} has {n} row{}; at least {least} are needed to place it and learn from it (add rows, or remove that {})",
@@ -137,19 +172,21 @@ pub fn index_points(measurements: &[Measurement], distances: &[SeatDistance]) ->
     }
     let points: Vec<ArtifactPoint> = counts
         .keys()
-        .map(|&(kind, id)| ArtifactPoint {
-            kind,
-            id,
-            centre: Vector3::zeros(),
-        })
+        .map(|&(kind, id)| zero::pivot_point(kind, id, relative.get(&id).filter(|_| kind == PointKind::Pivot).map(|r| r.1)))
         .collect();
     let index: BTreeMap<(PointKind, usize), usize> = counts.keys().enumerate().map(|(k, &key)| (key, k)).collect();
     let mut indexed: Vec<Measurement> = measurements
         .iter()
         .map(|m| {
             let mut q = m.q.clone();
-            q.push(index[&m.obs.artifact_point().expect("counted above")] as f64);
-            Measurement { q, ..m.clone() }
+            let k = index[&m.obs.artifact_point().expect("counted above")];
+            q.push(k as f64);
+            let mut obs = m.obs.clone();
+            // A reading's row carries the reading plus its pivot's reference ([`zero`]).
+            if let (Observation::Distance { length, .. }, Some(z)) = (&mut obs, points[k].zero) {
+                *length += z.reference;
+            }
+            Measurement { q, obs, ..m.clone() }
         })
         .collect();
     let mut pairs = Vec::new();
@@ -170,6 +207,7 @@ pub fn index_points(measurements: &[Measurement], distances: &[SeatDistance]) ->
             obs: Observation::Distance {
                 pivot: crate::measure::KNOWN_DISTANCE,
                 length: d.length,
+                relative: false,
             },
             joints: Vec::new(),
         });
@@ -245,7 +283,9 @@ pub fn start_points<M: Mechanism + Clone + 'static>(
         // 100 mm off), so it starts from the flange origin and from one bar length along each
         // axis of the tool frame either way, and keeps a clearly lower cost.
         if seats.is_empty() {
-            let bar = rows.iter().map(|r| r.2).sum::<f64>() / rows.len().max(1) as f64;
+            // A reading's row: its length as placed for the flange origin.
+            let length = |(k, _, l): &(usize, Pose, f64)| points[*k].zero.map_or(*l, |z| l - z.reference + z.value);
+            let bar = rows.iter().map(length).sum::<f64>() / rows.len().max(1) as f64;
             let mut best: Option<(Vector3<f64>, f64, Vec<ArtifactPoint>)> = None;
             for t0 in std::iter::once(Vector3::zeros()).chain((0..6).map(|k| {
                 let mut v = Vector3::zeros();
@@ -288,7 +328,20 @@ fn place_pivots(rows: &[(usize, Pose, f64)], t: &Vector3<f64>, pivots: &[usize],
             .filter(|(j, ..)| *j == k)
             .map(|(_, pose, l)| (pose.translation.vector + pose.rotation * t, *l))
             .collect();
-        points[k].centre = sphere_centre(&sphere).ok_or_else(|| {
+        let placed = match points[k].zero {
+            // The rows carry reading + reference: e = zero − reference.
+            Some(z) => sphere_and_zero(&sphere).map(|(c, e)| {
+                (
+                    c,
+                    Some(Zero {
+                        value: z.reference + e,
+                        ..z
+                    }),
+                )
+            }),
+            None => sphere_centre(&sphere).map(|c| (c, None)),
+        };
+        (points[k].centre, points[k].zero) = placed.ok_or_else(|| {
             CalibError::InvalidOption(format!(
                 "pivot {}: its rows do not place it (the tool points lie in a plane or on a line); measure from more spread poses",
                 points[k].id
@@ -370,82 +423,6 @@ pub fn spread(points: &[Vector3<f64>]) -> (Vector3<f64>, f64, f64) {
     (mean, rms, d.iter().copied().fold(0.0, f64::max))
 }
 
-/// Levenberg–Marquardt on `L_i − |p_i + R_i·t − c_k|` over the tool-point offset `t` and the
-/// pivots' centres (rows: pivot index, flange pose, length); returns the offset, moves the
-/// centres, and returns the cost `Σ r²` reached too. Stops where the cost no longer falls.
-fn fit_offset_and_pivots(rows: &[(usize, Pose, f64)], t0: Vector3<f64>, points: &mut [ArtifactPoint]) -> (Vector3<f64>, f64) {
-    let n = 3 + 3 * points.len();
-    let residual = |x: &DVector<f64>| -> DVector<f64> {
-        let t = Vector3::new(x[0], x[1], x[2]);
-        DVector::from_iterator(
-            rows.len(),
-            rows.iter().map(|(k, pose, l)| {
-                let c = x.fixed_rows::<3>(3 + 3 * k).into_owned();
-                l - (pose.translation.vector + pose.rotation * t - c).norm()
-            }),
-        )
-    };
-    let mut x = DVector::zeros(n);
-    x.fixed_rows_mut::<3>(0).copy_from(&t0);
-    for (k, p) in points.iter().enumerate() {
-        x.fixed_rows_mut::<3>(3 + 3 * k).copy_from(&p.centre);
-    }
-    let mut r = residual(&x);
-    let mut lambda = 1e-3;
-    for _ in 0..200 {
-        let t = Vector3::new(x[0], x[1], x[2]);
-        let mut j = DMatrix::zeros(rows.len(), n);
-        for (i, (k, pose, _)) in rows.iter().enumerate() {
-            let c = x.fixed_rows::<3>(3 + 3 * k).into_owned();
-            let d = pose.translation.vector + pose.rotation * t - c;
-            let u = d.try_normalize(1e-12).unwrap_or_else(Vector3::zeros);
-            let dt = pose.rotation.to_rotation_matrix().matrix().transpose() * u;
-            for a in 0..3 {
-                j[(i, a)] = -dt[a];
-                j[(i, 3 + 3 * k + a)] = u[a];
-            }
-        }
-        let jtj = j.transpose() * &j;
-        let g = j.transpose() * &r;
-        let cost = r.norm_squared();
-        let mut improved = false;
-        for _ in 0..20 {
-            let mut m = jtj.clone();
-            for d in 0..n {
-                m[(d, d)] += lambda * jtj[(d, d)].max(1e-12);
-            }
-            // Minimum-norm steps: a direction the lengths do not see (the offset and every
-            // pivot moved alike, on a machine that never turns its tool) stays where it is
-            // instead of drifting with round-off.
-            let svd = m.svd(true, true);
-            let floor = 1e-10 * svd.singular_values.max();
-            let Ok(step) = svd.solve(&(-&g), floor) else {
-                lambda *= 10.0;
-                continue;
-            };
-            let trial = &x + &step;
-            let rt = residual(&trial);
-            if rt.norm_squared() < cost {
-                x = trial;
-                r = rt;
-                lambda = (lambda / 3.0).max(1e-12);
-                improved = true;
-                break;
-            }
-            lambda *= 10.0;
-        }
-        if !improved || cost - r.norm_squared() <= 1e-15 * (1.0 + cost) {
-            break;
-        }
-    }
-    for (k, p) in points.iter_mut().enumerate() {
-        if p.kind == PointKind::Pivot {
-            p.centre = x.fixed_rows::<3>(3 + 3 * k).into_owned();
-        }
-    }
-    (Vector3::new(x[0], x[1], x[2]), r.norm_squared())
-}
-
 /// The centre `c` of the sphere on which points `p_i` lie at distances `L_i` (least squares:
 /// the linear solution of `2·p_i·c − |c|² = |p_i|² − L_i²`, then Gauss–Newton on `L_i − |p_i − c|`).
 pub fn sphere_centre(rows: &[(Vector3<f64>, f64)]) -> Option<Vector3<f64>> {
@@ -519,7 +496,7 @@ impl<M: Mechanism> Artifact<M> {
     fn pair(&self, k: usize) -> Option<(Pose, Matrix6xX<f64>)> {
         let &(a, b) = self.pairs.get(k.checked_sub(self.points.len())?)?;
         let p = self.inner.n_params();
-        let mut jac = Matrix6xX::zeros(p + 3 * self.points.len());
+        let mut jac = Matrix6xX::zeros(p + 3 * self.points.len() + self.n_zeros());
         for i in 0..3 {
             jac[(i, p + 3 * a + i)] = 1.0;
             jac[(i, p + 3 * b + i)] = -1.0;
@@ -532,7 +509,7 @@ impl<M: Mechanism> Artifact<M> {
     fn relative(&self, k: usize, (pose, jac): (Pose, Matrix6xX<f64>)) -> (Pose, Matrix6xX<f64>) {
         let p = jac.ncols();
         let shift = self.shift(k);
-        let mut out = Matrix6xX::zeros(p + 3 * self.points.len());
+        let mut out = Matrix6xX::zeros(p + 3 * self.points.len() + self.n_zeros());
         // The inner twists are about the base origin; relative to the point they are seen through
         // the shift's adjoint.
         out.columns_mut(0, p)
@@ -541,12 +518,13 @@ impl<M: Mechanism> Artifact<M> {
             // Moving the point by δc moves the relative pose by −δc (a translation: ω = 0).
             out[(i, p + 3 * k + i)] = -1.0;
         }
-        (shift * pose, out)
+        let zero_column = self.zero_index(k).map_or(usize::MAX, |z| p + 3 * self.points.len() + z);
+        self.with_zero(k, zero_column, (shift * pose, out))
     }
 
     /// Rows over the inner mechanism's parameters, with the points' (zero) columns appended.
     fn point_columns(&self, rows: &DMatrix<f64>) -> DMatrix<f64> {
-        let mut out = DMatrix::zeros(rows.nrows(), rows.ncols() + 3 * self.points.len());
+        let mut out = DMatrix::zeros(rows.nrows(), rows.ncols() + 3 * self.points.len() + self.n_zeros());
         out.columns_mut(0, rows.ncols()).copy_from(rows);
         out
     }
@@ -573,17 +551,20 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Artifact<M> {
                 out.push(Param::new(format!("{}{}.{a}", p.kind.name(), p.id), Unit::Length, ARTIFACT_GROUP));
             }
         }
+        for p in self.points.iter().filter(|p| p.zero.is_some()) {
+            out.push(Param::new(format!("{}{}.zero", p.kind.name(), p.id), Unit::Length, ARTIFACT_GROUP));
+        }
         out
     }
     fn n_params(&self) -> usize {
-        self.inner.n_params() + 3 * self.points.len()
+        self.inner.n_params() + 3 * self.points.len() + self.n_zeros()
     }
     fn forward(&self, q: &[f64]) -> Result<Pose, KinError> {
         let (qi, k) = self.split(q)?;
         if let Some((pose, _)) = self.pair(k) {
             return Ok(pose);
         }
-        Ok(self.shift(k) * self.inner.forward(qi)?)
+        Ok(self.moved(k, self.shift(k) * self.inner.forward(qi)?))
     }
     fn forward_with_jacobian(&self, q: &[f64]) -> Result<(Pose, Matrix6xX<f64>), KinError> {
         let (qi, k) = self.split(q)?;
@@ -597,14 +578,20 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Artifact<M> {
         if let Some(pair) = self.pair(k) {
             return Ok(pair);
         }
-        let inner_near = self.shift(k).inverse() * near;
+        let inner_near = self.shift(k).inverse() * self.unmoved(k, near);
         Ok(self.relative(k, self.inner.forward_with_jacobian_near(qi, &inner_near)?))
     }
     fn retract(&mut self, delta: &DVector<f64>) {
         let p = self.inner.n_params();
         self.inner.retract(&delta.rows(0, p).into_owned());
+        let n = self.points.len();
+        let mut z = p + 3 * n;
         for (k, point) in self.points.iter_mut().enumerate() {
             point.centre += delta.fixed_rows::<3>(p + 3 * k);
+            if let Some(zero) = point.zero.as_mut() {
+                zero.value += delta[z];
+                z += 1;
+            }
         }
     }
     /// Not defined: an artifact point is no target (command the mechanism itself).
@@ -644,7 +631,7 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Artifact<M> {
         if let Some((pose, jac)) = self.pair(k) {
             return Ok((pose, jac, Vec::new(), DMatrix::zeros(0, self.n_params())));
         }
-        let inner_near = near.map(|n| self.shift(k).inverse() * n);
+        let inner_near = near.map(|n| self.shift(k).inverse() * self.unmoved(k, n));
         let (pose, jac, values, rows) = self.inner.forward_with_jacobian_and_observed(qi, inner_near.as_ref())?;
         let (pose, jac) = self.relative(k, (pose, jac));
         Ok((pose, jac, values, self.point_columns(&rows)))

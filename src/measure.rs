@@ -40,8 +40,12 @@ pub enum Observation {
     Distance {
         /// Pivot number.
         pivot: usize,
-        /// Measured length (mm).
+        /// Measured length (mm); with `relative`, the reading.
         length: f64,
+        /// `length` is a reading relative to an unknown zero (a draw-wire or string-pot sensor, a
+        /// ballbar whose certified length is unknown; data column `reading_mm`): the true length
+        /// is the reading plus the pivot's zero, one more unknown of the instrument.
+        relative: bool,
     },
 }
 

@@ -106,7 +106,17 @@ enum DataCommand {
 }
 
 fn summary(d: &DataSet, json: bool) -> anyhow::Result<()> {
-    let format = d.format.describe();
+    let readings = d
+        .measurements
+        .iter()
+        .any(|m| matches!(m.obs, kinecal::measure::Observation::Distance { relative: true, .. }));
+    let format = if readings {
+        // Readings relative to an unknown zero: each pivot must place its centre and its zero.
+        kinecal::instrument::index_points(&d.measurements, &[]).map_err(|e| anyhow::anyhow!("{}: {e}", d.path.display()))?;
+        "readings relative to an unknown zero per pivot (pivot, reading)"
+    } else {
+        d.format.describe()
+    };
     if json {
         println!(
             "{}",

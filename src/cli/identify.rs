@@ -257,6 +257,15 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         report.iterations,
         report.sigma0
     );
+    // Draw-wire readings (reading_mm): each pivot's zero, placed with the calibrated model.
+    if let Ok(h) = kinecal::instrument::held_out(&*cal.model_file.build(), &data.measurements, &[]) {
+        for p in &h.pivots {
+            let Some(zero) = p.zero_mm else { continue };
+            let name = format!("pivot{}.zero", p.pivot);
+            let sd = report.params.iter().find(|r| r.name == name).map_or(0.0, |r| r.std_dev);
+            println!("pivot {}: zero {zero:.4} mm (σ {sd:.4} mm; length = reading + zero)", p.pivot);
+        }
+    }
     println!(
         "condition number {:.3e}; redundant: {}",
         report.condition,

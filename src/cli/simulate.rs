@@ -110,6 +110,11 @@ pub struct SimulateArgs {
     /// does not rule out a machine that stands still over a pivot's rows.
     #[arg(long, value_name = "R", requires = "pivots", default_value_t = kinecal::instrument::simulate::DEFAULT_BALLBAR_RANGE_MM)]
     pub ballbar_range_mm: f64,
+    /// A draw-wire's readings instead of lengths: each row's length minus its pivot's zero (mm;
+    /// one value for every pivot, or `Z0,Z1,…` one per pivot), written as `reading_mm` (the
+    /// zero unknown to `identify`, which estimates it as `pivotK.zero`).
+    #[arg(long, value_name = "Z[,Z…]", requires = "pivots")]
+    pub length_zero_mm: Option<String>,
     /// Instrument data: rows per seat or pivot.
     #[arg(long, visible_aliases = ["per-seat", "per-pivot"], default_value_t = 15)]
     pub per_point: usize,
@@ -369,9 +374,29 @@ fn instrument_run(
         (None, None) => unreachable!("called with seats or pivots"),
     };
     let points = parse_points(text).map_err(|e| anyhow::anyhow!("{option} {e}"))?;
+    let zeros: Option<Vec<f64>> = match &a.length_zero_mm {
+        None => None,
+        Some(text) => {
+            let zeros: Vec<f64> = text
+                .split(',')
+                .map(|z| z.trim().parse::<f64>().ok().filter(|z| z.is_finite()))
+                .collect::<Option<_>>()
+                .ok_or_else(|| anyhow::anyhow!("--length-zero-mm '{text}': one zero in mm, or one per pivot (Z0,Z1,…)"))?;
+            anyhow::ensure!(
+                zeros.len() == 1 || zeros.len() == points.len(),
+                "--length-zero-mm '{text}': {} values for {} pivots; give one, or one per pivot",
+                zeros.len(),
+                points.len()
+            );
+            Some(zeros)
+        }
+    };
     let draw = |how: &Placement| -> anyhow::Result<Vec<kinecal::measure::Measurement>> {
         let rows = match a.ballbar_mm {
-            Some(length) if a.seats.is_none() => distance_rows(truth, &points, length, a.ballbar_range_mm, how),
+            Some(length) if a.seats.is_none() => distance_rows(truth, &points, length, a.ballbar_range_mm, how).map(|rows| match &zeros {
+                Some(z) => kinecal::instrument::simulate::as_readings(rows, z),
+                None => rows,
+            }),
             _ => seat_rows(truth, &points, how),
         };
         rows.map_err(|e| match e {
@@ -452,6 +477,9 @@ fn instrument_run(
             "ballbar {length} mm ± {} mm (each row's length uniform in that range)",
             a.ballbar_range_mm
         );
+        if let Some(z) = &a.length_zero_mm {
+            println!("written as readings (reading_mm): each length minus its pivot's zero, {z} mm");
+        }
     }
     if !distances.is_empty() {
         println!(

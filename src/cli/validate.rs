@@ -111,8 +111,9 @@ fn instrument(a: &ValidateArgs, name: &str, model: &dyn kinecal::Mechanism, data
         println!("seats {x}–{y}: {:.4} mm apart, known {known:.4} mm: error {e:+.4} mm", known + e);
     }
     for p in &h.pivots {
+        let zero = p.zero_mm.map(|z| format!(" and its zero {z:.4} mm")).unwrap_or_default();
         println!(
-            "pivot {}: {} rows, measured − modelled length {:.4} mm RMS, {:.4} mm max (pivot placed by these rows)",
+            "pivot {}: {} rows, measured − modelled length {:.4} mm RMS, {:.4} mm max (pivot{zero} placed by these rows)",
             p.pivot, p.rows, p.rms_mm, p.max_mm
         );
     }

@@ -142,7 +142,12 @@ pub fn instrument_model(file: &ModelFile, layout: &InstrumentLayout) -> Result<(
         .points
         .iter()
         .enumerate()
-        .map(|(id, c)| ArtifactPoint { kind, id, centre: *c })
+        .map(|(id, c)| ArtifactPoint {
+            kind,
+            id,
+            centre: *c,
+            zero: None,
+        })
         .collect();
     let p_inner = FRAME_PARAMS + framed.inner.n_params();
     let mut free: Vec<usize> = TOOL_TRANSLATION.collect();

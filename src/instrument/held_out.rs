@@ -2,7 +2,7 @@
 //! artifact), in the instrument's own terms: each seat's spread of the model's tool points about
 //! their mean (one point if the model were exact), the error of the known distances between
 //! seats, and for a ballbar each pivot's length residuals once the pivot is placed.
-use super::{sphere_centre, spread, PointKind, SeatDistance};
+use super::{sphere_and_zero, sphere_centre, spread, PointKind, SeatDistance};
 use crate::error::CalibError;
 use crate::measure::{Measurement, Observation};
 use crate::model::Mechanism;
@@ -36,6 +36,10 @@ pub struct PivotFit {
     pub rms_mm: f64,
     /// Largest |measured − modelled length| (mm).
     pub max_mm: f64,
+    /// For readings relative to an unknown zero (`reading_mm`): the zero placed with the pivot
+    /// (mm; length = reading + zero).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub zero_mm: Option<f64>,
 }
 
 /// What [`held_out`] found.
@@ -63,6 +67,8 @@ pub fn held_out(model: &dyn Mechanism, measurements: &[Measurement], distances: 
     // Per seat or pivot: the model's tool points and the measured lengths.
     type Rows = Vec<(Vector3<f64>, f64)>;
     let mut groups: BTreeMap<(PointKind, usize), Rows> = BTreeMap::new();
+    // Pivots whose rows are readings relative to an unknown zero: placed with their zero.
+    let mut relative = std::collections::BTreeSet::new();
     for (i, m) in measurements.iter().enumerate() {
         let Some(key) = m.obs.artifact_point() else {
             return Err(CalibError::InvalidOption(format!(
@@ -75,7 +81,12 @@ pub fn held_out(model: &dyn Mechanism, measurements: &[Measurement], distances: 
             .translation
             .vector;
         let length = match m.obs {
-            Observation::Distance { length, .. } => length,
+            Observation::Distance { length, relative: r, .. } => {
+                if r {
+                    relative.insert(key.1);
+                }
+                length
+            }
             _ => 0.0,
         };
         groups.entry(key).or_default().push((p, length));
@@ -99,13 +110,19 @@ pub fn held_out(model: &dyn Mechanism, measurements: &[Measurement], distances: 
                 });
             }
             PointKind::Pivot => {
-                let c = sphere_centre(rows).ok_or_else(|| CalibError::InvalidOption(format!("pivot {id}: its rows do not place it")))?;
-                let e: Vec<f64> = rows.iter().map(|(p, l)| l - (p - c).norm()).collect();
+                let placed = if relative.contains(&id) {
+                    sphere_and_zero(rows)
+                } else {
+                    sphere_centre(rows).map(|c| (c, 0.0))
+                };
+                let (c, zero) = placed.ok_or_else(|| CalibError::InvalidOption(format!("pivot {id}: its rows do not place it")))?;
+                let e: Vec<f64> = rows.iter().map(|(p, l)| l + zero - (p - c).norm()).collect();
                 out.pivots.push(PivotFit {
                     pivot: id,
                     rows: rows.len(),
                     rms_mm: (e.iter().map(|x| x * x).sum::<f64>() / e.len() as f64).sqrt(),
                     max_mm: e.iter().map(|x| x.abs()).fold(0.0, f64::max),
+                    zero_mm: relative.contains(&id).then_some(zero),
                 });
             }
         }

@@ -79,6 +79,7 @@ pub fn measure_planned(
                 Observation::Distance { pivot, .. } => Observation::Distance {
                     pivot,
                     length: (reached.translation.vector - centre).norm() + settle.x,
+                    relative: false,
                 },
                 ref o => o.clone(),
             };

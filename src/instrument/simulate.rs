@@ -174,6 +174,7 @@ fn draw_rows(
                 Some(_) => Observation::Distance {
                     pivot: k,
                     length: (reached.translation.vector - point).norm() + settle.x,
+                    relative: false,
                 },
             };
             out.push(Measurement {
@@ -361,4 +362,19 @@ pub fn reference_configuration(text: Option<&str>, inputs: &[InputSpec]) -> Resu
 /// ([`Placement::reference`]) when none is given.
 pub fn middle_of_limits(inputs: &[InputSpec]) -> Vec<f64> {
     inputs.iter().map(|i| i.limits.map_or(0.0, |(lo, hi)| 0.5 * (lo + hi))).collect()
+}
+
+/// Distance rows as a draw-wire's readings ([`super::zero`]): each row's length minus its
+/// pivot's zero (`zeros[pivot]`, mm; one value for every pivot when `zeros` has one), marked as
+/// relative to an unknown zero.
+pub fn as_readings(rows: Vec<Measurement>, zeros: &[f64]) -> Vec<Measurement> {
+    rows.into_iter()
+        .map(|mut m| {
+            if let Observation::Distance { pivot, length, relative } = &mut m.obs {
+                *length -= zeros.get(*pivot).or(zeros.last()).copied().unwrap_or(0.0);
+                *relative = true;
+            }
+            m
+        })
+        .collect()
 }

@@ -15,11 +15,23 @@ fn artifact() -> Artifact<Framed<crate::model::chain::SerialChain>> {
             kind: PointKind::Seat,
             id: 0,
             centre: Vector3::new(400.0, 50.0, 200.0),
+            zero: None,
         },
         ArtifactPoint {
             kind: PointKind::Pivot,
             id: 3,
             centre: Vector3::new(350.0, -80.0, 150.0),
+            zero: None,
+        },
+        // A draw-wire's anchor: readings relative to an unknown zero.
+        ArtifactPoint {
+            kind: PointKind::Pivot,
+            id: 5,
+            centre: Vector3::new(300.0, 120.0, 100.0),
+            zero: Some(Zero {
+                value: 180.0,
+                reference: 950.0,
+            }),
         },
     ];
     Artifact {
@@ -38,13 +50,30 @@ fn jacobians_match_finite_differences() {
     let h = 1e-6;
     for (k, obs) in [
         (0.0, Observation::Seat(0)),
-        (1.0, Observation::Distance { pivot: 3, length: 250.0 }),
-        // The known distance between the two points (the pair's row).
+        (
+            1.0,
+            Observation::Distance {
+                pivot: 3,
+                length: 250.0,
+                relative: false,
+            },
+        ),
+        // A reading relative to the anchor's unknown zero (plus its reference).
         (
             2.0,
             Observation::Distance {
+                pivot: 5,
+                length: 1020.0,
+                relative: true,
+            },
+        ),
+        // The known distance between the first two points (the pair's row).
+        (
+            3.0,
+            Observation::Distance {
                 pivot: usize::MAX,
                 length: 60.0,
+                relative: false,
             },
         ),
     ] {
@@ -165,4 +194,22 @@ fn a_sphere_centre_is_the_least_squares_one_when_lengths_disagree() {
     ] {
         assert!(cost(&found) < cost(&(found + 1e-3 * d)), "{d:?}");
     }
+}
+
+/// A pivot with an unknown zero: the centre and the zero from exact readings (some negative),
+/// and too few rows or rows that do not place it give none.
+#[test]
+fn a_pivot_and_its_zero_start_from_the_readings() {
+    let (c, zero) = (Vector3::new(80.0, 2.0, 20.0), 130.0);
+    let rows: Vec<(Vector3<f64>, f64)> = (0..20)
+        .map(|i| {
+            let f = i as f64;
+            let p = Vector3::new(60.0 * (0.7 * f).sin(), 50.0 * (1.3 * f).cos(), 90.0 + 40.0 * (0.4 * f).sin());
+            (p, (p - c).norm() - zero)
+        })
+        .collect();
+    assert!(rows.iter().any(|r| r.1 < 0.0));
+    let (found, e) = sphere_and_zero(&rows).unwrap();
+    assert!((found - c).norm() < 1e-8 && (e - zero).abs() < 1e-8, "{found:?} {e}");
+    assert!(sphere_and_zero(&rows[..4]).is_none());
 }

@@ -22,6 +22,8 @@
 //!     [`frame_from_reflectors`] (the model's tool frame must be that reflector frame);
 //!   - `seat`: the number of the fixed seat the tool point sat in ([`crate::instrument`]);
 //!   - `pivot, length_mm`: a ballbar's or draw-wire sensor's length from pivot number `pivot`;
+//!   - `pivot, reading_mm`: a draw-wire sensor's reading relative to an unknown zero (one more
+//!     unknown per pivot, estimated with the geometry: [`crate::instrument`]);
 //! * optionally `id` (a pose number, kept for messages and written back).
 //!
 //! Blank lines and `#` comments are skipped. Any other column, a missing one, a wrong unit
@@ -516,7 +518,7 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
             || (all_zero
                 && slots
                     .iter()
-                    .any(|(s, _)| !matches!(s, Slot::Id | Slot::Input(_) | Slot::Seat | Slot::Pivot)))
+                    .any(|(s, _)| !matches!(s, Slot::Id | Slot::Input(_) | Slot::Seat | Slot::Pivot | Slot::Reading)))
         {
             dropped.push(line);
             continue;
@@ -527,7 +529,7 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
         let (mut p, mut quat, mut rpy) = (Vector3::zeros(), [0.0; 4], [0.0; 3]);
         let mut refl = [Vector3::zeros(); 3];
         let mut id = r as i64;
-        let (mut point, mut length) = (0usize, 0.0);
+        let (mut point, mut length, mut relative) = (0usize, 0.0, false);
         for (((slot, f), v), col) in slots.iter().zip(row).zip(&table.columns) {
             let v = v * f;
             if matches!(slot, Slot::Pos(_) | Slot::Reflector(..)) && v.abs() > MAX_COORDINATE_MM {
@@ -558,6 +560,7 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
                 Slot::Reflector(m, a) => refl[m][a] = v,
                 Slot::Seat | Slot::Pivot => point = columns::point_number(path, line, col, v)?,
                 Slot::Length => length = v,
+                Slot::Reading => (length, relative) = (v, true),
             }
         }
         if let Some(first) = first_line_of_id.insert(id, line) {
@@ -580,7 +583,11 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
         let obs = match format {
             MeasurementFormat::Position => Observation::Position(p),
             MeasurementFormat::Seat => Observation::Seat(point),
-            MeasurementFormat::Distance => Observation::Distance { pivot: point, length },
+            MeasurementFormat::Distance => Observation::Distance {
+                pivot: point,
+                length,
+                relative,
+            },
             MeasurementFormat::PoseQuaternion => {
                 let qn = Quaternion::new(quat[0], quat[1], quat[2], quat[3]);
                 if (qn.norm() - 1.0).abs() > 1e-3 {

@@ -480,6 +480,7 @@ fn every_mechanism_is_calibrated_by_distances() {
                 obs: Observation::Distance {
                     pivot: i % 3,
                     length: (p - anchors[i % 3]).norm(),
+                    relative: false,
                 },
             })
             .collect();

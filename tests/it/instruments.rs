@@ -184,7 +184,7 @@ fn seats_and_one_known_distance_recover_a_parallel_machine() {
 
 /// The tool points of the true machine at the middle of its inputs' limits and at four random
 /// configurations (seed 5): seats there, or pivots 100 mm below the first three.
-fn points_of(truth: &dyn Mechanism, file: &ModelFile) -> Vec<Vector3<f64>> {
+pub(crate) fn points_of(truth: &dyn Mechanism, file: &ModelFile) -> Vec<Vector3<f64>> {
     let mut qs = vec![middle_of_limits(&file.inputs())];
     qs.extend(random_configurations(&*file.build(), &file.inputs(), 4, &mut ChaCha8Rng::seed_from_u64(5)).unwrap());
     qs.iter().map(|q| truth.forward(q).unwrap().translation.vector).collect()

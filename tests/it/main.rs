@@ -8,6 +8,7 @@ mod compensate;
 mod contract;
 mod design;
 mod dh;
+mod draw_wire;
 mod exports;
 mod fuzz;
 mod identify;

@@ -35,7 +35,7 @@ pub fn expected_columns(inputs: &[InputSpec]) -> String {
             Unit::Length => format!("{}_mm|_m", i.name),
         })
         .collect();
-    v.push("x_mm,y_mm,z_mm (+ qw,qx,qy,qz or roll_deg,pitch_deg,yaw_deg) or m1x_mm..m3z_mm or seat or pivot,length_mm; optional id".into());
+    v.push("x_mm,y_mm,z_mm (+ qw,qx,qy,qz or roll_deg,pitch_deg,yaw_deg) or m1x_mm..m3z_mm or seat or pivot,length_mm or pivot,reading_mm; optional id".into());
     v.join(", ")
 }
 
@@ -54,6 +54,8 @@ pub(super) enum Slot {
     Pivot,
     /// The length of a distance row.
     Length,
+    /// A distance row's reading relative to an unknown zero (`reading_mm`).
+    Reading,
 }
 
 /// What a column holds and its factor to mm / rad; errors name the file (line 1) and column.
@@ -70,12 +72,13 @@ pub(super) fn classify(path: &Path, col: &str, inputs: &[InputSpec]) -> Result<(
         (Slot::Seat, 1.0)
     } else if col == "pivot" {
         (Slot::Pivot, 1.0)
-    } else if base == "length" {
+    } else if base == "length" || base == "reading" {
         match unit.and_then(length_factor) {
-            Some(f) => (Slot::Length, f),
+            Some(f) if base == "length" => (Slot::Length, f),
+            Some(f) => (Slot::Reading, f),
             None => {
                 return Err(at_header(format!(
-                    "column '{col}': a length needs a length unit (length_mm or length_m)"
+                    "column '{col}': a {base} needs a length unit ({base}_mm or {base}_m)"
                 )))
             }
         }
@@ -161,7 +164,7 @@ pub(super) fn measurement_format(table: &Table, slots: &[(Slot, f64)]) -> Result
     let has = |pred: &dyn Fn(&Slot) -> bool| slots.iter().filter(|(s, _)| pred(s)).count();
     let n_seat = has(&|s: &Slot| matches!(s, Slot::Seat));
     let n_pivot = has(&|s: &Slot| matches!(s, Slot::Pivot));
-    let n_length = has(&|s: &Slot| matches!(s, Slot::Length));
+    let n_length = has(&|s: &Slot| matches!(s, Slot::Length | Slot::Reading));
     let n_other = has(&|s: &Slot| matches!(s, Slot::Pos(_) | Slot::Quat(_) | Slot::Rpy(_) | Slot::Reflector(..)));
     if n_seat + n_pivot + n_length > 0 {
         if n_other > 0 || (n_seat > 0 && n_pivot + n_length > 0) {
@@ -178,6 +181,11 @@ pub(super) fn measurement_format(table: &Table, slots: &[(Slot, f64)]) -> Result
         }
         if n_length == 0 {
             return Err(missing("length_mm".into()));
+        }
+        if n_length > 1 {
+            return Err(at_header(
+                "give one length column: 'length_mm' (a certified length) or 'reading_mm' (a reading relative to an unknown zero, e.g. a draw-wire), not both".into(),
+            ));
         }
         return Ok(MeasurementFormat::Distance);
     }

@@ -63,8 +63,8 @@ pub fn data_text(
     let first = measurements.first().map(|m| &m.obs);
     if let Some(Observation::Seat(_)) = first {
         header.push("seat".into());
-    } else if let Some(Observation::Distance { .. }) = first {
-        header.extend(["pivot", "length_mm"].map(String::from));
+    } else if let Some(Observation::Distance { relative, .. }) = first {
+        header.extend(["pivot", if *relative { "reading_mm" } else { "length_mm" }].map(String::from));
     } else if reflectors.is_some() {
         for r in 1..=3 {
             for a in ["x", "y", "z"] {
@@ -105,15 +105,15 @@ pub fn data_text(
             }
             (None, Observation::Position(v)) => row.extend([v.x, v.y, v.z]),
             (None, Observation::Seat(s)) if matches!(first, Some(Observation::Seat(_))) => row.push(*s as f64),
-            (None, Observation::Distance { pivot, length }) if matches!(first, Some(Observation::Distance { .. })) => {
+            (None, Observation::Distance { pivot, length, relative }) if matches!(first, Some(Observation::Distance { relative: r, .. }) if r == relative) => {
                 row.extend([*pivot as f64, *length])
             }
             (None, Observation::Seat(_) | Observation::Distance { .. }) => {
                 return Err(IoError::Invalid {
                     path: path.to_path_buf(),
                     message: format!(
-                        "pose {k}: one data file holds one kind of measurement (seat rows and distance rows go to separate files)"
-                    ),
+                    "pose {k}: one data file holds one kind of measurement (seat rows, length rows and reading rows go to separate files)"
+                ),
                 })
             }
             (None, Observation::Points(_)) => {
