@@ -435,7 +435,7 @@ mod tests {
         let e = Ellipsoid::new(&info, &[0, 1], 2, 1.0, &delta, &tol, 3.0).unwrap();
         // Nothing below 3·(1 − SCALE_PRECISION) … only the upper bound itself, so none is found.
         let moved = e.closest_scale(&delta, &tol, 3.0);
-        assert!(moved.is_none_or(|m| m[0] > 2.98 && m[0] <= 3.0), "{moved:?}");
+        assert!(moved.as_ref().is_none_or(|m| m[0] > 2.98 && m[0] <= 3.0), "{moved:?}");
     }
 
     #[test]
