@@ -76,12 +76,12 @@ pub const FAR_BEYOND: f64 = 2.0;
 pub struct Beyond {
     /// Parameter name.
     pub name: String,
-    /// Its value in the split that keeps the corrections smallest (display unit).
+    /// Its value in the consistent split that keeps the corrections smallest (display unit).
     pub value: f64,
     /// `mm` or `deg`.
     pub unit: String,
-    /// (|value| − 2 standard deviations) / tolerance: how far beyond its tolerance it is beyond
-    /// what the noise could explain.
+    /// |value| / tolerance in that split, which may move the corrections as far as the noise
+    /// could have (two standard deviations along any combination, `calibrate::tolerances`).
     pub ratio: f64,
 }
 

@@ -418,10 +418,14 @@ fn hostile_cases_answer_at_once_with_one_line() {
             vec!["c.toml"],
         ),
         (
+            // Six poses for 32 parameters: the corrections are poorly determined, and a machine
+            // within its tolerances (the truth: ±0.5 mm / ±0.1 deg) explains the data, so the
+            // tolerance check finds no evidence against it (it once failed on a split that
+            // pushed well-determined angles to 5 deg to keep poorly determined ones small).
             vec!["identify", "pm5.toml", "p6.csv", "--frames", "model", "--out", "c.toml"],
-            2,
-            "failed",
-            vec![],
+            0,
+            "",
+            vec!["c.toml"],
         ),
         (vec!["validate", "pm5.toml", "header.csv"], 1, "no data rows", vec![]),
         (
