@@ -17,7 +17,7 @@
 //! ```
 mod common;
 
-use common::{data_set, print_progress, print_table, run, seats_near_reference, tracker, tracker_rows, Outcome, REFERENCE};
+use common::{data_set, print_progress, print_table, run, seats_near_reference, tracker_run, Outcome, REFERENCE};
 use kinecal::calibrate::CalibrationOptions;
 use kinecal::instrument::simulate::{distance_rows, seat_distances, seat_rows, Placement};
 use kinecal::io::builtin;
@@ -87,17 +87,7 @@ fn main() {
             );
             table[k].push(run(&file, bar, 0.001, CalibrationOptions::default(), &truth, &whole, &near));
         }
-        let tracked = Framed::new(proto, tracker(), ball);
-        let rows = tracker_rows(&tracked, &*nominal, &inputs, ROWS, 0.02, &mut rng);
-        table[3].push(run(
-            &file,
-            data_set(rows, MeasurementFormat::Position),
-            0.02,
-            CalibrationOptions::default(),
-            &tracked,
-            &whole,
-            &near,
-        ));
+        table[3].push(tracker_run(&file, proto, ball, &inputs, ROWS, &mut rng, &whole, &near));
         print_progress(seed, "", &table);
     }
     print_table(

@@ -17,7 +17,7 @@
 //! ```
 mod common;
 
-use common::{data_set, print_progress, print_table, run, seats_near_reference, tracker, tracker_rows, Outcome, REFERENCE};
+use common::{data_set, print_progress, print_table, run, seats_near_reference, tracker_run, Outcome, REFERENCE};
 use kinecal::calibrate::CalibrationOptions;
 use kinecal::design::{instrument_blocks, plan_instrument, Criterion, InstrumentLayout, InstrumentPlanOptions, ObservabilityIndices};
 use kinecal::design::{SelectOptions, SelectionMethod};
@@ -124,17 +124,7 @@ fn main() {
             &whole,
             &near,
         ));
-        let tracked = Framed::new(proto, tracker(), ball);
-        let rows = tracker_rows(&tracked, &*nominal, &inputs, n, 0.02, &mut rng);
-        table[2].push(run(
-            &file,
-            data_set(rows, MeasurementFormat::Position),
-            0.02,
-            CalibrationOptions::default(),
-            &tracked,
-            &whole,
-            &near,
-        ));
+        table[2].push(tracker_run(&file, proto, ball, &inputs, n, &mut rng, &whole, &near));
         print_progress(seed, &format!("{criterion} planned {vp:.4e} random {vr:.4e}; "), &table);
     }
     print_table(

@@ -156,3 +156,31 @@ pub fn print_table<S: AsRef<str>>(title: &str, names: &[S], table: &[Vec<Outcome
         println!("{}", table_row(name.as_ref(), column));
     }
 }
+
+/// The tracker beside the instruments: the prototype `proto` with its `ball`, seen from
+/// [`tracker`], measured at `n` random configurations (20 µm per axis) and calibrated and judged
+/// like the instrument rows ([`run`]).
+#[allow(clippy::too_many_arguments)]
+pub fn tracker_run(
+    file: &ModelFile,
+    proto: Box<dyn Mechanism>,
+    ball: Pose,
+    inputs: &[InputSpec],
+    n: usize,
+    rng: &mut ChaCha8Rng,
+    whole: &[Vec<f64>],
+    near: &[Vec<f64>],
+) -> Outcome {
+    let nominal = file.build();
+    let tracked = kinecal::model::framed::Framed::new(proto, tracker(), ball);
+    let rows = tracker_rows(&tracked, &*nominal, inputs, n, 0.02, rng);
+    run(
+        file,
+        data_set(rows, MeasurementFormat::Position),
+        0.02,
+        CalibrationOptions::default(),
+        &tracked,
+        whole,
+        near,
+    )
+}
