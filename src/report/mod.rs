@@ -159,6 +159,9 @@ pub struct CalibrationReport {
     pub free: usize,
     /// Numerical rank = number of identified parameters.
     pub rank: usize,
+    /// Residual rows of the fit beyond the identified parameters (rows − rank): how many numbers
+    /// σ̂₀ rests on.
+    pub redundancy: usize,
     /// Condition number of the column-scaled Jacobian on the identified parameters.
     pub condition: f64,
     /// Singular values of the column-scaled Jacobian on the free parameters.
@@ -301,6 +304,11 @@ impl CalibrationReport {
             noise_mm_deg: (position, orientation.to_degrees()),
             free: free.len(),
             rank: id.rank,
+            redundancy: data
+                .iter()
+                .map(|m| m.obs.rows() + m.joints.len())
+                .sum::<usize>()
+                .saturating_sub(id.rank),
             condition: id.condition,
             singular_values: id.singular_values.clone(),
             redundant: names(&id.redundant),

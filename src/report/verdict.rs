@@ -3,7 +3,7 @@
 //! | verdict | evidence it needs |
 //! |---|---|
 //! | failed | the result is wrong or cannot be trusted: no convergence; a residual that is not finite; a residual far beyond the stated noise ([`SIGMA0_FAIL`]) *together with* no clear improvement over the nominal model ([`CLEAR_IMPROVEMENT`]) or a residual larger than any error the tolerances allow; corrections far beyond the tolerances ([`FAR_BEYOND`]) in every split of the redundant parameters and frames ([`ToleranceCheck`]); starts that reach different predictions (set by `calibrate`) |
-//! | usable with warnings | the result improves the machine but leaves something to look at: a residual above the stated noise ([`SIGMA0_WARN`]: real machines leave one after a geometric calibration), corrections somewhat beyond the tolerances in every split, a held-out error that grew, poses set aside as blunders, more outliers than chance gives |
+//! | usable with warnings | the result improves the machine but leaves something to look at: a residual above the stated noise ([`SIGMA0_WARN`]: real machines leave one after a geometric calibration), fewer residual rows beyond the identified parameters than there are parameters (the fit can follow the data, and nothing checks it), corrections somewhat beyond the tolerances in every split, a held-out error that grew, poses set aside as blunders, more outliers than chance gives |
 //! | calibrated | converged, residual consistent with the stated noise, nothing of the above |
 //!
 //! A large σ̂₀ alone never fails a calibration: a real robot always leaves more residual than its
@@ -169,6 +169,12 @@ impl CalibrationReport {
             warnings.push(format!(
                 "the residual is {excess:.1}× the stated noise (σ̂₀ {:.2}{reweighted}; {left_mm:.4} mm RMS left on the identification poses, {set} RMS {:.4} → {:.4} mm): real machines leave such a residual after a geometric calibration ({advice}), or the stated noise is optimistic (--noise-mm, --noise-deg)",
                 self.sigma0, before.position_rms_mm, after.position_rms_mm
+            ));
+        }
+        if self.redundancy < self.rank {
+            warnings.push(format!(
+                "only {} residual rows beyond the {} identified parameters: the fit can follow the data, σ̂₀ and the σ of the parameters rest on few numbers, and nothing checks the result; measure more poses (at least as many rows beyond the parameters as there are parameters)",
+                self.redundancy, self.rank
             ));
         }
         self.parameter_flags();
