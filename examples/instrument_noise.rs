@@ -17,9 +17,9 @@
 //! ```
 mod common;
 
-use common::{data_set, print_progress, print_table, run, seats_near_reference, tracker_run, Outcome, REFERENCE};
+use common::{data_set, near_reference, print_progress, print_table, run, seats_near_reference, tracker_run, Outcome};
 use kinecal::calibrate::CalibrationOptions;
-use kinecal::instrument::simulate::{distance_rows, seat_distances, seat_rows, Placement};
+use kinecal::instrument::simulate::{distance_rows, seat_distances, seat_rows};
 use kinecal::io::builtin;
 use kinecal::io::data_file::MeasurementFormat;
 use kinecal::io::model_file::ModelFile;
@@ -53,14 +53,7 @@ fn main() {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let (proto, _) = virtual_prototype(&nominal, &free, 0.5, 0.1f64.to_radians(), &mut rng);
         let truth = Framed::new(proto.clone(), Pose::identity(), ball);
-        let how = |per_point: usize, noise_mm: f64, seed: u64| Placement {
-            per_point,
-            reference: REFERENCE.to_vec(),
-            max_tilt: 35f64.to_radians(),
-            noise_mm,
-            seed,
-            inputs: inputs.clone(),
-        };
+        let how = |per_point: usize, noise_mm: f64, seed: u64| near_reference(per_point, noise_mm, seed, &inputs);
         // Seats where the true ball stands near the reference; pivots 100 mm below three of them.
         let seats = seats_near_reference(&truth);
         let pivots: Vec<Vector3<f64>> = seats[..3].iter().map(|c| c - Vector3::new(0.0, 0.0, 100.0)).collect();

@@ -17,12 +17,12 @@
 //! ```
 mod common;
 
-use common::{data_set, print_progress, print_table, run, seats_near_reference, tracker_run, Outcome, REFERENCE};
+use common::{data_set, near_reference, print_progress, print_table, run, seats_near_reference, tracker_run, Outcome};
 use kinecal::calibrate::CalibrationOptions;
 use kinecal::design::{instrument_blocks, plan_instrument, Criterion, InstrumentLayout, InstrumentPlanOptions, ObservabilityIndices};
 use kinecal::design::{SelectOptions, SelectionMethod};
 use kinecal::instrument::measure_planned;
-use kinecal::instrument::simulate::{seat_distances, seat_rows, Placement};
+use kinecal::instrument::simulate::{seat_distances, seat_rows};
 use kinecal::io::builtin;
 use kinecal::io::data_file::MeasurementFormat;
 use kinecal::io::model_file::ModelFile;
@@ -42,14 +42,7 @@ fn main() {
     let free = file.free_indices().unwrap();
     let inputs = file.inputs();
     let ball = common::ball();
-    let how = |per_point: usize, noise_mm: f64, seed: u64| Placement {
-        per_point,
-        reference: REFERENCE.to_vec(),
-        max_tilt: 35f64.to_radians(),
-        noise_mm,
-        seed,
-        inputs: inputs.clone(),
-    };
+    let how = |per_point: usize, noise_mm: f64, seed: u64| near_reference(per_point, noise_mm, seed, &inputs);
     // The seats where the nominal ball stands near the reference: the artifact's drawing.
     let seats = seats_near_reference(&Framed::new(nominal.clone(), Pose::identity(), ball));
     let layout = InstrumentLayout {

@@ -184,3 +184,16 @@ pub fn tracker_run(
         near,
     )
 }
+
+/// How the instrument rows are drawn about [`REFERENCE`] (tool tilted up to 35°, within the
+/// limits of `inputs`): `per_point` rows per seat or pivot, `noise_mm`, `seed`.
+pub fn near_reference(per_point: usize, noise_mm: f64, seed: u64, inputs: &[InputSpec]) -> kinecal::instrument::simulate::Placement {
+    kinecal::instrument::simulate::Placement {
+        per_point,
+        reference: REFERENCE.to_vec(),
+        max_tilt: 35f64.to_radians(),
+        noise_mm,
+        seed,
+        inputs: inputs.to_vec(),
+    }
+}

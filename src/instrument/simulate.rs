@@ -224,28 +224,33 @@ fn approached(truth: &dyn Mechanism, goal: &Pose, mut q: Vec<f64>, previous: Opt
     (directions(&q) == wanted && wanted.iter().all(|&(k, d)| q[k] == d)).then_some(q)
 }
 
-/// Inputs near `q` whose tool point is at `point`: Gauss–Newton on the position over the inputs
-/// (minimum-norm steps, the Jacobian by central differences); `None` when it does not get there.
-fn onto_point(truth: &dyn Mechanism, q: &[f64], point: &Vector3<f64>) -> Option<Vec<f64>> {
-    let at = |q: &[f64]| truth.forward(q).ok().map(|p| p.translation.vector);
+/// Inputs near `q` where `residual` (of the tool pose) vanishes: Gauss–Newton over the inputs,
+/// minimum-norm steps (singular values below 1e-9 dropped), the Jacobian by central
+/// differences; at most `iterations` steps, done when `converged` holds. `None` when the
+/// forward kinematics fails on the way or it does not get there.
+fn onto(
+    truth: &dyn Mechanism,
+    q: &[f64],
+    iterations: usize,
+    residual: impl Fn(&Pose) -> nalgebra::DVector<f64>,
+    converged: impl Fn(&nalgebra::DVector<f64>) -> bool,
+) -> Option<(Vec<f64>, Pose)> {
+    let at = |q: &[f64]| truth.forward(q).ok().map(|p| (residual(&p), p));
     let mut q = q.to_vec();
-    for _ in 0..50 {
-        let e = point - at(&q)?;
-        if e.norm() < 1e-11 {
-            return Some(q);
+    for _ in 0..iterations {
+        let (r, pose) = at(&q)?;
+        if converged(&r) {
+            return Some((q, pose));
         }
         let h = 1e-6;
-        let mut j = nalgebra::DMatrix::zeros(3, q.len());
+        let mut j = nalgebra::DMatrix::zeros(r.len(), q.len());
         for k in 0..q.len() {
             let (mut up, mut down) = (q.clone(), q.clone());
             up[k] += h;
             down[k] -= h;
-            j.set_column(k, &((at(&up)? - at(&down)?) / (2.0 * h)));
+            j.set_column(k, &((at(&up)?.0 - at(&down)?.0) / (2.0 * h)));
         }
-        let step = j
-            .svd(true, true)
-            .solve(&nalgebra::DVector::from_column_slice(e.as_slice()), 1e-9)
-            .ok()?;
+        let step = j.svd(true, true).solve(&(-r), 1e-9).ok()?;
         for (v, d) in q.iter_mut().zip(step.iter()) {
             *v += d;
         }
@@ -253,35 +258,18 @@ fn onto_point(truth: &dyn Mechanism, q: &[f64], point: &Vector3<f64>) -> Option<
     None
 }
 
-/// Inputs near `q` whose tool point lies at `length` from `pivot`, and the pose there: Newton on
-/// the distance over the inputs (minimum-norm steps, the gradient by central differences),
-/// within the limits of `inputs`; `None` when it does not get there.
+/// Inputs near `q` whose tool point is at `point` ([`onto`]).
+fn onto_point(truth: &dyn Mechanism, q: &[f64], point: &Vector3<f64>) -> Option<Vec<f64>> {
+    let residual = |p: &Pose| nalgebra::DVector::from_column_slice((p.translation.vector - point).as_slice());
+    onto(truth, q, 50, residual, |r| r.norm() < 1e-11).map(|(q, _)| q)
+}
+
+/// Inputs near `q` whose tool point lies at `length` from `pivot` ([`onto`]), within the limits
+/// of `inputs`, and the pose there.
 fn onto_length(truth: &dyn Mechanism, q: &[f64], pivot: &Vector3<f64>, length: f64, inputs: &[InputSpec]) -> Option<(Vec<f64>, Pose)> {
-    let distance = |q: &[f64]| truth.forward(q).ok().map(|p| ((p.translation.vector - pivot).norm(), p));
-    let mut q = q.to_vec();
-    for _ in 0..30 {
-        let (d, pose) = distance(&q)?;
-        if (d - length).abs() < 1e-11 * length {
-            return within_limits(q, inputs).map(|q| (q, pose));
-        }
-        let h = 1e-6;
-        let mut g = vec![0.0; q.len()];
-        for k in 0..q.len() {
-            let (mut up, mut down) = (q.clone(), q.clone());
-            up[k] += h;
-            down[k] -= h;
-            g[k] = (distance(&up)?.0 - distance(&down)?.0) / (2.0 * h);
-        }
-        let gg: f64 = g.iter().map(|v| v * v).sum();
-        if gg.is_nan() || gg <= 1e-18 {
-            return None;
-        }
-        let s = (length - d) / gg;
-        for (v, gk) in q.iter_mut().zip(&g) {
-            *v += s * gk;
-        }
-    }
-    None
+    let residual = |p: &Pose| nalgebra::DVector::from_element(1, (p.translation.vector - pivot).norm() - length);
+    let (q, pose) = onto(truth, q, 30, residual, |r| r[0].abs() < 1e-11 * length)?;
+    within_limits(q, inputs).map(|q| (q, pose))
 }
 
 /// Points (mm) from text `X,Y,Z;X,Y,Z;…` (e.g. `400,0,300;400,100,300`), for a command line.

@@ -391,8 +391,9 @@ fn a_known_pose_as_the_start_changes_nothing_framed_or_not() {
 /// virtual prototype (±0.5 mm / ±0.1° on the file's free parameters) carrying a ball 120 mm off
 /// its tool frame, measured noise-free by the instrument, calibrated through `calibrate` with
 /// default options; the held-out tool points agree with the truth's once the rigid motion no
-/// instrument sees (where the machine stands) is aligned. `what` says how the rows are made.
-fn instrument_contract(what: &str, rows: impl Fn(&Kind, &dyn Mechanism, &[Vec<f64>]) -> Option<InstrumentRows>) {
+/// instrument sees (where the machine stands) is aligned. `rows` makes the instrument rows from the
+/// kind, its nominal mechanism and the truth (`None`: the kind cannot have them); `what` names them.
+fn instrument_contract(what: &str, rows: impl Fn(&Kind, &dyn Mechanism, &dyn Mechanism) -> Option<InstrumentRows>) {
     use kinecal::model::framed::Framed;
     use kinecal::se3::Pose;
     for k in KINDS {
@@ -406,7 +407,7 @@ fn instrument_contract(what: &str, rows: impl Fn(&Kind, &dyn Mechanism, &[Vec<f6
         let (proto, _) = kinecal::simulate::virtual_prototype(&nominal, &file.free_indices().unwrap(), 0.5, 0.1f64.to_radians(), &mut rng);
         let ball = se3::pose_from_parts(Vector3::new(15.0, -10.0, 120.0), Vector3::zeros());
         let truth = Framed::new(proto, Pose::identity(), ball);
-        let Some((measurements, seat_distances)) = rows(k, &truth, &(k.configurations)(&*nominal, 8, 31)) else {
+        let Some((measurements, seat_distances)) = rows(k, &*nominal, &truth) else {
             eprintln!(
                 "{what}: {}: skipped, the tool of a {}-DOF task cannot turn about a point",
                 k.name,
@@ -414,23 +415,9 @@ fn instrument_contract(what: &str, rows: impl Fn(&Kind, &dyn Mechanism, &[Vec<f6
             );
             continue;
         };
-        let options = CalibrationOptions {
-            noise: kinecal::measure::Noise {
-                position: 0.01,
-                ..Default::default()
-            },
-            seat_distances,
-            ..CalibrationOptions::default()
-        };
         let data = DataSet::from_measurements("instrument.csv", measurements);
-        let cal = calibrate(&file, &data, None, &options).unwrap_or_else(|e| panic!("{what}: {}: {e}", k.name));
-        let back = ModelFile::load_str(std::path::Path::new("cal.toml"), &cal.model_file.to_toml().unwrap())
-            .unwrap_or_else(|e| panic!("{what}: {}: the calibrated model does not load back: {e}", k.name))
-            .build();
-        let held_out = (k.configurations)(&*nominal, 20, 32);
-        let points =
-            |m: &dyn Mechanism| -> Vec<Vector3<f64>> { held_out.iter().map(|q| m.forward(q).unwrap().translation.vector).collect() };
-        let e = crate::instruments::aligned_max(&points(&*back), &points(&truth));
+        let (cal, back) = crate::instruments::calibrated(&file, &data, seat_distances);
+        let e = crate::instruments::held_out_gap(&*back, &truth, &(k.configurations)(&*nominal, 20, 32));
         let floor = k.instrument_floor_mm;
         eprintln!(
             "{what}: {}: {} rows, σ̂₀ {:.1e}, held-out max {e:.2e} mm after a rigid motion (bound {floor:.0e}), {:?}",
@@ -458,9 +445,8 @@ type InstrumentRows = (Vec<Measurement>, Vec<kinecal::instrument::SeatDistance>)
 /// the workspace to the tool point at 120 configurations of every kind, 40 per anchor.
 #[test]
 fn every_mechanism_is_calibrated_by_distances() {
-    instrument_contract("distance", |k, truth, _| {
-        let nominal = (k.build)();
-        let qs = (k.configurations)(&*nominal, 120, 33);
+    instrument_contract("distance", |k, nominal, truth| {
+        let qs = (k.configurations)(nominal, 120, 33);
         let points: Vec<Vector3<f64>> = qs.iter().map(|q| truth.forward(q).unwrap().translation.vector).collect();
         let centre = points.iter().sum::<Vector3<f64>>() / points.len() as f64;
         let size = (points.iter().map(|p| (p - centre).norm_squared()).sum::<f64>() / points.len() as f64).sqrt();
@@ -494,13 +480,14 @@ fn every_mechanism_is_calibrated_by_distances() {
 #[test]
 fn every_mechanism_that_turns_its_tool_is_calibrated_by_seats() {
     use kinecal::instrument::simulate::{seat_rows, Placement};
-    instrument_contract("seat", |k, truth, qs| {
+    instrument_contract("seat", |k, nominal, truth| {
         if truth.task().dof() <= 3 {
             return None;
         }
+        let qs = (k.configurations)(nominal, 8, 31);
         let mut rows = Vec::new();
         let mut seats = Vec::new();
-        for q in qs {
+        for q in &qs {
             let seat = truth.forward(q).unwrap().translation.vector;
             // The tool turned as far as the machine lets it: 30°, else 10° (most parallel machines).
             let how = |tilt: f64| Placement {

@@ -1,12 +1,12 @@
 //! A draw-wire sensor's unknown zero (issue 30): distances read relative to an unknown zero per
 //! pivot (`reading_mm`), the zeros estimated with the geometry.
-use crate::instruments::{aligned_max, points_of};
+use crate::instruments::points_of;
 use kinecal::calibrate::{calibrate, CalibrationOptions};
 use kinecal::instrument::simulate::{as_readings, distance_rows, middle_of_limits, Placement};
 use kinecal::io::builtin;
 use kinecal::io::data_file::{DataSet, MeasurementFormat};
 use kinecal::io::model_file::ModelFile;
-use kinecal::measure::{Measurement, Noise, Observation};
+use kinecal::measure::{Measurement, Observation};
 use kinecal::model::framed::Framed;
 use kinecal::se3::{self, Pose};
 use kinecal::simulate::{random_configurations, virtual_prototype};
@@ -60,21 +60,9 @@ fn wire(
     assert!(rows.iter().all(|m| matches!(m.obs, Observation::Distance { relative: true, .. })));
     let data = DataSet::from_measurements("wire.csv", rows.clone());
     assert_eq!(data.format, MeasurementFormat::Distance);
-    let opts = CalibrationOptions {
-        noise: Noise {
-            position: 0.01,
-            ..Noise::default()
-        },
-        ..CalibrationOptions::default()
-    };
-    let cal = calibrate(&file, &data, None, &opts).unwrap();
+    let (cal, back) = crate::instruments::calibrated(&file, &data, Vec::new());
     assert!(cal.identification.converged, "{name}: not converged");
-    let back = ModelFile::load_str(std::path::Path::new("cal.toml"), &cal.model_file.to_toml().unwrap())
-        .unwrap()
-        .build();
     let held_out = random_configurations(&*nominal, &file.inputs(), 30, &mut rng).unwrap();
-    let fitted: Vec<Vector3<f64>> = held_out.iter().map(|q| back.forward(q).unwrap().translation.vector).collect();
-    let true_points: Vec<Vector3<f64>> = held_out.iter().map(|q| truth.forward(q).unwrap().translation.vector).collect();
     let placed = kinecal::instrument::held_out(&*back, &rows, &[]).unwrap();
     let zero_errors_mm = placed
         .pivots
@@ -94,7 +82,7 @@ fn wire(
         })
         .collect();
     Found {
-        held_out_max_mm: aligned_max(&fitted, &true_points),
+        held_out_max_mm: crate::instruments::held_out_gap(&*back, &truth, &held_out),
         zero_errors_mm,
         zero_sigmas_mm,
         status: format!("{:?}: {}", cal.report.verdict.status, cal.report.verdict.reasons.join(" | ")),

@@ -36,6 +36,35 @@ pub(crate) fn aligned_max(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// `calibrate` on instrument `data` with default options but a stated noise of 10 µm and the
+/// seats' known `seat_distances`: the calibration, and its model file written and read back.
+pub(crate) fn calibrated(
+    file: &ModelFile,
+    data: &DataSet,
+    seat_distances: Vec<kinecal::instrument::SeatDistance>,
+) -> (kinecal::calibrate::Calibration, Box<dyn Mechanism>) {
+    let opts = CalibrationOptions {
+        noise: Noise {
+            position: 0.01,
+            ..Noise::default()
+        },
+        seat_distances,
+        ..CalibrationOptions::default()
+    };
+    let cal = calibrate(file, data, None, &opts).unwrap_or_else(|e| panic!("{}: {e}", file.name));
+    let back = ModelFile::load_str(std::path::Path::new("cal.toml"), &cal.model_file.to_toml().unwrap())
+        .unwrap_or_else(|e| panic!("{}: the calibrated model does not load back: {e}", file.name))
+        .build();
+    (cal, back)
+}
+
+/// The largest distance between the tool points of `a` and `b` at `qs` after the rigid motion
+/// that best takes `a`'s onto `b`'s ([`aligned_max`]).
+pub(crate) fn held_out_gap(a: &dyn Mechanism, b: &dyn Mechanism, qs: &[Vec<f64>]) -> f64 {
+    let points = |m: &dyn Mechanism| -> Vec<Vector3<f64>> { qs.iter().map(|q| m.forward(q).unwrap().translation.vector).collect() };
+    aligned_max(&points(a), &points(b))
+}
+
 struct Outcome {
     held_out_max_mm: f64,
     sigma0: f64,
@@ -96,23 +125,11 @@ fn run(
         _ => Vec::new(),
     };
     let data = data_set("instrument.csv", rows, format);
-    let opts = CalibrationOptions {
-        noise: Noise {
-            position: 0.01,
-            ..Noise::default()
-        },
-        seat_distances,
-        ..CalibrationOptions::default()
-    };
-    let cal = calibrate(&file, &data, None, &opts).unwrap();
+    let (cal, back) = calibrated(&file, &data, seat_distances);
     assert!(cal.identification.converged, "{name}: not converged");
-    let text = cal.model_file.to_toml().unwrap();
-    let back = ModelFile::load_str(std::path::Path::new("cal.toml"), &text).unwrap().build();
     let held_out = random_configurations(&*nominal, &file.inputs(), 30, &mut rng).unwrap();
-    let fitted: Vec<Vector3<f64>> = held_out.iter().map(|q| back.forward(q).unwrap().translation.vector).collect();
-    let true_points: Vec<Vector3<f64>> = held_out.iter().map(|q| truth.forward(q).unwrap().translation.vector).collect();
     Outcome {
-        held_out_max_mm: aligned_max(&fitted, &true_points),
+        held_out_max_mm: held_out_gap(&*back, &truth, &held_out),
         sigma0: cal.identification.sigma0,
         status: format!("{:?}: {}", cal.report.verdict.status, cal.report.verdict.reasons.join(" | ")),
         unchecked: cal.starts.iter().filter(|s| s.unchecked.is_some()).count(),
@@ -391,20 +408,8 @@ fn a_ur5e_from_its_urdf_with_seats_and_with_a_ballbar() {
     let held_out = random_configurations(&*nominal, &file.inputs(), 30, &mut rng).unwrap();
     let check = |rows: Vec<Measurement>, format, seat_distances, what: &str| {
         let data = data_set("ur5e.csv", rows, format);
-        let opts = CalibrationOptions {
-            noise: Noise {
-                position: 0.01,
-                ..Noise::default()
-            },
-            seat_distances,
-            ..CalibrationOptions::default()
-        };
-        let cal = calibrate(&file, &data, None, &opts).unwrap();
-        let text = cal.model_file.to_toml().unwrap();
-        let back = ModelFile::load_str(std::path::Path::new("cal.toml"), &text).unwrap().build();
-        let fitted: Vec<Vector3<f64>> = held_out.iter().map(|q| back.forward(q).unwrap().translation.vector).collect();
-        let true_points: Vec<Vector3<f64>> = held_out.iter().map(|q| truth.forward(q).unwrap().translation.vector).collect();
-        let e = aligned_max(&fitted, &true_points);
+        let (cal, back) = calibrated(&file, &data, seat_distances);
+        let e = held_out_gap(&*back, &truth, &held_out);
         eprintln!(
             "ur5e from URDF, {what}, noise-free: held-out max {e:.2e} mm after a rigid motion, {:?}",
             cal.report.verdict.status
