@@ -524,3 +524,13 @@ fn calibrated_irb120_through_urdf_and_back() {
     // placements: round-off of 1e-9 mm order, depending on the calibrated geometry.
     assert!(gap < 1e-8, "Hayati DH: {gap:e} mm");
 }
+
+/// `examples/models/ur5e.urdf` (the tutorials' UR5e, docs/tutorial-instruments.md) is
+/// [`ur5e_urdf`]: ur_description's layout, read back to the same kinematics.
+#[test]
+fn shipped_ur5e_urdf_is_the_published_layout() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/models/ur5e.urdf");
+    assert_eq!(std::fs::read_to_string(&path).unwrap(), ur5e_urdf());
+    let file = kinecal::io::urdf::import(&ur5e_urdf(), Some("base_link_inertia"), Some("tool0")).unwrap();
+    assert_eq!(file.build().input_names().len(), 6);
+}
