@@ -30,8 +30,7 @@
 //! [noise]            # optional: measurement standard deviations (identification weights)
 //! position = 0.02    # length unit
 //! orientation = 0.02 # angle unit
-//! seat = 0.005      # optional, length unit: seat rows' σ (default: position)
-//! distance = 0.005  # optional, length unit: ballbar / draw-wire rows' σ (default: position)
+//! seat = 0.005      # optional, length unit: seat (and distance = …: ballbar) rows' σ; default position
 //! ```
 //!
 //! # Conventions
@@ -627,9 +626,7 @@ struct RawNoise {
     orientation: f64,
     encoder_angle: Option<f64>,
     encoder_length: Option<f64>,
-    /// Per instrument kind ([`crate::measure::RowKind`]): seat rows' σ (length unit).
     seat: Option<f64>,
-    /// Distance rows' σ (length unit).
     distance: Option<f64>,
 }
 
