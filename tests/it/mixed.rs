@@ -260,3 +260,48 @@ fn with_noise_the_mixed_set_beside_each_alone() {
         }
     }
 }
+
+/// Seats stated four times better than they are: the verdict names the seat rows (a warning,
+/// never a failure), and each kind's ratio to its own σ is in the report.
+#[test]
+fn a_kind_far_above_its_own_noise_is_named() {
+    let (file, truth) = truth_of("irb120");
+    let mut rows = tracker_rows(&truth, &file, 10, 0.020);
+    rows.extend(seats(&file, &truth, 4, &placement(&file, 15, 35.0, 0.005)));
+    let noise = Noise {
+        position: 0.020,
+        kinds: KindNoise {
+            seat: Some(0.0012),
+            ..KindNoise::default()
+        },
+        ..Noise::default()
+    };
+    let f = fit(&file, &truth, rows, noise, Vec::new()).unwrap();
+    eprintln!("{}; {}", f.per_kind, f.status);
+    assert!(f.status.contains("the seat rows' residual is"), "{}", f.status);
+    assert!(!f.status.contains("the tracker rows' residual"), "{}", f.status);
+    assert!(!f.status.starts_with("Failed"), "{}", f.status);
+}
+
+/// `[noise]` per kind in a model file: read in the file's unit, written back, a kind without
+/// its own σ on the position noise; a σ ≤ 0 is a one-line error.
+#[test]
+fn noise_per_kind_in_the_model_file() {
+    let base = builtin::model_file("irb120").unwrap().to_toml().unwrap();
+    let with = |noise: &str| format!("{base}\n[noise]\nposition = 0.02\norientation = 0.02\n{noise}\n");
+    let file = ModelFile::load_str(std::path::Path::new("m.toml"), &with("seat = 0.005")).unwrap();
+    let n = file.noise.unwrap();
+    assert_eq!(
+        (n.sigma(RowKind::Seat), n.sigma(RowKind::Distance), n.sigma(RowKind::Tracker)),
+        (0.005, 0.02, 0.02)
+    );
+    let back = ModelFile::load_str(std::path::Path::new("m.toml"), &file.to_toml().unwrap()).unwrap();
+    assert_eq!(back.noise, file.noise);
+    let e = ModelFile::load_str(std::path::Path::new("m.toml"), &with("distance = 0"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("m.toml") && e.contains("distance must be finite and > 0") && !e.contains('\n'),
+        "{e}"
+    );
+}

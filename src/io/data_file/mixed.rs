@@ -286,10 +286,7 @@ mod tests {
     #[test]
     fn a_row_of_no_kind_or_two_is_a_one_line_error() {
         let e = read("q1_deg,x_mm,y_mm,z_mm,seat\n10,1,2,3,\n20,1,2,3,4\n").unwrap_err();
-        assert!(
-            e.contains("m.csv:3:") && e.contains("tracker (x,y,z) and seat"),
-            "{e}"
-        );
+        assert!(e.contains("m.csv:3:") && e.contains("tracker (x,y,z) and seat"), "{e}");
         assert!(!e.contains('\n'));
         let e = read("q1_deg,x_mm,y_mm,z_mm,seat\n10,,,,\n").unwrap_err();
         assert!(e.contains("m.csv:2:") && e.contains("fills no measurement"), "{e}");
