@@ -305,3 +305,45 @@ fn noise_per_kind_in_the_model_file() {
         "{e}"
     );
 }
+
+/// From the command line: a file mixing tracker positions and seat rows (written by
+/// `data_text`, empty cells for the other kind), `identify` with each kind's σ, `validate` of
+/// the calibrated file on the same file (the tracker rows' errors, then the seats' spread).
+#[test]
+fn cli_identify_and_validate_a_mixed_file() {
+    use crate::cli::{fails, ok};
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let (file, truth) = truth_of("irb120");
+    let mut rows = tracker_rows(&truth, &file, 10, 0.0);
+    rows.extend(seats(&file, &truth, 4, &placement(&file, 15, 35.0, 0.0)));
+    let ids: Vec<i64> = (0..rows.len() as i64).collect();
+    let text = kinecal::io::data_file::data_text(&dir.join("d.csv"), &file.data_columns(), &ids, &rows, None).unwrap();
+    assert!(text.lines().next().unwrap().ends_with(",x_mm,y_mm,z_mm,seat"), "{text}");
+    std::fs::write(dir.join("d.csv"), &text).unwrap();
+    let out = ok(
+        dir,
+        &[
+            "identify",
+            "irb120",
+            "d.csv",
+            "--out",
+            "cal.toml",
+            "--noise-mm",
+            "0.01",
+            "--kind-noise",
+            "seat=0.005",
+        ],
+    );
+    assert!(out.contains("verdict: calibrated"), "{out}");
+    let cal = std::fs::read_to_string(dir.join("cal.toml")).unwrap();
+    assert!(cal.contains("seat = 0.005"), "{cal}");
+    let v = ok(dir, &["validate", "cal.toml", "d.csv"]);
+    eprintln!("{v}");
+    assert!(v.contains("10 tracker rows"), "{v}");
+    let bad = fails(dir, &["identify", "irb120", "d.csv", "--out", "x.toml", "--kind-noise", "seat=-1"]);
+    assert!(
+        bad.contains("--kind-noise") && bad.contains("> 0") && !bad.trim().contains('\n'),
+        "{bad}"
+    );
+}
