@@ -275,6 +275,14 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         report.iterations,
         report.sigma0
     );
+    if report.kinds.len() > 1 {
+        for k in &report.kinds {
+            println!(
+                "  {} rows ({}): residual {:.4} mm RMS, {:.2}× their σ {:.4} mm",
+                k.kind, k.rows, k.rms_mm, k.ratio, k.sigma_mm
+            );
+        }
+    }
     // Draw-wire readings (reading_mm): each pivot's zero, placed with the calibrated model.
     if let Ok(h) = kinecal::instrument::held_out(&*cal.model_file.build(), &data.measurements, &[]) {
         for p in &h.pivots {

@@ -336,6 +336,10 @@ fn cli_identify_and_validate_a_mixed_file() {
         ],
     );
     assert!(out.contains("verdict: calibrated"), "{out}");
+    assert!(
+        out.contains("seat rows (60): residual") && out.contains("tracker rows (10)"),
+        "{out}"
+    );
     let cal = std::fs::read_to_string(dir.join("cal.toml")).unwrap();
     assert!(cal.contains("seat = 0.005"), "{cal}");
     let v = ok(dir, &["validate", "cal.toml", "d.csv"]);
