@@ -351,3 +351,48 @@ fn cli_identify_and_validate_a_mixed_file() {
         "{bad}"
     );
 }
+
+/// With noise, no tracker: a ballbar (5 µm along the bar) and seats (5 µm) mixed, beside each
+/// alone (the seats with the true distance of two); held-out error after a rigid motion.
+#[test]
+fn with_noise_distances_and_seats_beside_each_alone() {
+    let (file, truth) = truth_of("irb120");
+    let noise = Noise {
+        position: 0.020,
+        kinds: KindNoise {
+            seat: Some(0.005),
+            distance: Some(0.005),
+        },
+        ..Noise::default()
+    };
+    let how = placement(&file, 30, 30.0, 0.005);
+    let centres = artifact_points(&file, &truth);
+    let pivots: Vec<Vector3<f64>> = centres[..3].iter().map(|c| c - Vector3::new(0.0, 0.0, 100.0)).collect();
+    let bar = distance_rows(&truth, &pivots, 100.0, DEFAULT_BALLBAR_RANGE_MM, &how).unwrap();
+    let seat_set = seats(&file, &truth, 3, &how);
+    let centre = |s: usize| {
+        let m = seat_set.iter().find(|m| m.obs == Observation::Seat(s)).unwrap();
+        truth.forward(&m.q).unwrap().translation.vector
+    };
+    let known = vec![SeatDistance {
+        a: 0,
+        b: 1,
+        length: (centre(0) - centre(1)).norm(),
+    }];
+    let mut mixed = bar.clone();
+    mixed.extend(seat_set.clone());
+    for (what, rows, distances) in [
+        ("3 pivots × 30 + 3 seats × 30 (mixed)", mixed.clone(), Vec::new()),
+        ("3 pivots × 30 + 3 seats × 30 (mixed, + the distance of two)", mixed, known.clone()),
+        ("3 pivots × 30 alone", bar, Vec::new()),
+        ("3 seats × 30 alone (+ the distance of two)", seat_set, known),
+    ] {
+        match fit(&file, &truth, rows, noise, distances) {
+            Ok(f) => eprintln!(
+                "irb120 with noise, {what}: held-out {:.4} mm max / {:.4} mm RMS after a rigid motion; {}; {}",
+                f.aligned_mm, f.aligned_rms_mm, f.per_kind, f.status
+            ),
+            Err(e) => eprintln!("irb120 with noise, {what}: refused: {e}"),
+        }
+    }
+}
