@@ -132,13 +132,18 @@ fn fit(file: &ModelFile, truth: &dyn Mechanism, rows: Vec<Measurement>, noise: N
         aligned_mm: aligned_max(&a, &b),
         aligned_rms_mm: (gaps.iter().map(|g| g * g).sum::<f64>() / gaps.len() as f64).sqrt(),
         status: format!("{:?}: {}", cal.report.verdict.status, cal.report.verdict.reasons.join(" | ")),
-        per_kind: cal
-            .report
-            .kinds
-            .iter()
-            .map(|k| format!("{} {:.4} mm RMS = {:.2} σ", k.kind, k.rms_mm, k.ratio))
-            .collect::<Vec<_>>()
-            .join(", "),
+        per_kind: format!(
+            "{} (rank {} of {} free, redundant: {})",
+            cal.report
+                .kinds
+                .iter()
+                .map(|k| format!("{} {:.4} mm RMS = {:.2} σ", k.kind, k.rms_mm, k.ratio))
+                .collect::<Vec<_>>()
+                .join(", "),
+            cal.report.rank,
+            cal.report.free,
+            cal.report.redundant.join(" ")
+        ),
     })
 }
 
