@@ -5,6 +5,7 @@
 //! the calibrated model file (with its `[frames]` and `[provenance]`), the report with its verdict
 //! ([`CalibrationReport`]), from which the command line, the JSON output and the HTML are written.
 mod checks;
+mod mixed;
 mod robust;
 mod starts;
 pub mod tolerances;
@@ -224,7 +225,8 @@ pub fn calibrate(
         path: format!("model '{}'", model.name).into(),
         message,
     })?;
-    if instrument.is_some() {
+    // With tracker rows the tracker placed the base: the frames stay where it put them.
+    if instrument.as_ref().is_some_and(|i| !i.tracked()) {
         let start_file = model.with_geometry_of(&*start).map_err(|message| IoError::Invalid {
             path: format!("model '{}'", model.name).into(),
             message,
@@ -340,6 +342,11 @@ struct InstrumentData {
 }
 
 impl InstrumentData {
+    /// Whether the data hold tracker rows besides the instrument's ([`crate::instrument::mixed`]).
+    fn tracked(&self) -> bool {
+        crate::instrument::has_tracker_rows(&self.data.measurements)
+    }
+
     /// `None` for tracker data.
     fn of(
         data: &DataSet,
@@ -360,16 +367,30 @@ impl InstrumentData {
         let validation = match validation {
             None => None,
             Some(v) => {
-                let (vpoints, _, vindexed) = crate::instrument::index_points(&v.measurements, &[])
-                    .map_err(|e| v.locate(e))?
-                    .ok_or_else(|| IoError::Invalid {
+                let tracked = crate::instrument::has_tracker_rows(&indexed);
+                let (vpoints, _, vindexed) = match crate::instrument::index_points(&v.measurements, &[]).map_err(|e| v.locate(e))? {
+                    Some(i) => i,
+                    // Tracker rows alone: held out from a fit the tracker placed.
+                    None if tracked => (Vec::new(), Vec::new(), crate::instrument::mixed::tracker_only(&v.measurements)),
+                    None => return Err(IoError::Invalid {
                         path: v.path.clone(),
                         message:
                             "the identification data are an instrument's (seats or distances); the validation data must be the same kind"
                                 .into(),
-                    })?;
+                    }),
+                };
                 let mut measurements = vindexed;
-                for m in &mut measurements {
+                for (m, line) in measurements.iter_mut().zip(&v.lines) {
+                    if m.q.last() == Some(&crate::instrument::NO_POINT) {
+                        if !tracked {
+                            return Err(IoError::AtLine {
+                                path: v.path.clone(),
+                                line: *line,
+                                message: "a tracker row, and the identification data hold none: the tracker's frame is not placed for it (give tracker rows in the identification data too)".into(),
+                            });
+                        }
+                        continue;
+                    }
                     let at = m.q.pop().expect("indexed") as usize;
                     let p = &vpoints[at];
                     let k = points
@@ -457,8 +478,13 @@ fn nominal_mechanism(model: &ModelFile) -> Result<Nominal, IoError> {
 /// The starting model for instrument data: the nominal mechanism with its tool-point offset
 /// and the artifact points started from the data ([`crate::instrument::start_points`]); free,
 /// in priority order: the artifact points, the tool point's offset, the model's free parameters. The base is not
-/// placed (no instrument here sees it): the measurement frame stays the identity.
+/// placed (no instrument here sees it): the measurement frame stays the identity. With tracker
+/// rows ([`crate::instrument::mixed`]) the tracker places it: the frames are registered on those
+/// rows as for tracker data and identified, first in priority, and the points live in its frame.
 fn instrument_start(model: &ModelFile, i: &InstrumentData) -> Result<StartingModel, IoError> {
+    if i.tracked() {
+        return mixed::start(model, &i.data, &i.points, &i.pairs);
+    }
     let only_seats = i.points.iter().all(|p| p.kind == crate::instrument::PointKind::Seat);
     let turns_only = model.inputs().iter().all(|inp| inp.unit != crate::params::Unit::Length);
     if only_seats && i.pairs.is_empty() && turns_only {
@@ -532,6 +558,11 @@ fn judge<M: Mechanism + Clone>(
     report.tolerance_check = Some(tolerances::tolerance_check(j.identification, j.free, &model.tolerances));
     report.serial_chain = matches!(model.mechanism, MechanismSpec::Serial(_));
     report.assess(&opts.noise, &model.tolerances);
+    report.judge_kinds(crate::report::kinds::kind_residuals(
+        &j.identification.model,
+        &data.measurements,
+        &opts.noise,
+    ));
     let spread = j.outcomes.iter().filter_map(|s| s.max_difference_mm).fold(0.0, f64::max);
     let unchecked: Vec<String> = (j.outcomes.iter().enumerate())
         .filter_map(|(k, s)| s.unchecked.as_ref().map(|why| format!("start {} ({why})", k + 1)))

@@ -33,11 +33,13 @@ use nalgebra::{DMatrix, DVector, Matrix6xX, Translation3, Vector3};
 use std::collections::BTreeMap;
 
 mod held_out;
+pub mod mixed;
 mod offset;
 mod planned;
 pub mod simulate;
 pub mod zero;
 pub use held_out::{held_out, HeldOut, PivotFit, SeatSpread};
+pub use mixed::{has_tracker_rows, NO_POINT};
 use offset::fit_offset_and_pivots;
 pub use planned::measure_planned;
 pub use zero::{sphere_and_zero, Zero, MIN_ZERO_PIVOT_ROWS};
@@ -118,23 +120,18 @@ pub type Indexed = (Vec<ArtifactPoint>, Vec<(usize, usize)>, Vec<Measurement>);
 /// The artifact points the measurements refer to (sorted by kind, then number) and the
 /// measurements with each one's point index appended to its inputs, then one row per known
 /// seat distance (inputs zero, the pair's index, [`Observation::Distance`]); `None` when no
-/// measurement is an instrument's. Mixing instrument and tracker observations in one set, or a
-/// distance between seats the data do not hold, is an error.
+/// measurement is an instrument's. A tracker row among them refers to no point: its index is
+/// [`NO_POINT`] ([`mixed`]). A distance between seats the data do not hold is an error.
 pub fn index_points(measurements: &[Measurement], distances: &[SeatDistance]) -> Result<Option<Indexed>, CalibError> {
     let with_point = measurements.iter().filter(|m| m.obs.artifact_point().is_some()).count();
     if with_point == 0 {
         return Ok(None);
     }
-    if with_point < measurements.len() {
-        return Err(CalibError::InvalidOption(
-            "the data mix instrument rows (seat or pivot) with tracker rows; give one kind per data set".into(),
-        ));
-    }
     let mut counts: BTreeMap<(PointKind, usize), usize> = BTreeMap::new();
     // Per pivot: rows with a reading relative to an unknown zero, the least and greatest.
     let mut relative: BTreeMap<usize, (usize, f64, f64)> = BTreeMap::new();
     for m in measurements {
-        let key = m.obs.artifact_point().expect("counted above");
+        let Some(key) = m.obs.artifact_point() else { continue };
         *counts.entry(key).or_default() += 1;
         if let Some((true, r)) = zero::readings(&m.obs) {
             let e = relative.entry(key.1).or_insert((0, r, r));
@@ -179,7 +176,11 @@ pub fn index_points(measurements: &[Measurement], distances: &[SeatDistance]) ->
         .iter()
         .map(|m| {
             let mut q = m.q.clone();
-            let k = index[&m.obs.artifact_point().expect("counted above")];
+            let Some(point) = m.obs.artifact_point() else {
+                q.push(NO_POINT);
+                return Measurement { q, ..m.clone() };
+            };
+            let k = index[&point];
             q.push(k as f64);
             let mut obs = m.obs.clone();
             // A reading's row carries the reading plus its pivot's reference ([`zero`]).
@@ -228,16 +229,21 @@ pub fn start_points<M: Mechanism + Clone + 'static>(
     let n_q = framed.inner.input_names().len();
     // The rows of the machine (not the known distances between seats, last).
     let indexed = &indexed[..indexed.len() - pairs.len()];
-    let poses: Vec<(usize, Pose)> = indexed
+    // With tracker rows the frames were registered on them: the tool point is placed.
+    let tracked = has_tracker_rows(indexed);
+    let (indexed, poses): (Vec<&Measurement>, Vec<(usize, Pose)>) = indexed
         .iter()
         .enumerate()
+        .filter(|(_, m)| !mixed::is_tracker_row(&m.q, n_q))
         .map(|(i, m)| {
             let pose = framed
                 .forward(&m.q[..n_q])
                 .map_err(|source| CalibError::Kinematics { pose: i, source })?;
-            Ok((m.q[n_q] as usize, pose))
+            Ok((m, (m.q[n_q] as usize, pose)))
         })
-        .collect::<Result<_, CalibError>>()?;
+        .collect::<Result<Vec<_>, CalibError>>()?
+        .into_iter()
+        .unzip();
     let seats: Vec<usize> = (0..points.len()).filter(|&k| points[k].kind == PointKind::Seat).collect();
     // The tool-point offset found from the seats (tool frame), zero without seats.
     let mut t = Vector3::zeros();
@@ -282,7 +288,7 @@ pub fn start_points<M: Mechanism + Clone + 'static>(
         // has local minima (a head that only tilts, started at its platform's centre, stops
         // 100 mm off), so it starts from the flange origin and from one bar length along each
         // axis of the tool frame either way, and keeps a clearly lower cost.
-        if seats.is_empty() {
+        if seats.is_empty() && !tracked {
             // A reading's row: its length as placed for the flange origin.
             let length = |(k, _, l): &(usize, Pose, f64)| points[*k].zero.map_or(*l, |z| l - z.reference + z.value);
             let bar = rows.iter().map(length).sum::<f64>() / rows.len().max(1) as f64;
@@ -522,13 +528,6 @@ impl<M: Mechanism> Artifact<M> {
         self.with_zero(k, zero_column, (shift * pose, out))
     }
 
-    /// Rows over the inner mechanism's parameters, with the points' (zero) columns appended.
-    fn point_columns(&self, rows: &DMatrix<f64>) -> DMatrix<f64> {
-        let mut out = DMatrix::zeros(rows.nrows(), rows.ncols() + 3 * self.points.len() + self.n_zeros());
-        out.columns_mut(0, rows.ncols()).copy_from(rows);
-        out
-    }
-
     /// The translation by minus point `k`'s centre.
     fn shift(&self, k: usize) -> Pose {
         Pose::from_parts(Translation3::from(-self.points[k].centre), nalgebra::UnitQuaternion::identity())
@@ -560,6 +559,9 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Artifact<M> {
         self.inner.n_params() + 3 * self.points.len() + self.n_zeros()
     }
     fn forward(&self, q: &[f64]) -> Result<Pose, KinError> {
+        if let Some(qi) = self.tracker_inputs(q) {
+            return self.inner.forward(qi);
+        }
         let (qi, k) = self.split(q)?;
         if let Some((pose, _)) = self.pair(k) {
             return Ok(pose);
@@ -567,6 +569,10 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Artifact<M> {
         Ok(self.moved(k, self.shift(k) * self.inner.forward(qi)?))
     }
     fn forward_with_jacobian(&self, q: &[f64]) -> Result<(Pose, Matrix6xX<f64>), KinError> {
+        if let Some(qi) = self.tracker_inputs(q) {
+            let (pose, jac) = self.inner.forward_with_jacobian(qi)?;
+            return Ok((pose, self.padded(jac)));
+        }
         let (qi, k) = self.split(q)?;
         if let Some(pair) = self.pair(k) {
             return Ok(pair);
@@ -574,6 +580,10 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Artifact<M> {
         Ok(self.relative(k, self.inner.forward_with_jacobian(qi)?))
     }
     fn forward_with_jacobian_near(&self, q: &[f64], near: &Pose) -> Result<(Pose, Matrix6xX<f64>), KinError> {
+        if let Some(qi) = self.tracker_inputs(q) {
+            let (pose, jac) = self.inner.forward_with_jacobian_near(qi, near)?;
+            return Ok((pose, self.padded(jac)));
+        }
         let (qi, k) = self.split(q)?;
         if let Some(pair) = self.pair(k) {
             return Ok(pair);
@@ -616,6 +626,9 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Artifact<M> {
         self.inner.observed_joints()
     }
     fn observed_joint_values(&self, q: &[f64]) -> Result<Vec<f64>, KinError> {
+        if let Some(qi) = self.tracker_inputs(q) {
+            return self.inner.observed_joint_values(qi);
+        }
         let (qi, k) = self.split(q)?;
         if self.pair(k).is_some() {
             return Ok(Vec::new());
@@ -623,10 +636,18 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Artifact<M> {
         self.inner.observed_joint_values(qi)
     }
     fn observed_joints_with_jacobian(&self, q: &[f64]) -> Result<(Vec<f64>, DMatrix<f64>), KinError> {
-        let (values, rows) = self.inner.observed_joints_with_jacobian(self.split(q)?.0)?;
-        Ok((values, self.point_columns(&rows)))
+        let qi = match self.tracker_inputs(q) {
+            Some(qi) => qi,
+            None => self.split(q)?.0,
+        };
+        let (values, rows) = self.inner.observed_joints_with_jacobian(qi)?;
+        Ok((values, self.padded_rows(&rows)))
     }
     fn forward_with_jacobian_and_observed(&self, q: &[f64], near: Option<&Pose>) -> Result<ForwardAndObserved, KinError> {
+        if let Some(qi) = self.tracker_inputs(q) {
+            let (pose, jac, values, rows) = self.inner.forward_with_jacobian_and_observed(qi, near)?;
+            return Ok((pose, self.padded(jac), values, self.padded_rows(&rows)));
+        }
         let (qi, k) = self.split(q)?;
         if let Some((pose, jac)) = self.pair(k) {
             return Ok((pose, jac, Vec::new(), DMatrix::zeros(0, self.n_params())));
@@ -634,7 +655,7 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Artifact<M> {
         let inner_near = near.map(|n| self.shift(k).inverse() * self.unmoved(k, n));
         let (pose, jac, values, rows) = self.inner.forward_with_jacobian_and_observed(qi, inner_near.as_ref())?;
         let (pose, jac) = self.relative(k, (pose, jac));
-        Ok((pose, jac, values, self.point_columns(&rows)))
+        Ok((pose, jac, values, self.padded_rows(&rows)))
     }
 }
 

@@ -23,6 +23,9 @@ use crate::se3::{self, Pose};
 use nalgebra::{DMatrix, Matrix3, Matrix6xX, Vector3, Vector6};
 use serde::{Deserialize, Serialize};
 
+mod kind;
+pub use kind::{KindNoise, RowKind};
+
 /// One observation of the tool frame, expressed in the world (measurement) frame.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Observation {
@@ -117,6 +120,18 @@ pub struct Noise {
     /// Noise of an observed prismatic joint's reading (mm).
     #[serde(default = "default_joint_length")]
     pub joint_length: f64,
+    /// The σ of each instrument kind (seat, distance), when stated; a kind without its own
+    /// falls back to [`Self::position`] ([`Self::sigma`]).
+    #[serde(default)]
+    pub kinds: KindNoise,
+}
+
+impl Noise {
+    /// The σ (mm) rows of `kind` are weighted by: the kind's own ([`KindNoise`]), else the
+    /// position noise.
+    pub fn sigma(&self, kind: RowKind) -> f64 {
+        self.kinds.get(kind).unwrap_or(self.position)
+    }
 }
 
 fn default_joint_angle() -> f64 {
@@ -136,6 +151,7 @@ impl Default for Noise {
             orientation: 0.02_f64.to_radians(),
             joint_angle: default_joint_angle(),
             joint_length: default_joint_length(),
+            kinds: KindNoise::default(),
         }
     }
 }
@@ -227,8 +243,8 @@ pub const KNOWN_DISTANCE_WEIGHT: f64 = 100.0;
 pub fn row_weight(obs: &Observation, k: usize, noise: &Noise) -> f64 {
     match obs {
         Observation::Pose(_) if k >= 3 => 1.0 / noise.orientation,
-        Observation::Distance { pivot: KNOWN_DISTANCE, .. } => KNOWN_DISTANCE_WEIGHT / noise.position,
-        _ => 1.0 / noise.position,
+        Observation::Distance { pivot: KNOWN_DISTANCE, .. } => KNOWN_DISTANCE_WEIGHT / noise.sigma(RowKind::Seat),
+        _ => 1.0 / noise.sigma(RowKind::of(obs).unwrap_or(RowKind::Tracker)),
     }
 }
 

@@ -456,6 +456,7 @@ fn calibrate(
         orientation: noise_deg.map_or(base.orientation, f64::to_radians),
         joint_angle: encoder_noise_deg.map_or(base.joint_angle, f64::to_radians),
         joint_length: encoder_noise_mm.unwrap_or(base.joint_length),
+        kinds: base.kinds,
     };
     if !(noise.position > 0.0 && noise.orientation > 0.0 && noise.position.is_finite() && noise.orientation.is_finite()) {
         return Err(err("noise_mm / noise_deg: must be finite and > 0"));
@@ -663,6 +664,7 @@ fn simulate(
         orientation: noise_deg.to_radians(),
         joint_angle: encoder_noise_deg.to_radians(),
         joint_length: encoder_noise_mm,
+        kinds: Default::default(),
     };
     let set = synthesize(&*truth, qs, instrument, &noise, &mut rng, &|_| {}).map_err(err)?;
     let mut data = DataSet::from_measurements("<simulated>", set.measurements);

@@ -66,6 +66,7 @@ pub fn run(a: IdentifiabilityArgs) -> anyhow::Result<()> {
                 orientation: 0.0,
                 joint_angle: 0.0,
                 joint_length: 0.0,
+                kinds: Default::default(),
             };
             let instrument = match a.measure {
                 MeasureKind::Position => Instrument::Position,

@@ -74,6 +74,11 @@ pub struct IdentifyArgs {
     /// Noise σ of the observed prismatic joints' readings (mm) used as weight; default 0.01.
     #[arg(long)]
     pub encoder_noise_mm: Option<f64>,
+    /// One instrument kind's noise σ (mm) used as weight for its rows, `KIND=MM` with KIND
+    /// `seat` or `distance` (e.g. `seat=0.005`); repeat for more. Default: the model file's
+    /// [noise], else the position noise.
+    #[arg(long = "kind-noise", value_name = "KIND=MM")]
+    pub kind_noise: Vec<String>,
     /// Re-estimate the position / orientation noise from the residuals (real data).
     #[arg(long)]
     pub reweight: bool,
@@ -120,13 +125,19 @@ pub fn resolve_noise(
     deg: Option<f64>,
     encoder_deg: Option<f64>,
     encoder_mm: Option<f64>,
+    kind_noise: &[String],
 ) -> anyhow::Result<Noise> {
     let base = file.noise.unwrap_or_else(default_noise);
+    let mut kinds = base.kinds;
+    for k in kind_noise {
+        kinds.set_from(k).map_err(|e| anyhow::anyhow!("--kind-noise {e}"))?;
+    }
     let n = Noise {
         position: mm.unwrap_or(base.position),
         orientation: deg.map(f64::to_radians).unwrap_or(base.orientation),
         joint_angle: encoder_deg.map(f64::to_radians).unwrap_or(base.joint_angle),
         joint_length: encoder_mm.unwrap_or(base.joint_length),
+        kinds,
     };
     anyhow::ensure!(
         n.position > 0.0 && n.orientation > 0.0 && n.position.is_finite() && n.orientation.is_finite(),
@@ -170,7 +181,14 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
             MethodArg::Linear => Method::Linear,
             MethodArg::Recursive => Method::Recursive,
         },
-        noise: resolve_noise(&file, a.noise_mm, a.noise_deg, a.encoder_noise_deg, a.encoder_noise_mm)?,
+        noise: resolve_noise(
+            &file,
+            a.noise_mm,
+            a.noise_deg,
+            a.encoder_noise_deg,
+            a.encoder_noise_mm,
+            &a.kind_noise,
+        )?,
         reweight: a.reweight,
         frames: match a.frames {
             FramesArg::Estimate => FrameMode::Estimate,
@@ -257,6 +275,14 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         report.iterations,
         report.sigma0
     );
+    if report.kinds.len() > 1 {
+        for k in &report.kinds {
+            println!(
+                "  {} rows ({}): residual {:.4} mm RMS, {:.2}× their σ {:.4} mm",
+                k.kind, k.rows, k.rms_mm, k.ratio, k.sigma_mm
+            );
+        }
+    }
     // Draw-wire readings (reading_mm): each pivot's zero, placed with the calibrated model.
     if let Ok(h) = kinecal::instrument::held_out(&*cal.model_file.build(), &data.measurements, &[]) {
         for p in &h.pivots {

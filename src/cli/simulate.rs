@@ -191,6 +191,7 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
         orientation: a.noise_deg.to_radians(),
         joint_angle: a.encoder_noise_deg.to_radians(),
         joint_length: a.encoder_noise_mm,
+        kinds: Default::default(),
     };
     let mut truth_file = file.with_geometry_of(&*truth).map_err(|e| anyhow::anyhow!(e))?;
     truth_file.description = Some(format!(

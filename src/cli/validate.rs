@@ -36,6 +36,9 @@ pub fn run(a: ValidateArgs) -> anyhow::Result<()> {
     if matches!(data.format, MeasurementFormat::Seat | MeasurementFormat::Distance) {
         return instrument(&a, &file.name, &*model, &data);
     }
+    if data.format == MeasurementFormat::Mixed {
+        return mixed(&a, &file.name, &*model, &data);
+    }
     let errors = pose_errors(&*model, &data.measurements).map_err(|e| data.locate(e))?;
     let stats = ErrorStats::of(&errors);
     let flagged = outliers(&*model, &data.measurements, 3.0).map_err(|e| data.locate(e))?;
@@ -79,6 +82,32 @@ pub fn run(a: ValidateArgs) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// A file mixing kinds: the tracker rows' errors (the calibrated model's frames are the
+/// tracker's), then the instrument rows judged as [`instrument`] judges them.
+fn mixed(a: &ValidateArgs, name: &str, model: &dyn kinecal::Mechanism, data: &DataSet) -> anyhow::Result<()> {
+    let subset = |tracker: bool| -> DataSet {
+        let keep: Vec<usize> = (0..data.measurements.len())
+            .filter(|&i| data.measurements[i].obs.artifact_point().is_none() == tracker)
+            .collect();
+        DataSet {
+            measurements: keep.iter().map(|&i| data.measurements[i].clone()).collect(),
+            lines: keep.iter().map(|&i| data.lines[i]).collect(),
+            ids: keep.iter().map(|&i| data.ids[i]).collect(),
+            ..data.clone()
+        }
+    };
+    let (tracker, rows) = (subset(true), subset(false));
+    let errors = pose_errors(model, &tracker.measurements).map_err(|e| tracker.locate(e))?;
+    let stats = ErrorStats::of(&errors);
+    if !a.json {
+        println!("{name} on {}: {} tracker rows: {}", a.data.display(), stats.poses, stats);
+    }
+    if rows.measurements.is_empty() {
+        return Ok(());
+    }
+    instrument(a, name, model, &rows)
 }
 
 /// Instrument data: each seat's spread and the known distances' errors, each pivot's length

@@ -261,7 +261,8 @@ pub(crate) fn factor<M: Mechanism + ?Sized>(
                 Observation::Pose(_) | Observation::Position(_) | Observation::Seat(_) => {
                     let pt = pose.translation.vector;
                     let nrows = if matches!(d.obs, Observation::Pose(_)) { 6 } else { 3 };
-                    let (wp, wo) = (lw / noise.position, lw / noise.orientation);
+                    // (A seat's rows by its kind's σ: [`measure::row_weight`].)
+                    let (wp, wo) = (lw * measure::row_weight(&d.obs, 0, noise), lw / noise.orientation);
                     for c in 0..p {
                         let col = jac.column(c);
                         let (jl, ja) = (Vector3::new(col[0], col[1], col[2]), Vector3::new(col[3], col[4], col[5]));

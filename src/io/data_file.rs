@@ -55,6 +55,8 @@ pub enum MeasurementFormat {
     Seat,
     /// `pivot, length`: a ballbar's or draw-wire sensor's length ([`Observation::Distance`]).
     Distance,
+    /// Rows of several kinds, each filling one kind's cells ([`mixed`]).
+    Mixed,
 }
 
 impl MeasurementFormat {
@@ -67,6 +69,7 @@ impl MeasurementFormat {
             MeasurementFormat::Reflectors => "three reflector centres (m1..m3)",
             MeasurementFormat::Seat => "seat numbers (the tool point in a fixed seat)",
             MeasurementFormat::Distance => "distances (pivot, length)",
+            MeasurementFormat::Mixed => "rows of several kinds (tracker, seat, distance)",
         }
     }
 }
@@ -102,6 +105,7 @@ impl DataSet {
     /// for the file in messages. Pose observations are marked as poses, positions as positions.
     pub fn from_measurements(name: &str, measurements: Vec<Measurement>) -> DataSet {
         let format = match measurements.first().map(|m| &m.obs) {
+            _ if mixed::needs_mixed(&measurements) => MeasurementFormat::Mixed,
             Some(Observation::Position(_)) => MeasurementFormat::Position,
             Some(Observation::Seat(_)) => MeasurementFormat::Seat,
             Some(Observation::Distance { .. }) => MeasurementFormat::Distance,
@@ -448,7 +452,11 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
             }
         }
     }
-    let format = columns::measurement_format(table, &slots)?;
+    let format = match mixed::is_mixed(&slots) {
+        true => mixed::check_columns(table, &slots)?,
+        false => columns::measurement_format(table, &slots)?,
+    };
+    let is_mixed = format == MeasurementFormat::Mixed;
 
     if table.is_empty() {
         return Err(IoError::Invalid {
@@ -500,7 +508,8 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
         let mut lost = false;
         let mut all_zero = true;
         for ((slot, _), (v, col)) in slots.iter().zip(row.iter().zip(&table.columns)) {
-            let measured = !matches!(slot, Slot::Id | Slot::Input(_) | Slot::Seat | Slot::Pivot);
+            // (A mixed file's rows leave the other kinds' cells empty.)
+            let measured = !matches!(slot, Slot::Id | Slot::Input(_)) && (is_mixed || !matches!(slot, Slot::Seat | Slot::Pivot));
             if v.is_nan() {
                 if !measured {
                     return Err(IoError::AtLine {
@@ -514,11 +523,12 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
                 all_zero = false;
             }
         }
-        if lost
-            || (all_zero
-                && slots
-                    .iter()
-                    .any(|(s, _)| !matches!(s, Slot::Id | Slot::Input(_) | Slot::Seat | Slot::Pivot | Slot::Reading)))
+        if !is_mixed && lost
+            || !is_mixed
+                && (all_zero
+                    && slots
+                        .iter()
+                        .any(|(s, _)| !matches!(s, Slot::Id | Slot::Input(_) | Slot::Seat | Slot::Pivot | Slot::Reading)))
         {
             dropped.push(line);
             continue;
@@ -558,6 +568,7 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
                 Slot::Quat(i) => quat[i] = v,
                 Slot::Rpy(i) => rpy[i] = v,
                 Slot::Reflector(m, a) => refl[m][a] = v,
+                Slot::Seat | Slot::Pivot if is_mixed => {}
                 Slot::Seat | Slot::Pivot => point = columns::point_number(path, line, col, v)?,
                 Slot::Length => length = v,
                 Slot::Reading => (length, relative) = (v, true),
@@ -581,6 +592,7 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
             check_limits(path, line, inputs, &q)?;
         }
         let obs = match format {
+            MeasurementFormat::Mixed => mixed::observation(path, line, &slots, &table.columns, row)?,
             MeasurementFormat::Position => Observation::Position(p),
             MeasurementFormat::Seat => Observation::Seat(point),
             MeasurementFormat::Distance => Observation::Distance {
@@ -665,6 +677,7 @@ fn check_limits(path: &Path, line: usize, inputs: &[InputSpec], q: &[f64]) -> Re
 }
 
 mod columns;
+mod mixed;
 mod write;
 pub use columns::expected_columns;
 use columns::{classify, Slot};

@@ -30,6 +30,7 @@
 //! [noise]            # optional: measurement standard deviations (identification weights)
 //! position = 0.02    # length unit
 //! orientation = 0.02 # angle unit
+//! seat = 0.005      # optional, length unit: seat (and distance = …: ballbar) rows' σ; default position
 //! ```
 //!
 //! # Conventions
@@ -625,6 +626,8 @@ struct RawNoise {
     orientation: f64,
     encoder_angle: Option<f64>,
     encoder_length: Option<f64>,
+    seat: Option<f64>,
+    distance: Option<f64>,
 }
 
 #[derive(Deserialize)]

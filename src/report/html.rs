@@ -125,6 +125,12 @@ impl CalibrationReport {
             format!("{} mm, {} deg", sig(self.noise_mm_deg.0), sig(self.noise_mm_deg.1)),
         );
         kv(h, "σ̂₀ (a-posteriori, 1 = noise model right)", sig(self.sigma0));
+        if self.kinds.len() > 1 {
+            let per: Vec<String> = (self.kinds.iter())
+                .map(|k| format!("{} {} mm RMS / σ {} mm = {:.2}", k.kind, sig(k.rms_mm), sig(k.sigma_mm), k.ratio))
+                .collect();
+            kv(h, "each kind against its own noise", per.join("; "));
+        }
         kv(
             h,
             "identified / free parameters",

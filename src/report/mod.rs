@@ -3,6 +3,7 @@
 //! ([`CalibrationReport::to_html`]).
 pub mod assess;
 mod html;
+pub mod kinds;
 pub mod plan;
 pub mod plot;
 mod verdict;
@@ -208,6 +209,8 @@ pub struct CalibrationReport {
     pub serial_chain: bool,
     /// The machine and its frames as the report's 3-D view draws them.
     pub machine: MachineView,
+    /// Each measurement kind's residual against its own stated noise (set by `calibrate`).
+    pub kinds: Vec<kinds::KindResidual>,
 }
 
 /// The same data fitted by a model with fewer terms (see [`CalibrationReport::variants`]).
@@ -332,6 +335,7 @@ impl CalibrationReport {
             tolerance_check: None,
             serial_chain: false,
             machine: MachineView::of(nominal, &result.model, data.first().map(|m| m.q.as_slice())),
+            kinds: Vec::new(),
         };
         report.correlations(result, &params);
         report.absorbed = absorbed(result, &params);

@@ -17,6 +17,7 @@ mod instruments;
 mod irb120;
 mod joint_terms;
 mod limbs;
+mod mixed;
 mod model_file;
 mod observed;
 mod parallel_workflow;

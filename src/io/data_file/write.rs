@@ -61,7 +61,16 @@ pub fn data_text(
     }
     let pose = matches!(measurements.first().map(|m| &m.obs), Some(Observation::Pose(_)));
     let first = measurements.first().map(|m| &m.obs);
-    if let Some(Observation::Seat(_)) = first {
+    // Rows of several kinds: one file, each row filling its kind's cells.
+    let mixed = if reflectors.is_none() && super::mixed::needs_mixed(measurements) {
+        let (h, cells) = super::mixed::cells(path, measurements)?;
+        header.extend(h);
+        Some(cells)
+    } else {
+        None
+    };
+    if mixed.is_some() {
+    } else if let Some(Observation::Seat(_)) = first {
         header.push("seat".into());
     } else if let Some(Observation::Distance { relative, .. }) = first {
         header.extend(["pivot", if *relative { "reading_mm" } else { "length_mm" }].map(String::from));
@@ -95,6 +104,11 @@ pub fn data_text(
                 });
             }
             row.extend(input_values_for_file(observed, &m.joints));
+        }
+        if let Some(cells) = &mixed {
+            row.extend(&cells[k]);
+            rows.push(row);
+            continue;
         }
         match (reflectors, &m.obs) {
             (Some(r), _) => row.extend(r[k].iter().flat_map(|v| [v.x, v.y, v.z])),
@@ -142,7 +156,10 @@ pub fn csv_text(header: &[String], rows: &[Vec<f64>]) -> String {
         let fields: Vec<String> = row
             .iter()
             .map(|v| {
-                if v.fract() == 0.0 && v.abs() < 1e15 {
+                // An empty cell: a mixed file's other kinds ([`super::mixed`]).
+                if v.is_nan() {
+                    String::new()
+                } else if v.fract() == 0.0 && v.abs() < 1e15 {
                     format!("{}", *v as i64)
                 } else {
                     format!("{v}")

@@ -455,7 +455,19 @@ impl Ctx<'_> {
                         "noise: position, orientation, encoder_angle and encoder_length must be finite and > 0".into(),
                     ));
                 }
+                let mut kinds = crate::measure::KindNoise::default();
+                for (kind, v) in [
+                    (crate::measure::RowKind::Seat, r.seat),
+                    (crate::measure::RowKind::Distance, r.distance),
+                ] {
+                    let Some(v) = v else { continue };
+                    if !(v.is_finite() && v > 0.0) {
+                        return Err(self.at(&n.span(), format!("noise: {} must be finite and > 0", kind.noise_key())));
+                    }
+                    *kinds.get_mut(kind).expect("an instrument kind") = Some(v * units.length.to_mm());
+                }
                 Some(Noise {
+                    kinds,
                     position: r.position * units.length.to_mm(),
                     orientation: r.orientation * units.angle.to_rad(),
                     joint_angle: ea,

@@ -13,6 +13,18 @@ pub(super) fn write_noise(n: &Noise, units: &Units, out: &mut String) {
         num(n.orientation / a.to_rad()),
         a.symbol()
     );
+    for kind in crate::measure::RowKind::ALL {
+        if let Some(v) = n.kinds.get(kind) {
+            let _ = writeln!(
+                out,
+                "{} = {}  # {}, {} rows",
+                kind.noise_key(),
+                num(v / l.to_mm()),
+                l.symbol(),
+                kind.name()
+            );
+        }
+    }
     let d = Noise::default();
     if (n.joint_angle, n.joint_length) != (d.joint_angle, d.joint_length) {
         let (ea, el) = (num(n.joint_angle / a.to_rad()), num(n.joint_length / l.to_mm()));
