@@ -55,6 +55,8 @@ pub enum MeasurementFormat {
     Seat,
     /// `pivot, length`: a ballbar's or draw-wire sensor's length ([`Observation::Distance`]).
     Distance,
+    /// A touch probe's touches on spheres, planes or a datum cube ([`Observation::Touch`]).
+    Touch,
 }
 
 impl MeasurementFormat {
@@ -67,6 +69,7 @@ impl MeasurementFormat {
             MeasurementFormat::Reflectors => "three reflector centres (m1..m3)",
             MeasurementFormat::Seat => "seat numbers (the tool point in a fixed seat)",
             MeasurementFormat::Distance => "distances (pivot, length)",
+            MeasurementFormat::Touch => "touches (sphere, plane or cube face; probe radius)",
         }
     }
 }
@@ -105,6 +108,7 @@ impl DataSet {
             Some(Observation::Position(_)) => MeasurementFormat::Position,
             Some(Observation::Seat(_)) => MeasurementFormat::Seat,
             Some(Observation::Distance { .. }) => MeasurementFormat::Distance,
+            Some(Observation::Touch(_)) => MeasurementFormat::Touch,
             _ => MeasurementFormat::PoseQuaternion,
         };
         DataSet {
@@ -500,7 +504,7 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
         let mut lost = false;
         let mut all_zero = true;
         for ((slot, _), (v, col)) in slots.iter().zip(row.iter().zip(&table.columns)) {
-            let measured = !matches!(slot, Slot::Id | Slot::Input(_) | Slot::Seat | Slot::Pivot);
+            let measured = !matches!(slot, Slot::Id | Slot::Input(_) | Slot::Seat | Slot::Pivot | Slot::Touched(_));
             if v.is_nan() {
                 if !measured {
                     return Err(IoError::AtLine {
@@ -516,9 +520,12 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
         }
         if lost
             || (all_zero
-                && slots
-                    .iter()
-                    .any(|(s, _)| !matches!(s, Slot::Id | Slot::Input(_) | Slot::Seat | Slot::Pivot | Slot::Reading)))
+                && slots.iter().any(|(s, _)| {
+                    !matches!(
+                        s,
+                        Slot::Id | Slot::Input(_) | Slot::Seat | Slot::Pivot | Slot::Reading | Slot::Touched(_) | Slot::Size | Slot::Probe
+                    )
+                }))
         {
             dropped.push(line);
             continue;
@@ -530,6 +537,7 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
         let mut refl = [Vector3::zeros(); 3];
         let mut id = r as i64;
         let (mut point, mut length, mut relative) = (0usize, 0.0, false);
+        let (mut touched, mut size, mut probe) = (crate::measure::PointKind::Plane, 0.0, 0.0);
         for (((slot, f), v), col) in slots.iter().zip(row).zip(&table.columns) {
             let v = v * f;
             if matches!(slot, Slot::Pos(_) | Slot::Reflector(..)) && v.abs() > MAX_COORDINATE_MM {
@@ -561,6 +569,9 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
                 Slot::Seat | Slot::Pivot => point = columns::point_number(path, line, col, v)?,
                 Slot::Length => length = v,
                 Slot::Reading => (length, relative) = (v, true),
+                Slot::Touched(k) => (point, touched) = (columns::point_number(path, line, col, v)?, k),
+                Slot::Size => size = v,
+                Slot::Probe => probe = v,
             }
         }
         if let Some(first) = first_line_of_id.insert(id, line) {
@@ -583,6 +594,7 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
         let obs = match format {
             MeasurementFormat::Position => Observation::Position(p),
             MeasurementFormat::Seat => Observation::Seat(point),
+            MeasurementFormat::Touch => columns::touch(touched, point, size, probe),
             MeasurementFormat::Distance => Observation::Distance {
                 pivot: point,
                 length,

@@ -65,6 +65,8 @@ pub fn data_text(
         header.push("seat".into());
     } else if let Some(Observation::Distance { relative, .. }) = first {
         header.extend(["pivot", if *relative { "reading_mm" } else { "length_mm" }].map(String::from));
+    } else if let Some(Observation::Touch(t)) = first {
+        header.extend(touch_columns(t).into_iter().map(String::from));
     } else if reflectors.is_some() {
         for r in 1..=3 {
             for a in ["x", "y", "z"] {
@@ -108,7 +110,12 @@ pub fn data_text(
             (None, Observation::Distance { pivot, length, relative }) if matches!(first, Some(Observation::Distance { relative: r, .. }) if r == relative) => {
                 row.extend([*pivot as f64, *length])
             }
-            (None, Observation::Seat(_) | Observation::Distance { .. }) => {
+            (None, Observation::Touch(t))
+                if first.is_some_and(|f| matches!(f, Observation::Touch(u) if touch_columns(u) == touch_columns(t))) =>
+            {
+                row.extend(touch_values(t))
+            }
+            (None, Observation::Seat(_) | Observation::Distance { .. } | Observation::Touch(_)) => {
                 return Err(IoError::Invalid {
                     path: path.to_path_buf(),
                     message: format!(
@@ -126,6 +133,26 @@ pub fn data_text(
         rows.push(row);
     }
     Ok(csv_text(&header, &rows))
+}
+
+/// The columns of a touch row ([`Observation::Touch`]).
+fn touch_columns(t: &crate::measure::Touch) -> Vec<&'static str> {
+    use crate::measure::Touch;
+    match t {
+        Touch::Sphere { .. } => vec!["sphere", "sphere_diameter_mm", "probe_radius_mm"],
+        Touch::Plane { .. } => vec!["plane", "probe_radius_mm"],
+        Touch::Face { .. } => vec!["face", "cube_edge_mm", "probe_radius_mm"],
+    }
+}
+
+/// The values of a touch row in the order of [`touch_columns`].
+fn touch_values(t: &crate::measure::Touch) -> Vec<f64> {
+    use crate::measure::Touch;
+    match *t {
+        Touch::Sphere { sphere, diameter, probe } => vec![sphere as f64, diameter, probe],
+        Touch::Plane { plane, probe } => vec![plane as f64, probe],
+        Touch::Face { face, edge, probe } => vec![face as f64, edge, probe],
+    }
 }
 
 /// Write a numeric CSV with a header; values in full precision (integers without decimals).
