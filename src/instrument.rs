@@ -321,7 +321,12 @@ pub fn start_points<M: Mechanism + Clone + 'static>(
             .zip(indexed)
             .map(|((k, pose), m)| (*k, *pose, flange(pose), &m.obs))
             .collect();
-        touch::place(&rows, &mut points)?;
+        if seats.is_empty() && !points.iter().any(|p| p.kind == PointKind::Pivot) {
+            // Touches alone: the tool-point offset is found with the artifacts.
+            framed.tool *= Translation3::from(touch::offset_and_touched(&rows, &mut points)?);
+        } else {
+            touch::place(&rows, &mut points)?;
+        }
     }
     Ok(Artifact {
         inner: framed,

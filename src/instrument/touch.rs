@@ -164,7 +164,7 @@ fn z_onto(n: &Vector3<f64>) -> UnitQuaternion<f64> {
 
 /// Place the touched artifacts of `points` (module docs) from rows `(point index, tool pose,
 /// flange position, observation)` at the starting geometry.
-pub(super) fn place(rows: &[(usize, Pose, Vector3<f64>, &Observation)], points: &mut [ArtifactPoint]) -> Result<(), CalibError> {
+pub(super) fn place(rows: &[TouchRow], points: &mut [ArtifactPoint]) -> Result<(), CalibError> {
     let of = |k: usize| rows.iter().filter(move |r| r.0 == k);
     for (k, point) in points.iter_mut().enumerate() {
         let (kind, id) = (point.kind, point.id);
@@ -274,4 +274,119 @@ fn place_cube(rows: &[&(usize, Pose, Vector3<f64>, &Observation)], cube: &mut Ar
     cube.centre = Vector3::new(x[0], x[1], x[2]);
     cube.rotation = Some(UnitQuaternion::from_matrix(&r));
     Ok(())
+}
+
+/// A touch row: point index, tool pose at the starting geometry, flange position, observation.
+pub(super) type TouchRow<'a> = (usize, Pose, Vector3<f64>, &'a Observation);
+
+/// The lengths (mm) along each axis of the tool frame, either way, that the tool-point offset is
+/// started from besides the flange's tool point ([`offset_and_touched`]).
+const OFFSET_STARTS_MM: [f64; 2] = [100.0, 200.0];
+
+/// The tool-point offset `t` (tool frame, added to the starting tool point) and the touched
+/// artifacts fitted together on the touches, Levenberg–Marquardt over `t` and the artifacts'
+/// parameters (Jacobian by central differences), from `t = 0` and from [`OFFSET_STARTS_MM`]
+/// along each axis of the tool frame either way; another start replaces the first only at a
+/// clearly lower cost (a machine that never turns its tool cannot tell the offset from the
+/// artifacts). Returns `t` and moves the points; an error when no start can place them.
+pub(super) fn offset_and_touched(rows: &[TouchRow], points: &mut [ArtifactPoint]) -> Result<Vector3<f64>, CalibError> {
+    let mut starts = vec![Vector3::zeros()];
+    for l in OFFSET_STARTS_MM {
+        for k in 0..6 {
+            let mut v = Vector3::zeros();
+            v[k / 2] = if k % 2 == 0 { l } else { -l };
+            starts.push(v);
+        }
+    }
+    let mut best: Option<(Vector3<f64>, f64, Vec<ArtifactPoint>)> = None;
+    let mut first_error = None;
+    for t0 in starts {
+        let mut candidate = points.to_vec();
+        let moved: Vec<TouchRow> = rows.iter().map(|r| (r.0, r.1 * Translation3::from(t0), r.2, r.3)).collect();
+        if let Err(e) = place(&moved, &mut candidate) {
+            first_error.get_or_insert(e);
+            continue;
+        }
+        let (t, cost) = fit_offset(rows, t0, &mut candidate);
+        if best.as_ref().is_none_or(|b| cost < 0.5 * b.1) {
+            best = Some((t, cost, candidate));
+        }
+    }
+    let (t, _, placed) = best.ok_or_else(|| first_error.expect("a start failed"))?;
+    points.clone_from_slice(&placed);
+    Ok(t)
+}
+
+/// The touches' residuals for tool-point offset `t` and artifacts `points`.
+fn touch_residuals(rows: &[TouchRow], t: &Vector3<f64>, points: &[ArtifactPoint]) -> DVector<f64> {
+    DVector::from_iterator(
+        rows.len(),
+        rows.iter().map(|(k, pose, _, obs)| {
+            let p = &points[*k];
+            let frame = Pose::from_parts(Translation3::from(p.centre), p.rotation.unwrap_or_else(UnitQuaternion::identity));
+            let tip = pose.translation.vector + pose.rotation * t;
+            touch_of(obs).residual(&frame.inverse_transform_point(&tip.into()).coords)
+        }),
+    )
+}
+
+/// Levenberg–Marquardt from `t0` ([`offset_and_touched`]): the offset and the cost `Σ r²`.
+fn fit_offset(rows: &[TouchRow], t0: Vector3<f64>, points: &mut [ArtifactPoint]) -> (Vector3<f64>, f64) {
+    let touched: Vec<usize> = (0..points.len()).filter(|&k| points[k].kind > PointKind::Pivot).collect();
+    let n = 3 + touched.iter().map(|&k| points[k].kind.twist_rows().len()).sum::<usize>();
+    let step = |t: &Vector3<f64>, pts: &[ArtifactPoint], x: &DVector<f64>| -> (Vector3<f64>, Vec<ArtifactPoint>) {
+        let mut moved = pts.to_vec();
+        let mut at = 3;
+        for &k in &touched {
+            let m = moved[k].kind.twist_rows().len();
+            retract_point(&mut moved[k], &x.rows(at, m));
+            at += m;
+        }
+        (t + Vector3::new(x[0], x[1], x[2]), moved)
+    };
+    let (mut t, mut pts) = (t0, points.to_vec());
+    let mut r = touch_residuals(rows, &t, &pts);
+    let mut lambda = 1e-3;
+    for _ in 0..100 {
+        let h = 1e-6;
+        let mut j = DMatrix::zeros(rows.len(), n);
+        for c in 0..n {
+            let mut e = DVector::zeros(n);
+            e[c] = h;
+            let (tp, pp) = step(&t, &pts, &e);
+            let (tm, pm) = step(&t, &pts, &(-e));
+            j.set_column(
+                c,
+                &((touch_residuals(rows, &tp, &pp) - touch_residuals(rows, &tm, &pm)) / (2.0 * h)),
+            );
+        }
+        let (jtj, g, cost) = (j.transpose() * &j, j.transpose() * &r, r.norm_squared());
+        let mut improved = false;
+        for _ in 0..20 {
+            let mut m = jtj.clone();
+            for d in 0..n {
+                m[(d, d)] += lambda * jtj[(d, d)].max(1e-12);
+            }
+            let svd = m.svd(true, true);
+            let floor = 1e-10 * svd.singular_values.max();
+            let Ok(dx) = svd.solve(&(-&g), floor) else {
+                lambda *= 10.0;
+                continue;
+            };
+            let (tt, pt) = step(&t, &pts, &dx);
+            let rt = touch_residuals(rows, &tt, &pt);
+            if rt.norm_squared() < cost {
+                (t, pts, r) = (tt, pt, rt);
+                lambda = (lambda / 3.0).max(1e-12);
+                improved = true;
+                break;
+            }
+            lambda *= 10.0;
+        }
+        if !improved || cost - r.norm_squared() <= 1e-15 * (1.0 + cost) {
+            break;
+        }
+    }
+    points.clone_from_slice(&pts);
+    (t, r.norm_squared())
 }
