@@ -33,7 +33,10 @@ pub fn run(a: ValidateArgs) -> anyhow::Result<()> {
     if let Some(note) = data.dropped_note() {
         eprintln!("{note}");
     }
-    if matches!(data.format, MeasurementFormat::Seat | MeasurementFormat::Distance) {
+    if matches!(
+        data.format,
+        MeasurementFormat::Seat | MeasurementFormat::Distance | MeasurementFormat::Touch
+    ) {
         return instrument(&a, &file.name, &*model, &data);
     }
     let errors = pose_errors(&*model, &data.measurements).map_err(|e| data.locate(e))?;
