@@ -9,7 +9,7 @@
 //! moved by a full local twist (`cube0.x … cube0.rz`). `P ← P·exp(ξ)` moves the relative pose
 //! `P⁻¹·T` by `−ξ` ([`super::Artifact`]'s Jacobian).
 //!
-//! The frames are started from the data ([`place`]) at the nominal geometry: each sphere by a
+//! The frames are started from the data ([`super::start_points`]) at the nominal geometry: each sphere by a
 //! sphere fit of the tool points to `D/2 + r`; each plane by the plane through its tool points
 //! (least squares), its normal toward the flange (the probe reaches the surface from outside);
 //! the cube from its touched faces fitted as planes (opposite faces orient each other, a face
