@@ -219,7 +219,11 @@ pub fn target_poses(data: &[Measurement]) -> Result<Vec<Pose>, usize> {
         .enumerate()
         .map(|(i, m)| match &m.obs {
             Observation::Pose(t) => Ok(*t),
-            Observation::Position(_) | Observation::Points(_) | Observation::Seat(_) | Observation::Distance { .. } => Err(i),
+            Observation::Position(_)
+            | Observation::Points(_)
+            | Observation::Seat(_)
+            | Observation::Distance { .. }
+            | Observation::Touch(_) => Err(i),
         })
         .collect()
 }

@@ -487,8 +487,7 @@ fn gauss_newton<M: Mechanism + Clone>(
         (ident, reduced::factor(&model, data, &noise, &ev, Form::Gram)?)
     };
     let rows = ev.residual.len();
-    let (mut cols, mut dof_ratio) = identifiable_subset(&ident, rows, data.len())?;
-    let mut ident = ident;
+    let (cols, dof_ratio) = identifiable_subset(&ident, rows, data.len())?;
     let effective: Vec<usize> = free.iter().copied().filter(|c| !ident.no_effect.contains(c)).collect();
     let mut delta_total = DVector::zeros(p);
     let mut iterations = Vec::new();
@@ -604,17 +603,6 @@ fn gauss_newton<M: Mechanism + Clone>(
             break;
         }
     }
-    // A start where some directions act at second order only (a platform that only translates,
-    // axes exactly parallel) makes them redundant there and not where the fit ended: the rank
-    // found again at the end is the one reported (and the one the other starts of `calibrate`,
-    // away from the singular geometry, fit with).
-    if converged && opts.agree_with.is_none() && ident.rank < effective.len() {
-        let again = analyse_rank(&model, data, &noise, opts, free, stride)?;
-        if again.rank > ident.rank {
-            ident = again;
-            (cols, dof_ratio) = identifiable_subset(&ident, rows, data.len())?;
-        }
-    }
     if opts.reweight {
         noise = reestimate_noise(&ev.residual, &ev.angular_rows, &ev.joint_rows, &noise, dof_ratio);
         ev = reduced::evaluate(&model, data, &noise, opts.loss)?;
@@ -638,23 +626,6 @@ fn gauss_newton<M: Mechanism + Clone>(
         pose_weights: ev.pose_weights,
         information,
     })
-}
-
-/// The rank analysis of `model` at `data` (on every `stride`-th pose).
-fn analyse_rank<M: Mechanism + Clone>(
-    model: &M,
-    data: &[Measurement],
-    noise: &Noise,
-    opts: &Options,
-    free: &[usize],
-    stride: usize,
-) -> Result<Identifiability, CalibError> {
-    let sample: Vec<Measurement> = data.iter().step_by(stride).cloned().collect();
-    let ev = reduced::evaluate(model, &sample, noise, opts.loss)?;
-    match reduced::factor(model, &sample, noise, &ev, Form::Triangular)? {
-        System::Triangular { r, .. } => Ok(identifiability::analyze(&r, free, opts.rank_tolerance)),
-        System::Gram { .. } => unreachable!("a triangular factor was asked for"),
-    }
 }
 
 /// The information (Gram) matrix `AᵀA` (p × p) of the noise-weighted Jacobian of `model` at

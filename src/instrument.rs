@@ -37,6 +37,7 @@ pub mod mixed;
 mod offset;
 mod planned;
 pub mod simulate;
+pub mod touch;
 pub mod zero;
 pub use held_out::{held_out, HeldOut, PivotFit, SeatSpread};
 pub use mixed::{has_tracker_rows, NO_POINT};
@@ -97,6 +98,9 @@ pub struct ArtifactPoint {
     /// A pivot whose rows are readings relative to an unknown zero: that zero ([`zero`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub zero: Option<Zero>,
+    /// A plane's or a cube's orientation (its frame's, [`touch`]); `centre` is its origin.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rotation: Option<nalgebra::UnitQuaternion<f64>>,
 }
 
 /// A mechanism with the artifact points of its instrument as extra parameters (module docs).
@@ -127,6 +131,7 @@ pub fn index_points(measurements: &[Measurement], distances: &[SeatDistance]) ->
     if with_point == 0 {
         return Ok(None);
     }
+    touch::check(measurements)?;
     let mut counts: BTreeMap<(PointKind, usize), usize> = BTreeMap::new();
     // Per pivot: rows with a reading relative to an unknown zero, the least and greatest.
     let mut relative: BTreeMap<usize, (usize, f64, f64)> = BTreeMap::new();
@@ -155,6 +160,7 @@ pub fn index_points(measurements: &[Measurement], distances: &[SeatDistance]) ->
         }
         let least = match (kind, rel) {
             (PointKind::Seat, _) => MIN_SEAT_ROWS,
+            (PointKind::Sphere | PointKind::Plane | PointKind::Cube, _) => touch::min_rows(kind),
             (_, Some(_)) => MIN_ZERO_PIVOT_ROWS,
             _ => MIN_PIVOT_ROWS,
         };
@@ -276,7 +282,7 @@ pub fn start_points<M: Mechanism + Clone + 'static>(
     if !pivots.is_empty() {
         let rows: Vec<(usize, Pose, f64)> = poses
             .iter()
-            .zip(indexed)
+            .zip(&indexed)
             .filter_map(|((k, pose), m)| match m.obs {
                 Observation::Distance { length, .. } => Some((*k, *pose, length)),
                 _ => None,
@@ -312,6 +318,20 @@ pub fn start_points<M: Mechanism + Clone + 'static>(
                 (t, points) = (t_best, placed);
             }
             framed.tool *= Translation3::from(t);
+        }
+    }
+    if points.iter().any(|p| p.kind > PointKind::Pivot) {
+        let flange = |pose: &Pose| (pose * framed.tool.inverse()).translation.vector;
+        let rows: Vec<_> = poses
+            .iter()
+            .zip(indexed)
+            .map(|((k, pose), m)| (*k, *pose, flange(pose), &m.obs))
+            .collect();
+        if seats.is_empty() && !tracked && !points.iter().any(|p| p.kind == PointKind::Pivot) {
+            // Touches alone: the tool-point offset is found with the artifacts.
+            framed.tool *= Translation3::from(touch::offset_and_touched(&rows, &mut points)?);
+        } else {
+            touch::place(&rows, &mut points)?;
         }
     }
     Ok(Artifact {
@@ -502,10 +522,10 @@ impl<M: Mechanism> Artifact<M> {
     fn pair(&self, k: usize) -> Option<(Pose, Matrix6xX<f64>)> {
         let &(a, b) = self.pairs.get(k.checked_sub(self.points.len())?)?;
         let p = self.inner.n_params();
-        let mut jac = Matrix6xX::zeros(p + 3 * self.points.len() + self.n_zeros());
+        let mut jac = Matrix6xX::zeros(p + self.n_point_params() + self.n_zeros());
         for i in 0..3 {
-            jac[(i, p + 3 * a + i)] = 1.0;
-            jac[(i, p + 3 * b + i)] = -1.0;
+            jac[(i, p + self.point_offset(a) + i)] = 1.0;
+            jac[(i, p + self.point_offset(b) + i)] = -1.0;
         }
         let d = self.points[a].centre - self.points[b].centre;
         Some((Pose::from_parts(Translation3::from(d), nalgebra::UnitQuaternion::identity()), jac))
@@ -515,22 +535,24 @@ impl<M: Mechanism> Artifact<M> {
     fn relative(&self, k: usize, (pose, jac): (Pose, Matrix6xX<f64>)) -> (Pose, Matrix6xX<f64>) {
         let p = jac.ncols();
         let shift = self.shift(k);
-        let mut out = Matrix6xX::zeros(p + 3 * self.points.len() + self.n_zeros());
+        let mut out = Matrix6xX::zeros(p + self.n_point_params() + self.n_zeros());
         // The inner twists are about the base origin; relative to the point they are seen through
         // the shift's adjoint.
         out.columns_mut(0, p)
             .copy_from(&crate::se3::mul6(&crate::se3::adjoint(&shift), &jac));
-        for i in 0..3 {
-            // Moving the point by δc moves the relative pose by −δc (a translation: ω = 0).
-            out[(i, p + 3 * k + i)] = -1.0;
+        // Moving the point's frame by a local twist ξ (a point's centre by δc: ξ = (δc, 0))
+        // moves the relative pose by −ξ: P⁻¹·T becomes exp(−ξ)·P⁻¹·T.
+        for (i, &row) in self.points[k].kind.twist_rows().iter().enumerate() {
+            out[(row, p + self.point_offset(k) + i)] = -1.0;
         }
-        let zero_column = self.zero_index(k).map_or(usize::MAX, |z| p + 3 * self.points.len() + z);
+        let zero_column = self.zero_index(k).map_or(usize::MAX, |z| p + self.n_point_params() + z);
         self.with_zero(k, zero_column, (shift * pose, out))
     }
 
-    /// The translation by minus point `k`'s centre.
+    /// The inverse of point `k`'s frame ([`Self::frame`]): for a seat or a pivot, the translation
+    /// by minus its centre.
     fn shift(&self, k: usize) -> Pose {
-        Pose::from_parts(Translation3::from(-self.points[k].centre), nalgebra::UnitQuaternion::identity())
+        self.frame(k).inverse()
     }
 }
 
@@ -546,8 +568,9 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Artifact<M> {
     fn params(&self) -> Vec<Param> {
         let mut out = self.inner.params();
         for p in &self.points {
-            for a in ["x", "y", "z"] {
-                out.push(Param::new(format!("{}{}.{a}", p.kind.name(), p.id), Unit::Length, ARTIFACT_GROUP));
+            for a in p.kind.param_names() {
+                let unit = if a.starts_with('r') { Unit::Angle } else { Unit::Length };
+                out.push(Param::new(format!("{}{}.{a}", p.kind.name(), p.id), unit, ARTIFACT_GROUP));
             }
         }
         for p in self.points.iter().filter(|p| p.zero.is_some()) {
@@ -556,7 +579,7 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Artifact<M> {
         out
     }
     fn n_params(&self) -> usize {
-        self.inner.n_params() + 3 * self.points.len() + self.n_zeros()
+        self.inner.n_params() + self.n_point_params() + self.n_zeros()
     }
     fn forward(&self, q: &[f64]) -> Result<Pose, KinError> {
         if let Some(qi) = self.tracker_inputs(q) {
@@ -594,10 +617,12 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Artifact<M> {
     fn retract(&mut self, delta: &DVector<f64>) {
         let p = self.inner.n_params();
         self.inner.retract(&delta.rows(0, p).into_owned());
-        let n = self.points.len();
-        let mut z = p + 3 * n;
-        for (k, point) in self.points.iter_mut().enumerate() {
-            point.centre += delta.fixed_rows::<3>(p + 3 * k);
+        let mut z = p + self.n_point_params();
+        let mut at = p;
+        for point in self.points.iter_mut() {
+            let n = point.kind.twist_rows().len();
+            touch::retract_point(point, &delta.rows(at, n));
+            at += n;
             if let Some(zero) = point.zero.as_mut() {
                 zero.value += delta[z];
                 z += 1;

@@ -34,7 +34,7 @@ enum Command {
     /// exchange over a large candidate set) and write them as CSV.
     Plan(Box<cli::plan::PlanArgs>),
     /// Virtual prototype: random geometric errors and noisy measurements → data CSV + true model.
-    Simulate(cli::simulate::SimulateArgs),
+    Simulate(Box<cli::simulate::SimulateArgs>),
     /// Rank, redundant parameters and condition number of the identification problem.
     Identifiability(cli::identifiability::IdentifiabilityArgs),
     /// Identify the free parameters from measurements → calibrated model (TOML) + report.
@@ -64,7 +64,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Study(a) => cli::study::run(a),
         Command::Model(a) => cli::model::run(a),
         Command::Data(a) => cli::data::run(a),
-        Command::Simulate(a) => cli::simulate::run(a),
+        Command::Simulate(a) => cli::simulate::run(*a),
         Command::Identifiability(a) => cli::identifiability::run(a),
         Command::Identify(a) => cli::identify::run(a),
         Command::Validate(a) => cli::validate::run(a),

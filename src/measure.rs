@@ -13,7 +13,10 @@
 //!   and a fixed pivot, whose centre is an unknown of the instrument. Residual `L − |p − c|`,
 //!   1 row in mm.
 //!
-//! For the two instrument kinds the predicted pose is the tool frame *relative to* the artifact
+//! * [`Observation::Touch`]: a touch probe's tip on a sphere, a plane or a datum cube's face
+//!   ([`touch`]), 1 row in mm.
+//!
+//! For the instrument kinds the predicted pose is the tool frame *relative to* the artifact
 //! point (its centre subtracted), which is what [`crate::instrument::Artifact`] predicts.
 //!
 //! Rows are weighted by the measurement noise ([`Noise`]): dividing each residual by its standard
@@ -25,6 +28,8 @@ use serde::{Deserialize, Serialize};
 
 mod kind;
 pub use kind::{KindNoise, RowKind};
+pub mod touch;
+pub use touch::Touch;
 
 /// One observation of the tool frame, expressed in the world (measurement) frame.
 #[derive(Debug, Clone, PartialEq)]
@@ -50,6 +55,8 @@ pub enum Observation {
         /// is the reading plus the pivot's zero, one more unknown of the instrument.
         relative: bool,
     },
+    /// A touch probe's tip on a sphere, a plane or a datum cube's face ([`touch`]).
+    Touch(Touch),
 }
 
 impl Observation {
@@ -60,7 +67,7 @@ impl Observation {
             Observation::Position(_) => 3,
             Observation::Points(p) => 3 * p.len(),
             Observation::Seat(_) => 3,
-            Observation::Distance { .. } => 1,
+            Observation::Distance { .. } | Observation::Touch(_) => 1,
         }
     }
 
@@ -69,6 +76,7 @@ impl Observation {
         match self {
             Observation::Seat(k) => Some((PointKind::Seat, *k)),
             Observation::Distance { pivot, .. } => Some((PointKind::Pivot, *pivot)),
+            Observation::Touch(t) => Some(t.artifact()),
             _ => None,
         }
     }
@@ -81,6 +89,12 @@ pub enum PointKind {
     Seat,
     /// A pivot: a length is measured from its centre ([`Observation::Distance`]).
     Pivot,
+    /// A reference sphere touched by a probe ([`Touch::Sphere`]): its centre.
+    Sphere,
+    /// A plane touched by a probe ([`Touch::Plane`]): a frame on it, `z` its normal.
+    Plane,
+    /// A datum cube touched by a probe ([`Touch::Face`]): its frame, at its centre.
+    Cube,
 }
 
 impl PointKind {
@@ -89,7 +103,35 @@ impl PointKind {
         match self {
             PointKind::Seat => "seat",
             PointKind::Pivot => "pivot",
+            PointKind::Sphere => "sphere",
+            PointKind::Plane => "plane",
+            PointKind::Cube => "cube",
         }
+    }
+
+    /// The names of its parameters (after `seat0.` …) and which of them are angles: a point's
+    /// centre `x y z`; a plane's tilts about its frame's `x` and `y` and its offset along its
+    /// normal `rx ry z`; a cube's local twist `x y z rx ry rz`.
+    pub fn param_names(self) -> &'static [&'static str] {
+        match self {
+            PointKind::Plane => &["rx", "ry", "z"],
+            PointKind::Cube => &["x", "y", "z", "rx", "ry", "rz"],
+            _ => &["x", "y", "z"],
+        }
+    }
+
+    /// The row of the artifact frame's spatial twist each parameter moves (the twist is `(v, ω)`).
+    pub fn twist_rows(self) -> &'static [usize] {
+        match self {
+            PointKind::Plane => &[3, 4, 2],
+            PointKind::Cube => &[0, 1, 2, 3, 4, 5],
+            _ => &[0, 1, 2],
+        }
+    }
+
+    /// Whether it has an orientation (a plane's, a cube's), not only a centre.
+    pub fn oriented(self) -> bool {
+        matches!(self, PointKind::Plane | PointKind::Cube)
     }
 }
 
@@ -167,6 +209,7 @@ pub fn residual(obs: &Observation, predicted: &Pose) -> Vec<f64> {
             .collect(),
         Observation::Seat(_) => (-predicted.translation.vector).as_slice().to_vec(),
         Observation::Distance { length, .. } => vec![length - predicted.translation.vector.norm()],
+        Observation::Touch(t) => vec![t.residual(&predicted.translation.vector)],
     }
 }
 
@@ -190,6 +233,12 @@ pub fn residual_jacobian(obs: &Observation, predicted: &Pose, jac: &Matrix6xX<f6
             let u = p.try_normalize(1e-12).unwrap_or_else(Vector3::zeros);
             DMatrix::from_fn(1, jac.ncols(), |_, j| u.dot(&full.fixed_view::<3, 1>(0, j)))
         }
+        Observation::Touch(t) => {
+            let p = predicted.translation.vector;
+            let full = se3::mul6(&se3::spatial_to_pose_error(&p), jac);
+            let g = t.gradient(&p);
+            DMatrix::from_fn(1, jac.ncols(), |_, j| g.dot(&full.fixed_view::<3, 1>(0, j)))
+        }
         Observation::Points(pts) => {
             let mut out = DMatrix::zeros(3 * pts.len(), jac.ncols());
             for (k, (r, _)) in pts.iter().enumerate() {
@@ -208,6 +257,7 @@ pub fn residual_jacobian(obs: &Observation, predicted: &Pose, jac: &Matrix6xX<f6
 pub fn compared_point(obs: &Observation, predicted: &Pose) -> Vector3<f64> {
     match obs {
         Observation::Distance { .. } => Vector3::x() * predicted.translation.vector.norm(),
+        Observation::Touch(t) => Vector3::x() * t.predicted(&predicted.translation.vector),
         _ => predicted.translation.vector,
     }
 }
@@ -259,6 +309,7 @@ pub fn errors(obs: &Observation, predicted: &Pose) -> (f64, Option<f64>) {
         Observation::Position(p) => ((p - predicted.translation.vector).norm(), None),
         Observation::Seat(_) => (predicted.translation.vector.norm(), None),
         Observation::Distance { length, .. } => ((length - predicted.translation.vector.norm()).abs(), None),
+        Observation::Touch(t) => (t.residual(&predicted.translation.vector).abs(), None),
         Observation::Points(pts) => {
             // RMS over the points of their position errors.
             let s: f64 = pts

@@ -66,7 +66,7 @@ fn correspondences(obs: &Observation, classes: &mut Vec<Vector3<f64>>) -> Vec<(u
             e.iter().enumerate().map(|(k, v)| (k, axis(t, *v))).collect()
         }
         // Instrument rows are relative to unknown artifact points: no correspondence.
-        Observation::Seat(_) | Observation::Distance { .. } => Vec::new(),
+        Observation::Seat(_) | Observation::Distance { .. } | Observation::Touch(_) => Vec::new(),
         Observation::Points(pts) => pts
             .iter()
             .map(|(r, m)| {
@@ -97,7 +97,7 @@ fn class_points(obs: &Observation, classes: &[Vector3<f64>], y: &Pose) -> Vec<Ve
         .map(at)
         .to_vec(),
         Observation::Points(_) => classes.iter().map(|c| at(*c)).collect(),
-        Observation::Seat(_) | Observation::Distance { .. } => Vec::new(),
+        Observation::Seat(_) | Observation::Distance { .. } | Observation::Touch(_) => Vec::new(),
     }
 }
 

@@ -371,7 +371,7 @@ impl Data {
                 Observation::Points(pts) => pts.first().map_or(vec![f64::NAN; 3], |(_, m)| m.as_slice().to_vec()),
                 // Instrument rows locate no point by themselves (the seat's or pivot's centre is
                 // an unknown of the fit).
-                Observation::Seat(_) | Observation::Distance { .. } => vec![f64::NAN; 3],
+                Observation::Seat(_) | Observation::Distance { .. } | Observation::Touch(_) => vec![f64::NAN; 3],
             })
             .collect();
         rows_array(py, &rows, 3)

@@ -130,6 +130,36 @@ pub struct SimulateArgs {
     /// (mm, `X,Y,Z`); written as the truth's tool frame. Default: the flange origin.
     #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
     pub tool_mm: Option<String>,
+    /// Touch-probe data: reference spheres centred at these points (mm, base frame,
+    /// `X,Y,Z;…`), each touched `--per-point` times at the random configurations nearest its
+    /// surface, moved onto it; columns `sphere,sphere_diameter_mm,probe_radius_mm`. Needs
+    /// `--sphere-diameter-mm` and `--probe-radius-mm`.
+    #[arg(long, value_name = "X,Y,Z;…", requires = "sphere_diameter_mm", conflicts_with_all = ["seats", "pivots", "planes", "cube", "measure", "cycles", "at"])]
+    pub spheres: Option<String>,
+    /// The reference spheres' diameter (mm).
+    #[arg(long, value_name = "D", requires = "spheres")]
+    pub sphere_diameter_mm: Option<f64>,
+    /// Touch-probe data: planes through these points (mm, base frame, `X,Y,Z;…`), their normals
+    /// `--plane-normals`, each touched `--per-point` times; columns `plane,probe_radius_mm`.
+    #[arg(long, value_name = "X,Y,Z;…", requires = "plane_normals", conflicts_with_all = ["seats", "pivots", "cube", "measure", "cycles", "at"])]
+    pub planes: Option<String>,
+    /// The planes' normals (`NX,NY,NZ;…`, one per plane; normalised).
+    #[arg(long, value_name = "NX,NY,NZ;…", allow_hyphen_values = true, requires = "planes")]
+    pub plane_normals: Option<String>,
+    /// Touch-probe data: a datum cube centred here (mm, base frame, `X,Y,Z`), its edges along the
+    /// base axes turned by `--cube-rotation-deg`; each face (0..5: +x, −x, +y, −y, +z, −z)
+    /// touched `--per-point` times; columns `face,cube_edge_mm,probe_radius_mm`.
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true, requires = "cube_edge_mm", conflicts_with_all = ["seats", "pivots", "measure", "cycles", "at"])]
+    pub cube: Option<String>,
+    /// The datum cube's edge (mm).
+    #[arg(long, value_name = "E", requires = "cube")]
+    pub cube_edge_mm: Option<f64>,
+    /// The datum cube's orientation: a rotation vector (degrees, `RX,RY,RZ`).
+    #[arg(long, value_name = "RX,RY,RZ", allow_hyphen_values = true, requires = "cube")]
+    pub cube_rotation_deg: Option<String>,
+    /// The touch probe's tip radius (mm; 0 for a pointed tip).
+    #[arg(long, value_name = "R")]
+    pub probe_radius_mm: Option<f64>,
     /// Print a JSON summary instead of text.
     #[arg(long)]
     pub json: bool,
@@ -170,7 +200,8 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
     let free = file.free_indices()?;
     let mut rng = ChaCha8Rng::seed_from_u64(a.seed);
     let (truth, _delta) = virtual_prototype(&nominal, &free, a.error_mm, a.error_deg.to_radians(), &mut rng);
-    let instrument = a.seats.is_some() || a.pivots.is_some();
+    let touches = a.spheres.is_some() || a.planes.is_some() || a.cube.is_some();
+    let instrument = a.seats.is_some() || a.pivots.is_some() || touches;
     anyhow::ensure!(
         instrument || (a.tool_mm.is_none() && a.reference.is_none()),
         "--tool-mm and --reference describe instrument data: give --seats or --pivots with them"
@@ -205,6 +236,9 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
     let truth_text = truth_file.to_toml().map_err(|e| anyhow::anyhow!("{}: {e}", a.truth.display()))?;
     outputs.stage(&a.truth, truth_text.as_bytes())?;
 
+    if touches {
+        return touch_run(&a, &file, &*truth, &mut rng, outputs);
+    }
     if instrument {
         return instrument_run(&a, &file, &*truth, &mut rng, outputs);
     }
@@ -514,4 +548,101 @@ fn planned(
     );
     kinecal::instrument::measure_planned(truth, &plan.measurements, points, noise_mm, seed, &file.inputs())
         .map_err(|e| anyhow::anyhow!("{}: {e}", at.display()))
+}
+
+/// `--spheres`, `--planes` or `--cube`: a touch probe's rows of `truth` to `--out`
+/// ([`kinecal::instrument::simulate::touch_rows`]; the touched configurations are the random
+/// ones nearest each surface, moved onto it).
+fn touch_run(
+    a: &SimulateArgs,
+    file: &ModelFile,
+    truth: &dyn kinecal::Mechanism,
+    rng: &mut ChaCha8Rng,
+    mut outputs: Outputs,
+) -> anyhow::Result<()> {
+    use kinecal::instrument::simulate::{touch_rows, Touched};
+    use rand::RngExt;
+    anyhow::ensure!(a.per_point > 0, "--per-point: must be at least 1");
+    let probe = a.probe_radius_mm.filter(|r| r.is_finite() && *r >= 0.0).ok_or_else(|| {
+        anyhow::anyhow!("--probe-radius-mm: the radius of the probe's tip ball is needed (mm, not negative; 0 for a pointed tip)")
+    })?;
+    let size = |option: &str, v: Option<f64>| -> anyhow::Result<f64> {
+        let v = v.unwrap_or(f64::NAN);
+        anyhow::ensure!(
+            v.is_finite() && v >= kinecal::instrument::touch::MIN_ARTIFACT_MM,
+            "{option} {v}: under 1 mm is not a plausible size in mm (is it in metres?)"
+        );
+        Ok(v)
+    };
+    let parse = |option: &str, text: &str| parse_points(text).map_err(|e| anyhow::anyhow!("{option} {e}"));
+    let (kind, artifacts): (&str, Vec<Touched>) = if let Some(text) = &a.spheres {
+        let d = size("--sphere-diameter-mm", a.sphere_diameter_mm)?;
+        let centres = parse("--spheres", text)?;
+        (
+            "sphere",
+            centres.iter().enumerate().map(|(k, c)| Touched::sphere(k, *c, d, probe)).collect(),
+        )
+    } else if let Some(text) = &a.planes {
+        let origins = parse("--planes", text)?;
+        let normals = parse("--plane-normals", a.plane_normals.as_deref().unwrap_or_default())?;
+        anyhow::ensure!(
+            normals.len() == origins.len(),
+            "--plane-normals: {} normals for {} planes",
+            normals.len(),
+            origins.len()
+        );
+        let mut planes = Vec::new();
+        for (k, (o, n)) in origins.iter().zip(&normals).enumerate() {
+            let n = n
+                .try_normalize(1e-12)
+                .ok_or_else(|| anyhow::anyhow!("--plane-normals: plane {k}'s normal is zero"))?;
+            planes.push(Touched::plane(k, *o, n, probe));
+        }
+        ("plane", planes)
+    } else {
+        let text = a.cube.as_deref().expect("called with a touch option");
+        let [centre] = parse("--cube", text)?
+            .try_into()
+            .map_err(|_| anyhow::anyhow!("--cube '{text}': one point X,Y,Z (mm)"))?;
+        let rotation = match &a.cube_rotation_deg {
+            Some(r) => {
+                let [v] = parse("--cube-rotation-deg", r)?
+                    .try_into()
+                    .map_err(|_| anyhow::anyhow!("--cube-rotation-deg '{r}': RX,RY,RZ (deg)"))?;
+                v.map(f64::to_radians)
+            }
+            None => nalgebra::Vector3::zeros(),
+        };
+        let edge = size("--cube-edge-mm", a.cube_edge_mm)?;
+        (
+            "cube face",
+            Touched::cube(kinecal::se3::pose_from_parts(centre, rotation), edge, probe),
+        )
+    };
+    let inputs = file.inputs();
+    let candidates = kinecal::simulate::random_configurations(truth, &inputs, 30 * a.per_point * artifacts.len(), rng)?;
+    let rows = touch_rows(truth, &candidates, &artifacts, a.per_point, a.noise_mm, rng.random(), &inputs).map_err(|e| match e {
+        CalibError::Kinematics { source, .. } => anyhow::anyhow!("{source}"),
+        e => anyhow::anyhow!("{e}"),
+    })?;
+    let ids: Vec<i64> = (0..rows.len() as i64).collect();
+    let data = data_text(&a.out, &file.data_columns(), &ids, &rows, None)?;
+    outputs.stage(&a.out, data.as_bytes())?;
+    outputs.commit()?;
+    println!(
+        "virtual prototype of {}: ±{} mm / ±{} deg errors (seed {}) → {}",
+        file.name,
+        a.error_mm,
+        a.error_deg,
+        a.seed,
+        a.truth.display()
+    );
+    println!(
+        "{} {kind}s × {} touches, probe radius {probe} mm, noise {} mm → {}",
+        artifacts.len(),
+        a.per_point,
+        a.noise_mm,
+        a.out.display()
+    );
+    Ok(())
 }

@@ -33,7 +33,10 @@ pub fn run(a: ValidateArgs) -> anyhow::Result<()> {
     if let Some(note) = data.dropped_note() {
         eprintln!("{note}");
     }
-    if matches!(data.format, MeasurementFormat::Seat | MeasurementFormat::Distance) {
+    if matches!(
+        data.format,
+        MeasurementFormat::Seat | MeasurementFormat::Distance | MeasurementFormat::Touch
+    ) {
         return instrument(&a, &file.name, &*model, &data);
     }
     if data.format == MeasurementFormat::Mixed {

@@ -70,7 +70,7 @@ impl InstrumentLayout {
     pub fn min_rows(&self) -> usize {
         match self.kind() {
             PointKind::Seat => MIN_SEAT_ROWS,
-            PointKind::Pivot => MIN_PIVOT_ROWS,
+            _ => MIN_PIVOT_ROWS,
         }
     }
 
@@ -147,6 +147,7 @@ pub fn instrument_model(file: &ModelFile, layout: &InstrumentLayout) -> Result<(
             id,
             centre: *c,
             zero: None,
+            rotation: None,
         })
         .collect();
     let p_inner = FRAME_PARAMS + framed.inner.n_params();

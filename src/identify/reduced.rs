@@ -280,7 +280,7 @@ pub(crate) fn factor<M: Mechanism + ?Sized>(
                         m[(r0 + k, p)] = ev.residual[ev.offsets[i] + k];
                     }
                 }
-                Observation::Points(_) | Observation::Distance { .. } => {
+                Observation::Points(_) | Observation::Distance { .. } | Observation::Touch(_) => {
                     let a = measure::residual_jacobian(&d.obs, &pose, &jac);
                     let w = measure::row_weights(&d.obs, noise);
                     for (k, wk) in w.iter().enumerate() {

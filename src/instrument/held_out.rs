@@ -87,6 +87,7 @@ pub fn held_out(model: &dyn Mechanism, measurements: &[Measurement], distances: 
                 }
                 length
             }
+            Observation::Touch(t) => t.measured(),
             _ => 0.0,
         };
         groups.entry(key).or_default().push((p, length));
@@ -109,7 +110,13 @@ pub fn held_out(model: &dyn Mechanism, measurements: &[Measurement], distances: 
                     max_mm,
                 });
             }
-            PointKind::Pivot => {
+            PointKind::Plane | PointKind::Cube => {
+                return Err(CalibError::InvalidOption(format!(
+                    "{} {id}: plane and cube touches are not judged here; judge them by identify's residuals (a validation set)",
+                    kind.name()
+                )))
+            }
+            PointKind::Pivot | PointKind::Sphere => {
                 let placed = if relative.contains(&id) {
                     sphere_and_zero(rows)
                 } else {

@@ -10,6 +10,9 @@ use nalgebra::Vector3;
 use rand::{Rng, RngExt, SeedableRng};
 use rand_distr::{Distribution, Normal};
 
+mod touch;
+pub use touch::{touch_rows, Touched};
+
 /// How instrument rows are drawn ([`seat_rows`], [`distance_rows`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Placement {

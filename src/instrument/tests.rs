@@ -1,6 +1,6 @@
 //! Unit tests of the instrument kinds.
 use super::*;
-use crate::measure::{residual, residual_jacobian};
+use crate::measure::{residual, residual_jacobian, Touch};
 use crate::model::builtin::irb120;
 use crate::se3;
 
@@ -16,12 +16,14 @@ fn artifact() -> Artifact<Framed<crate::model::chain::SerialChain>> {
             id: 0,
             centre: Vector3::new(400.0, 50.0, 200.0),
             zero: None,
+            rotation: None,
         },
         ArtifactPoint {
             kind: PointKind::Pivot,
             id: 3,
             centre: Vector3::new(350.0, -80.0, 150.0),
             zero: None,
+            rotation: None,
         },
         // A draw-wire's anchor: readings relative to an unknown zero.
         ArtifactPoint {
@@ -32,6 +34,29 @@ fn artifact() -> Artifact<Framed<crate::model::chain::SerialChain>> {
                 value: 180.0,
                 reference: 950.0,
             }),
+            rotation: None,
+        },
+        // A probe's artifacts: a sphere, a plane (tilted), the datum cube (turned).
+        ArtifactPoint {
+            kind: PointKind::Sphere,
+            id: 2,
+            centre: Vector3::new(380.0, 60.0, 90.0),
+            zero: None,
+            rotation: None,
+        },
+        ArtifactPoint {
+            kind: PointKind::Plane,
+            id: 0,
+            centre: Vector3::new(420.0, -30.0, 80.0),
+            zero: None,
+            rotation: Some(nalgebra::UnitQuaternion::from_scaled_axis(Vector3::new(0.2, -0.3, 0.1))),
+        },
+        ArtifactPoint {
+            kind: PointKind::Cube,
+            id: 0,
+            centre: Vector3::new(360.0, 40.0, 60.0),
+            zero: None,
+            rotation: Some(nalgebra::UnitQuaternion::from_scaled_axis(Vector3::new(-0.4, 0.1, 0.7))),
         },
     ];
     Artifact {
@@ -74,9 +99,26 @@ fn jacobians_match_finite_differences() {
             NO_POINT,
             Observation::Pose(m.forward(&[0.3, -0.4, 0.5, 0.9, -1.1, 0.7, NO_POINT]).unwrap()),
         ),
-        // The known distance between the first two points (the pair's row).
         (
             3.0,
+            Observation::Touch(Touch::Sphere {
+                sphere: 2,
+                diameter: 25.0,
+                probe: 1.5,
+            }),
+        ),
+        (4.0, Observation::Touch(Touch::Plane { plane: 0, probe: 1.5 })),
+        (
+            5.0,
+            Observation::Touch(Touch::Face {
+                face: 3,
+                edge: 50.0,
+                probe: 1.5,
+            }),
+        ),
+        // The known distance between the first two points (the pair's row).
+        (
+            6.0,
             Observation::Distance {
                 pivot: usize::MAX,
                 length: 60.0,
@@ -129,8 +171,8 @@ fn a_seat_with_one_row_and_an_unknown_point_index_are_clear_errors() {
     .unwrap();
     assert_eq!((points.len(), indexed[1].q[6], indexed[2].q[6]), (1, NO_POINT, 0.0));
     let m = artifact();
-    let e = m.forward(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 7.0]).unwrap_err();
-    assert!(e.to_string().contains("artifact point index 7"), "{e}");
+    let e = m.forward(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 9.0]).unwrap_err();
+    assert!(e.to_string().contains("artifact point index 9"), "{e}");
     let (points, _, indexed) = index_points(&[row(Observation::Seat(5)), row(Observation::Seat(5))], &[])
         .unwrap()
         .unwrap();
@@ -229,4 +271,113 @@ fn a_pivot_and_its_zero_start_from_the_readings() {
     let (found, e) = sphere_and_zero(&rows).unwrap();
     assert!((found - c).norm() < 1e-8 && (e - zero).abs() < 1e-8, "{found:?} {e}");
     assert!(sphere_and_zero(&rows[..4]).is_none());
+}
+
+/// Exact touches of the true tool points on a sphere, a plane and the cube's faces place each
+/// artifact where it is ([`touch::place`]), and the touch kinds' one-line errors.
+#[test]
+fn touched_artifacts_start_from_the_touches() {
+    let truth = artifact();
+    let probe = 1.5;
+    let mut obs = Vec::new();
+    let mut poses = Vec::new();
+    // Tool points on each surface: a sphere of 25 mm, the plane, the cube's +x, -y and +z faces.
+    for i in 0..27 {
+        let f = i as f64;
+        let (u, v) = ((0.7 * f).sin(), (1.3 * f).cos());
+        let (k, t, p) = match i % 3 {
+            0 => {
+                let d = Vector3::new(u, v, 1.0 + 0.3 * (0.4 * f).sin()).normalize();
+                let t = Touch::Sphere {
+                    sphere: 2,
+                    diameter: 25.0,
+                    probe,
+                };
+                (3, t, nalgebra::Point3::from(truth.points[3].centre + d * (12.5 + probe)))
+            }
+            1 => (
+                4,
+                Touch::Plane { plane: 0, probe },
+                truth.frame(4) * nalgebra::Point3::new(40.0 * u, 30.0 * v, probe),
+            ),
+            _ => {
+                let face = [0, 3, 4][(i / 3) % 3];
+                let n = crate::measure::touch::face_normal(face);
+                let q =
+                    n * (25.0 + probe) + (Vector3::new(u, v, 0.5 * u * v) * 20.0 - n * n.dot(&(Vector3::new(u, v, 0.5 * u * v) * 20.0)));
+                (
+                    5,
+                    Touch::Face { face, edge: 50.0, probe },
+                    truth.frame(5) * nalgebra::Point3::from(q),
+                )
+            }
+        };
+        // The flange 120 mm beyond the tool point, on the surface's outer side.
+        let pose = Pose::from_parts(Translation3::from(p.coords), nalgebra::UnitQuaternion::identity());
+        let outward = match t {
+            Touch::Sphere { .. } => (p.coords - truth.points[3].centre).normalize(),
+            Touch::Plane { .. } => truth.frame(4).rotation * Vector3::z(),
+            Touch::Face { face, .. } => truth.frame(5).rotation * crate::measure::touch::face_normal(face),
+        };
+        poses.push((k, pose, p.coords + 120.0 * outward));
+        obs.push(Observation::Touch(t));
+    }
+    let rows: Vec<_> = poses
+        .iter()
+        .zip(&obs)
+        .map(|((k, pose, flange), o)| (*k, *pose, *flange, o))
+        .collect();
+    let mut points = truth.points.clone();
+    for p in &mut points[3..] {
+        p.centre = Vector3::zeros();
+        p.rotation = p.rotation.map(|_| nalgebra::UnitQuaternion::identity());
+    }
+    touch::place(&rows, &mut points).unwrap();
+    assert!((points[3].centre - truth.points[3].centre).norm() < 1e-8, "{:?}", points[3].centre);
+    // The plane: its normal and its offset (its origin anywhere on it).
+    let (n, n0) = (points[4].rotation.unwrap() * Vector3::z(), truth.frame(4).rotation * Vector3::z());
+    assert!(
+        (n - n0).norm() < 1e-9 && n0.dot(&(points[4].centre - truth.points[4].centre)).abs() < 1e-8,
+        "{n:?}"
+    );
+    let cube = truth.frame(5).inverse() * Pose::from_parts(Translation3::from(points[5].centre), points[5].rotation.unwrap());
+    assert!(se3::log(&cube).norm() < 1e-8, "{cube:?}");
+    // Errors: a plane touched twice, a negative probe radius, a diameter in metres, faces of two sizes.
+    let row = |t| Measurement {
+        q: vec![0.0; 6],
+        obs: Observation::Touch(t),
+        joints: Vec::new(),
+    };
+    let plane = |plane| row(Touch::Plane { plane, probe });
+    let e = index_points(&[plane(0), plane(0), plane(0), plane(1), plane(1)], &[]).unwrap_err();
+    assert!(e.to_string().contains("plane 1 has 2 rows"), "{e}");
+    let e = index_points(&[row(Touch::Plane { plane: 0, probe: -1.0 })], &[]).unwrap_err();
+    assert!(e.to_string().contains("probe radius -1"), "{e}");
+    let e = index_points(
+        &[row(Touch::Sphere {
+            sphere: 0,
+            diameter: 0.025,
+            probe,
+        })],
+        &[],
+    )
+    .unwrap_err();
+    assert!(
+        e.to_string().contains("sphere 0: sphere diameter 0.025 mm") && e.to_string().contains("metres"),
+        "{e}"
+    );
+    let face = |face, edge| row(Touch::Face { face, edge, probe });
+    let e = index_points(&[face(0, 50.0), face(0, 50.0), face(0, 51.0)], &[]).unwrap_err();
+    assert!(e.to_string().contains("cube 0: its rows give cube edges 50 and 51 mm"), "{e}");
+    let e = index_points(&[face(0, 50.0), face(0, 50.0), face(0, 50.0), face(2, 50.0)], &[]).unwrap_err();
+    assert!(e.to_string().contains("cube face 2 (+y) has 1 touch;"), "{e}");
+    let e = index_points(&[face(7, 50.0)], &[]).unwrap_err();
+    assert!(e.to_string().contains("cube face 7"), "{e}");
+    // Three touches on a line do not place a plane.
+    let line: Vec<_> = (0..3)
+        .map(|i| (0, Pose::translation(i as f64, 0.0, 0.0), Vector3::new(0.0, 0.0, 100.0), &obs[1]))
+        .collect();
+    let mut one = vec![crate::instrument::zero::pivot_point(PointKind::Plane, 0, None)];
+    let e = touch::place(&line, &mut one).unwrap_err();
+    assert!(e.to_string().contains("plane 0: its touches lie on a line"), "{e}");
 }

@@ -173,5 +173,6 @@ pub(super) fn pivot_point(kind: super::PointKind, id: usize, least_reading: Opti
         id,
         centre: Vector3::zeros(),
         zero: least_reading.map(Zero::for_readings),
+        rotation: kind.oriented().then(nalgebra::UnitQuaternion::identity),
     }
 }

@@ -57,21 +57,8 @@ pub enum MeasurementFormat {
     Distance,
     /// Rows of several kinds, each filling one kind's cells ([`mixed`]).
     Mixed,
-}
-
-impl MeasurementFormat {
-    /// A short description, e.g. `"pose (x,y,z + quaternion)"`.
-    pub fn describe(self) -> &'static str {
-        match self {
-            MeasurementFormat::PoseQuaternion => "pose (x,y,z + quaternion)",
-            MeasurementFormat::PoseRpy => "pose (x,y,z + roll,pitch,yaw)",
-            MeasurementFormat::Position => "position (x,y,z)",
-            MeasurementFormat::Reflectors => "three reflector centres (m1..m3)",
-            MeasurementFormat::Seat => "seat numbers (the tool point in a fixed seat)",
-            MeasurementFormat::Distance => "distances (pivot, length)",
-            MeasurementFormat::Mixed => "rows of several kinds (tracker, seat, distance)",
-        }
-    }
+    /// A touch probe's touches on spheres, planes or a datum cube ([`Observation::Touch`]).
+    Touch,
 }
 
 /// A data file read into memory (mm and rad).
@@ -109,6 +96,7 @@ impl DataSet {
             Some(Observation::Position(_)) => MeasurementFormat::Position,
             Some(Observation::Seat(_)) => MeasurementFormat::Seat,
             Some(Observation::Distance { .. }) => MeasurementFormat::Distance,
+            Some(Observation::Touch(_)) => MeasurementFormat::Touch,
             _ => MeasurementFormat::PoseQuaternion,
         };
         DataSet {
@@ -509,7 +497,8 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
         let mut all_zero = true;
         for ((slot, _), (v, col)) in slots.iter().zip(row.iter().zip(&table.columns)) {
             // (A mixed file's rows leave the other kinds' cells empty.)
-            let measured = !matches!(slot, Slot::Id | Slot::Input(_)) && (is_mixed || !matches!(slot, Slot::Seat | Slot::Pivot));
+            let measured =
+                !matches!(slot, Slot::Id | Slot::Input(_)) && (is_mixed || !matches!(slot, Slot::Seat | Slot::Pivot | Slot::Touched(_)));
             if v.is_nan() {
                 if !measured {
                     return Err(IoError::AtLine {
@@ -526,9 +515,19 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
         if !is_mixed && lost
             || !is_mixed
                 && (all_zero
-                    && slots
-                        .iter()
-                        .any(|(s, _)| !matches!(s, Slot::Id | Slot::Input(_) | Slot::Seat | Slot::Pivot | Slot::Reading)))
+                    && slots.iter().any(|(s, _)| {
+                        !matches!(
+                            s,
+                            Slot::Id
+                                | Slot::Input(_)
+                                | Slot::Seat
+                                | Slot::Pivot
+                                | Slot::Reading
+                                | Slot::Touched(_)
+                                | Slot::Size
+                                | Slot::Probe
+                        )
+                    }))
         {
             dropped.push(line);
             continue;
@@ -540,6 +539,7 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
         let mut refl = [Vector3::zeros(); 3];
         let mut id = r as i64;
         let (mut point, mut length, mut relative) = (0usize, 0.0, false);
+        let (mut touched, mut size, mut probe) = (crate::measure::PointKind::Plane, 0.0, 0.0);
         for (((slot, f), v), col) in slots.iter().zip(row).zip(&table.columns) {
             let v = v * f;
             if matches!(slot, Slot::Pos(_) | Slot::Reflector(..)) && v.abs() > MAX_COORDINATE_MM {
@@ -568,10 +568,13 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
                 Slot::Quat(i) => quat[i] = v,
                 Slot::Rpy(i) => rpy[i] = v,
                 Slot::Reflector(m, a) => refl[m][a] = v,
-                Slot::Seat | Slot::Pivot if is_mixed => {}
+                Slot::Seat | Slot::Pivot | Slot::Touched(_) | Slot::Size | Slot::Probe if is_mixed => {}
                 Slot::Seat | Slot::Pivot => point = columns::point_number(path, line, col, v)?,
                 Slot::Length => length = v,
                 Slot::Reading => (length, relative) = (v, true),
+                Slot::Touched(k) => (point, touched) = (columns::point_number(path, line, col, v)?, k),
+                Slot::Size => size = v,
+                Slot::Probe => probe = v,
             }
         }
         if let Some(first) = first_line_of_id.insert(id, line) {
@@ -595,6 +598,7 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
             MeasurementFormat::Mixed => mixed::observation(path, line, &slots, &table.columns, row)?,
             MeasurementFormat::Position => Observation::Position(p),
             MeasurementFormat::Seat => Observation::Seat(point),
+            MeasurementFormat::Touch => columns::touch(touched, point, size, probe),
             MeasurementFormat::Distance => Observation::Distance {
                 pivot: point,
                 length,

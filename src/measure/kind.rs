@@ -18,11 +18,14 @@ pub enum RowKind {
     Seat,
     /// A ballbar's or draw-wire's length (σ along the bar).
     Distance,
+    /// A touch probe's touch on a sphere, a plane or a datum cube's face (σ along the surface's
+    /// normal).
+    Probe,
 }
 
 impl RowKind {
     /// Every kind, in report order.
-    pub const ALL: [RowKind; 3] = [RowKind::Tracker, RowKind::Seat, RowKind::Distance];
+    pub const ALL: [RowKind; 4] = [RowKind::Tracker, RowKind::Seat, RowKind::Distance, RowKind::Probe];
 
     /// The kind of an observation; `None` for a known distance between seats (a certified
     /// dimension, not a measurement).
@@ -32,25 +35,28 @@ impl RowKind {
             Observation::Seat(_) => Some(RowKind::Seat),
             Observation::Distance { pivot: KNOWN_DISTANCE, .. } => None,
             Observation::Distance { .. } => Some(RowKind::Distance),
+            Observation::Touch(_) => Some(RowKind::Probe),
         }
     }
 
-    /// Its name in messages and reports: `tracker`, `seat`, `distance`.
+    /// Its name in messages and reports: `tracker`, `seat`, `distance`, `probe`.
     pub fn name(self) -> &'static str {
         match self {
             RowKind::Tracker => "tracker",
             RowKind::Seat => "seat",
             RowKind::Distance => "distance",
+            RowKind::Probe => "probe",
         }
     }
 
     /// Its key in a model file's `[noise]` section (in the file's length unit) and in
-    /// `--kind-noise KIND=MM`: `position`, `seat`, `distance`.
+    /// `--kind-noise KIND=MM`: `position`, `seat`, `distance`, `probe`.
     pub fn noise_key(self) -> &'static str {
         match self {
             RowKind::Tracker => "position",
             RowKind::Seat => "seat",
             RowKind::Distance => "distance",
+            RowKind::Probe => "probe",
         }
     }
 
@@ -70,6 +76,9 @@ pub struct KindNoise {
     /// Distance rows (along the bar).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub distance: Option<f64>,
+    /// Touch-probe rows (along the surface's normal).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub probe: Option<f64>,
 }
 
 impl KindNoise {
@@ -79,6 +88,7 @@ impl KindNoise {
             RowKind::Tracker => None,
             RowKind::Seat => self.seat,
             RowKind::Distance => self.distance,
+            RowKind::Probe => self.probe,
         }
     }
 
@@ -88,6 +98,7 @@ impl KindNoise {
             RowKind::Tracker => None,
             RowKind::Seat => Some(&mut self.seat),
             RowKind::Distance => Some(&mut self.distance),
+            RowKind::Probe => Some(&mut self.probe),
         }
     }
 
@@ -123,7 +134,9 @@ mod tests {
         assert_eq!((k.seat, k.distance), (Some(0.005), Some(0.002)));
         assert!(k.set_from("seat=0").unwrap_err().contains("> 0"));
         assert!(k.set_from("seat=-1").is_err());
-        assert!(k.set_from("probe=0.1").unwrap_err().contains("KIND=MM"));
+        assert_eq!(k.set_from("probe=0.005"), Ok(RowKind::Probe));
+        assert_eq!(k.probe, Some(0.005));
+        assert!(k.set_from("touch=0.1").unwrap_err().contains("KIND=MM"));
         assert!(k.set_from("position=0.1").is_err());
     }
 }

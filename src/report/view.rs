@@ -132,6 +132,8 @@ pub fn position_and_error(obs: &Observation, t: &Pose) -> ([f64; 3], [f64; 3]) {
             let u = p.try_normalize(1e-12).unwrap_or_else(Vector3::zeros);
             (arr(&p), arr(&(u * (length - p.norm()))))
         }
+        // A touch: its error along the surface's normal at the tool point.
+        Observation::Touch(t) => (arr(&p), arr(&(t.gradient(&p) * t.residual(&p)))),
         Observation::Points(pts) => {
             let n = pts.len().max(1) as f64;
             let mean = pts.iter().map(|(_, m)| *m).sum::<Vector3<f64>>() / n;

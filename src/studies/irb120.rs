@@ -209,7 +209,7 @@ pub fn initial_model(nominal: &SerialChain, data: &[Measurement]) -> Result<(Ser
             Observation::Position(p) => *p,
             Observation::Points(pts) => pts.iter().map(|(_, m)| *m).sum::<Vector3<f64>>() / pts.len().max(1) as f64,
             // The study's data are the tracker's: no instrument rows reach here.
-            Observation::Seat(_) | Observation::Distance { .. } => Vector3::from_element(f64::NAN),
+            Observation::Seat(_) | Observation::Distance { .. } | Observation::Touch(_) => Vector3::from_element(f64::NAN),
         })
         .collect();
     let reg = register(nominal, &q, &points)?;

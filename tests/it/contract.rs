@@ -394,6 +394,20 @@ fn a_known_pose_as_the_start_changes_nothing_framed_or_not() {
 /// instrument sees (where the machine stands) is aligned. `rows` makes the instrument rows from the
 /// kind, its nominal mechanism and the truth (`None`: the kind cannot have them); `what` names them.
 fn instrument_contract(what: &str, rows: impl Fn(&Kind, &dyn Mechanism, &dyn Mechanism) -> Option<InstrumentRows>) {
+    instrument_contract_up_to(what, false, |k| k.instrument_floor_mm, rows)
+}
+
+/// [`instrument_contract`], the held-out points compared after a similarity (rigid motion and
+/// scale) where `scale` says the instrument does not see the scale.
+/// `floor`: the kind's bound on the held-out error (mm). Every kind is run; the failures are
+/// listed together.
+fn instrument_contract_up_to(
+    what: &str,
+    scale: bool,
+    floor: impl Fn(&Kind) -> f64,
+    rows: impl Fn(&Kind, &dyn Mechanism, &dyn Mechanism) -> Option<InstrumentRows>,
+) {
+    let mut failures = Vec::new();
     use kinecal::model::framed::Framed;
     use kinecal::se3::Pose;
     for k in KINDS {
@@ -417,25 +431,34 @@ fn instrument_contract(what: &str, rows: impl Fn(&Kind, &dyn Mechanism, &dyn Mec
         };
         let data = DataSet::from_measurements("instrument.csv", measurements);
         let (cal, back) = crate::instruments::calibrated(&file, &data, seat_distances);
-        let e = crate::instruments::held_out_gap(&*back, &truth, &(k.configurations)(&*nominal, 20, 32));
-        let floor = k.instrument_floor_mm;
+        let held_out = (k.configurations)(&*nominal, 20, 32);
+        let e = if scale {
+            similar_gap(&*back, &truth, &held_out)
+        } else {
+            crate::instruments::held_out_gap(&*back, &truth, &held_out)
+        };
+        let floor = floor(k);
         eprintln!(
-            "{what}: {}: {} rows, σ̂₀ {:.1e}, held-out max {e:.2e} mm after a rigid motion (bound {floor:.0e}), {:?}",
+            "{what}: {}: {} rows, σ̂₀ {:.1e}, held-out max {e:.2e} mm after a {} (bound {floor:.0e}), {:?}",
             k.name,
             data.measurements.len(),
             cal.identification.sigma0,
+            if scale {
+                "similarity (rigid motion and scale)"
+            } else {
+                "rigid motion"
+            },
             cal.report.verdict.status
         );
-        assert!(e < floor, "{what}: {}: held-out {e:.3e} mm", k.name);
+        if e >= floor {
+            failures.push(format!("{what}: {}: held-out {e:.3e} mm", k.name));
+        }
         // A good calibration is never failed.
-        assert_ne!(
-            cal.report.verdict.status,
-            kinecal::report::Status::Failed,
-            "{what}: {}: {:?}",
-            k.name,
-            cal.report.verdict.reasons
-        );
+        if cal.report.verdict.status == kinecal::report::Status::Failed {
+            failures.push(format!("{what}: {}: failed: {:?}", k.name, cal.report.verdict.reasons));
+        }
     }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
 /// Instrument rows and the known distances between seats.
@@ -519,4 +542,121 @@ fn every_mechanism_that_turns_its_tool_is_calibrated_by_seats() {
         }];
         Some((rows, known))
     });
+}
+
+/// The largest distance between the tool points of `a` and `b` at `qs` after the similarity
+/// (rotation, translation, scale) that best takes `a`'s onto `b`'s.
+fn similar_gap(a: &dyn Mechanism, b: &dyn Mechanism, qs: &[Vec<f64>]) -> f64 {
+    let points = |m: &dyn Mechanism| -> Vec<Vector3<f64>> { qs.iter().map(|q| m.forward(q).unwrap().translation.vector).collect() };
+    let (pa, pb) = (points(a), points(b));
+    let mean = |p: &[Vector3<f64>]| p.iter().sum::<Vector3<f64>>() / p.len() as f64;
+    let (ma, mb) = (mean(&pa), mean(&pb));
+    // The rotation is the rigid fit's; the scale the least-squares one for it.
+    let r = kinecal::measure::register_points(&pa, &pb).unwrap().rotation;
+    let (num, den) = pa.iter().zip(&pb).fold((0.0, 0.0), |(n, d), (x, y)| {
+        let rx = r * (x - ma);
+        (n + rx.dot(&(y - mb)), d + rx.norm_squared())
+    });
+    let s = num / den;
+    pa.iter()
+        .zip(&pb)
+        .map(|(x, y)| (s * (r * (x - ma)) + mb - y).norm())
+        .fold(0.0, f64::max)
+}
+
+/// A probe (tip radius 1.5 mm) touching `artifacts` (made from the truth's tool points at 400
+/// configurations: their mean and RMS spread), `per` touches each, the configurations nearest
+/// each surface moved onto it ([`kinecal::instrument::simulate::touch_rows`]).
+fn touch_contract(
+    what: &str,
+    scale: bool,
+    per: usize,
+    floor: impl Fn(&Kind) -> f64,
+    artifacts: impl Fn(Vector3<f64>, f64) -> Vec<kinecal::instrument::simulate::Touched>,
+) {
+    instrument_contract_up_to(what, scale, floor, |k, nominal, truth| {
+        let qs = (k.configurations)(nominal, 400, 34);
+        let points: Vec<Vector3<f64>> = qs.iter().map(|q| truth.forward(q).unwrap().translation.vector).collect();
+        let centre = points.iter().sum::<Vector3<f64>>() / points.len() as f64;
+        let size = (points.iter().map(|p| (p - centre).norm_squared()).sum::<f64>() / points.len() as f64).sqrt();
+        let inputs = k.file.map(|f| f().inputs()).unwrap_or_default();
+        let rows = kinecal::instrument::simulate::touch_rows(truth, &qs, &artifacts(centre, size), per, 0.0, 5, &inputs)
+            .unwrap_or_else(|e| panic!("{what}: {}: {e}", k.name));
+        Some((rows, Vec::new()))
+    });
+}
+
+/// The probe's tip radius in the touch contracts (mm).
+const PROBE_MM: f64 = 1.5;
+
+/// Three spheres beyond the workspace (at twice its spread from its middle) whose surfaces pass
+/// through it, 40 touches each.
+#[test]
+fn every_mechanism_is_calibrated_by_sphere_touches() {
+    use kinecal::instrument::simulate::Touched;
+    // The linear delta's trap (its instrument floor) is deeper with spheres: 7.9e-2 mm.
+    let floor = |k: &Kind| {
+        if k.name.starts_with("linear delta") {
+            2e-1
+        } else {
+            k.instrument_floor_mm
+        }
+    };
+    touch_contract("sphere", false, 40, floor, |centre, size| {
+        [
+            Vector3::new(1.0, 0.0, -1.0),
+            Vector3::new(-1.0, 1.0, -1.0),
+            Vector3::new(0.0, -1.0, -1.5),
+        ]
+        .iter()
+        .enumerate()
+        .map(|(k, d)| {
+            let radius = 2.0 * size * d.norm();
+            Touched::sphere(k, centre + d * 2.0 * size, 2.0 * (radius - PROBE_MM), PROBE_MM)
+        })
+        .collect()
+    });
+}
+
+/// Three unknown planes through the middle of the workspace, tilted against each other, 40
+/// touches each; planes give no scale, so the held-out points are compared up to one.
+#[test]
+fn every_mechanism_is_calibrated_by_plane_touches() {
+    use kinecal::instrument::simulate::Touched;
+    // The linear delta's trap (its instrument floor) is deeper with planes: 1.65e-1 mm. The
+    // 3-PRS head (its height and two tilts) is fitted exactly (σ̂₀ 5e-12) but held-out points
+    // stay 70 mm off: three planes do not constrain it (docs/instruments.md); measured, not bounded.
+    let floor = |k: &Kind| match k.name {
+        n if n.starts_with("linear delta") => 5e-1,
+        n if n.starts_with("3-PRS head") => f64::INFINITY,
+        _ => k.instrument_floor_mm,
+    };
+    touch_contract("plane", true, 40, floor, |centre, _| {
+        [
+            Vector3::new(1.0, 0.0, 0.3),
+            Vector3::new(0.0, 1.0, 0.3),
+            Vector3::new(0.3, -0.2, 1.0),
+        ]
+        .iter()
+        .enumerate()
+        .map(|(k, n)| Touched::plane(k, centre, n.normalize(), PROBE_MM))
+        .collect()
+    });
+}
+
+/// A datum cube at the middle of the workspace, turned, its edge the workspace's spread, its six
+/// faces touched 20 times each.
+#[test]
+fn every_mechanism_is_calibrated_by_datum_cube_touches() {
+    use kinecal::instrument::simulate::Touched;
+    touch_contract(
+        "cube",
+        false,
+        20,
+        |k| k.instrument_floor_mm,
+        |centre, size| {
+            let pose = se3::pose_from_parts(centre, Vector3::new(0.1, 0.2, 0.3));
+            Touched::cube(pose, size, PROBE_MM)
+        },
+    );
 }

@@ -671,3 +671,45 @@ fn a_five_axis_arm_typed_by_hand_with_seats() {
     eprintln!("arm5 typed by hand, seats, noise-free: held-out spread {before:.4} → {after:.2e} mm RMS");
     assert!(before > 1.0 && after < 1e-6, "{before} → {after}");
 }
+
+/// A touch probe from the command line: `kinecal simulate --cube` (the IRB 120 touching the six
+/// faces of a 200 mm datum cube, 20 times each) and `kinecal identify` on its file, noise-free;
+/// the options' one-line errors (a missing probe radius, a cube edge in metres).
+#[test]
+fn a_datum_cube_from_the_command_line() {
+    use crate::cli::{fails, ok};
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let cube = [
+        "simulate",
+        "irb120",
+        "--cube",
+        "300,0,300",
+        "--cube-edge-mm",
+        "200",
+        "--cube-rotation-deg",
+        "5,10,15",
+        "--per-point",
+        "20",
+        "--tool-mm",
+        "15,-10,120",
+        "-o",
+        "cube.csv",
+        "--truth",
+        "truth.toml",
+    ];
+    let e = fails(dir, &cube);
+    assert!(e.contains("--probe-radius-mm"), "{e}");
+    let mut args = cube.to_vec();
+    args.extend(["--probe-radius-mm", "1.5"]);
+    let out = ok(dir, &args);
+    assert!(out.contains("6 cube faces × 20 touches"), "{out}");
+    let text = std::fs::read_to_string(dir.join("cube.csv")).unwrap();
+    assert!(text.starts_with("id,q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,face,cube_edge_mm,probe_radius_mm\n"));
+    let out = ok(dir, &["identify", "irb120", "cube.csv", "--out", "cal.toml"]);
+    eprintln!("{out}");
+    assert!(out.contains("verdict: calibrated"), "{out}");
+    (args[5], args[13], args[15]) = ("0.2", "cube2.csv", "truth2.toml");
+    let e = fails(dir, &args);
+    assert!(e.contains("--cube-edge-mm 0.2: under 1 mm") && e.contains("metres"), "{e}");
+}

@@ -367,6 +367,7 @@ fn with_noise_distances_and_seats_beside_each_alone() {
         kinds: KindNoise {
             seat: Some(0.005),
             distance: Some(0.005),
+            ..KindNoise::default()
         },
         ..Noise::default()
     };

@@ -1,5 +1,6 @@
 //! Data-file columns: names, unit suffixes and what each column holds.
 use super::*;
+use crate::measure::PointKind;
 
 fn length_factor(suffix: &str) -> Option<f64> {
     match suffix {
@@ -35,7 +36,7 @@ pub fn expected_columns(inputs: &[InputSpec]) -> String {
             Unit::Length => format!("{}_mm|_m", i.name),
         })
         .collect();
-    v.push("x_mm,y_mm,z_mm (+ qw,qx,qy,qz or roll_deg,pitch_deg,yaw_deg) or m1x_mm..m3z_mm or seat or pivot,length_mm or pivot,reading_mm; optional id".into());
+    v.push("x_mm,y_mm,z_mm (+ qw,qx,qy,qz or roll_deg,pitch_deg,yaw_deg) or m1x_mm..m3z_mm or seat or pivot,length_mm or pivot,reading_mm or a probe's touches (sphere,sphere_diameter_mm / plane / face,cube_edge_mm, each with probe_radius_mm); optional id".into());
     v.join(", ")
 }
 
@@ -56,7 +57,20 @@ pub(super) enum Slot {
     Length,
     /// A distance row's reading relative to an unknown zero (`reading_mm`).
     Reading,
+    /// The artifact a probe touched: `sphere`, `plane` or `face` (of the datum cube).
+    Touched(PointKind),
+    /// A touched sphere's diameter (`sphere_diameter_mm`) or the cube's edge (`cube_edge_mm`).
+    Size,
+    /// The probe tip's radius (`probe_radius_mm`).
+    Probe,
 }
+
+/// The touch columns: the artifact's number column, its size column (none for a plane).
+const TOUCH_COLUMNS: [(&str, PointKind, Option<&str>); 3] = [
+    ("sphere", PointKind::Sphere, Some("sphere_diameter")),
+    ("plane", PointKind::Plane, None),
+    ("face", PointKind::Cube, Some("cube_edge")),
+];
 
 /// What a column holds and its factor to mm / rad; errors name the file (line 1) and column.
 pub(super) fn classify(path: &Path, col: &str, inputs: &[InputSpec]) -> Result<(Slot, f64), IoError> {
@@ -72,6 +86,18 @@ pub(super) fn classify(path: &Path, col: &str, inputs: &[InputSpec]) -> Result<(
         (Slot::Seat, 1.0)
     } else if col == "pivot" {
         (Slot::Pivot, 1.0)
+    } else if let Some(t) = TOUCH_COLUMNS.iter().find(|t| t.0 == col) {
+        (Slot::Touched(t.1), 1.0)
+    } else if matches!(base, "sphere_diameter" | "cube_edge" | "probe_radius") {
+        match unit.and_then(length_factor) {
+            Some(f) if base == "probe_radius" => (Slot::Probe, f),
+            Some(f) => (Slot::Size, f),
+            None => {
+                return Err(at_header(format!(
+                    "column '{col}': a {base} needs a length unit ({base}_mm or {base}_m)"
+                )))
+            }
+        }
     } else if base == "length" || base == "reading" {
         match unit.and_then(length_factor) {
             Some(f) if base == "length" => (Slot::Length, f),
@@ -166,6 +192,39 @@ pub(super) fn measurement_format(table: &Table, slots: &[(Slot, f64)]) -> Result
     let n_pivot = has(&|s: &Slot| matches!(s, Slot::Pivot));
     let n_length = has(&|s: &Slot| matches!(s, Slot::Length | Slot::Reading));
     let n_other = has(&|s: &Slot| matches!(s, Slot::Pos(_) | Slot::Quat(_) | Slot::Rpy(_) | Slot::Reflector(..)));
+    let touched: Vec<PointKind> = slots
+        .iter()
+        .filter_map(|(s, _)| if let Slot::Touched(k) = s { Some(*k) } else { None })
+        .collect();
+    let n_touch = touched.len() + has(&|s: &Slot| matches!(s, Slot::Size | Slot::Probe));
+    if n_touch > 0 {
+        let [kind] = touched.as_slice() else {
+            return Err(at_header(
+                "give one kind of touch per file: 'sphere' (with sphere_diameter_mm), 'plane' or 'face' (with cube_edge_mm), each with probe_radius_mm".into(),
+            ));
+        };
+        let (name, _, size) = TOUCH_COLUMNS.iter().find(|t| t.1 == *kind).expect("a touch kind");
+        if n_other + n_seat + n_pivot + n_length > 0 {
+            return Err(at_header(format!(
+                "give one kind of measurement per file: '{name}' touches, seats, distances or tracker columns"
+            )));
+        }
+        if has(&|s: &Slot| matches!(s, Slot::Probe)) != 1 {
+            return Err(at_header(format!(
+                "{name} touches need one 'probe_radius_mm' column: the radius of the probe's tip ball in mm (0 for a pointed tip)"
+            )));
+        }
+        let n_size = has(&|s: &Slot| matches!(s, Slot::Size));
+        return match size {
+            Some(size) if n_size != 1 || !table.columns.iter().any(|c| split_unit(c).0 == *size) => {
+                Err(at_header(format!("{name} touches need one '{size}_mm' column (mm)")))
+            }
+            None if n_size > 0 => Err(at_header(
+                "plane touches take no size column (sphere_diameter_mm, cube_edge_mm)".into(),
+            )),
+            _ => Ok(MeasurementFormat::Touch),
+        };
+    }
     if n_seat + n_pivot + n_length > 0 {
         if n_other > 0 || (n_seat > 0 && n_pivot + n_length > 0) {
             return Err(at_header(
@@ -240,6 +299,25 @@ pub(super) fn measurement_format(table: &Table, slots: &[(Slot, f64)]) -> Result
     Ok(format)
 }
 
+/// The observation of a touch row: the artifact's kind and number, its size (diameter or edge,
+/// mm) and the probe's radius (mm).
+pub(super) fn touch(kind: PointKind, point: usize, size: f64, probe: f64) -> Observation {
+    use crate::measure::Touch;
+    match kind {
+        PointKind::Sphere => Observation::Touch(Touch::Sphere {
+            sphere: point,
+            diameter: size,
+            probe,
+        }),
+        PointKind::Cube => Observation::Touch(Touch::Face {
+            face: point,
+            edge: size,
+            probe,
+        }),
+        _ => Observation::Touch(Touch::Plane { plane: point, probe }),
+    }
+}
+
 /// A seat or pivot number: a non-negative integer.
 pub(super) fn point_number(path: &Path, line: usize, col: &str, v: f64) -> Result<usize, IoError> {
     if v < 0.0 || v.fract() != 0.0 || v > 1e9 {
@@ -250,4 +328,40 @@ pub(super) fn point_number(path: &Path, line: usize, col: &str, v: f64) -> Resul
         });
     }
     Ok(v as usize)
+}
+
+/// The columns of a touch row ([`Observation::Touch`]).
+pub(super) fn touch_columns(t: &crate::measure::Touch) -> Vec<&'static str> {
+    use crate::measure::Touch;
+    match t {
+        Touch::Sphere { .. } => vec!["sphere", "sphere_diameter_mm", "probe_radius_mm"],
+        Touch::Plane { .. } => vec!["plane", "probe_radius_mm"],
+        Touch::Face { .. } => vec!["face", "cube_edge_mm", "probe_radius_mm"],
+    }
+}
+
+/// The values of a touch row in the order of [`touch_columns`].
+pub(super) fn touch_values(t: &crate::measure::Touch) -> Vec<f64> {
+    use crate::measure::Touch;
+    match *t {
+        Touch::Sphere { sphere, diameter, probe } => vec![sphere as f64, diameter, probe],
+        Touch::Plane { plane, probe } => vec![plane as f64, probe],
+        Touch::Face { face, edge, probe } => vec![face as f64, edge, probe],
+    }
+}
+
+impl MeasurementFormat {
+    /// A short description, e.g. `"pose (x,y,z + quaternion)"`.
+    pub fn describe(self) -> &'static str {
+        match self {
+            MeasurementFormat::PoseQuaternion => "pose (x,y,z + quaternion)",
+            MeasurementFormat::PoseRpy => "pose (x,y,z + roll,pitch,yaw)",
+            MeasurementFormat::Position => "position (x,y,z)",
+            MeasurementFormat::Reflectors => "three reflector centres (m1..m3)",
+            MeasurementFormat::Seat => "seat numbers (the tool point in a fixed seat)",
+            MeasurementFormat::Distance => "distances (pivot, length)",
+            MeasurementFormat::Mixed => "rows of several kinds (tracker, seat, distance, touch)",
+            MeasurementFormat::Touch => "touches (sphere, plane or cube face; probe radius)",
+        }
+    }
 }

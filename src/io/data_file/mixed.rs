@@ -1,7 +1,9 @@
 //! Data files holding rows of several kinds ([`MeasurementFormat::Mixed`]): a header with the
 //! columns of more than one kind — tracker `x_mm,y_mm,z_mm` (+ `qw,qx,qy,qz` or
-//! `roll_deg,pitch_deg,yaw_deg`), `seat`, `pivot` with `length_mm` or `reading_mm` — and each row
-//! filling the cells of exactly one kind, the others left empty:
+//! `roll_deg,pitch_deg,yaw_deg`), `seat`, `pivot` with `length_mm` or `reading_mm`, touches
+//! (`sphere` with `sphere_diameter_mm`, `plane`, `face` with `cube_edge_mm`, each with
+//! `probe_radius_mm`) — and each row filling the cells of exactly one kind, the others left
+//! empty:
 //!
 //! ```text
 //! id,q1_deg,…,q6_deg,x_mm,y_mm,z_mm,seat,pivot,length_mm
@@ -12,6 +14,7 @@
 //!
 //! A row filling no kind or two is a one-line error naming the file and the line.
 use super::*;
+use crate::measure::PointKind;
 
 /// Whether the columns hold more than one kind of measurement (a mixed file).
 pub(super) fn is_mixed(slots: &[(Slot, f64)]) -> bool {
@@ -20,6 +23,7 @@ pub(super) fn is_mixed(slots: &[(Slot, f64)]) -> bool {
         has(&|s| matches!(s, Slot::Pos(_) | Slot::Quat(_) | Slot::Rpy(_) | Slot::Reflector(..))),
         has(&|s| matches!(s, Slot::Seat)),
         has(&|s| matches!(s, Slot::Pivot | Slot::Length | Slot::Reading)),
+        has(&|s| matches!(s, Slot::Touched(_) | Slot::Size | Slot::Probe)),
     ];
     kinds.iter().filter(|k| **k).count() > 1
 }
@@ -51,6 +55,18 @@ pub(super) fn check_columns(table: &Table, slots: &[(Slot, f64)]) -> Result<Meas
             "distance rows need 'pivot' and a length column (length_mm or reading_mm)".into(),
         ));
     }
+    let touched = has(&|s| matches!(s, Slot::Touched(_)));
+    if touched > 0 && has(&|s| matches!(s, Slot::Probe)) != 1 {
+        return Err(at_header(
+            "touch rows need one 'probe_radius_mm' column: the radius of the probe's tip ball in mm (0 for a pointed tip)".into(),
+        ));
+    }
+    for (touch, size) in [("sphere", "sphere_diameter"), ("face", "cube_edge")] {
+        let with = |name: &str| table.columns.iter().any(|c| columns::split_unit(c).0 == name);
+        if with(touch) && !with(size) {
+            return Err(at_header(format!("'{touch}' touches need a '{size}_mm' column (mm)")));
+        }
+    }
     Ok(MeasurementFormat::Mixed)
 }
 
@@ -69,6 +85,8 @@ pub(super) fn observation(
     };
     let (mut p, mut quat, mut rpy) = ([f64::NAN; 3], [f64::NAN; 4], [f64::NAN; 3]);
     let (mut seat, mut pivot, mut length, mut relative) = (None, None, None, false);
+    // A touch: the artifact's kind and number; its size and the probe's radius by column name.
+    let (mut touch, mut sizes, mut probe) = (Vec::new(), Vec::new(), None);
     for (((slot, f), v), col) in slots.iter().zip(row).zip(columns) {
         if v.is_nan() {
             continue;
@@ -81,6 +99,9 @@ pub(super) fn observation(
             Slot::Pivot => pivot = Some(columns::point_number(path, line, col, *v)?),
             Slot::Length => length = Some(v * f),
             Slot::Reading => (length, relative) = (Some(v * f), true),
+            Slot::Touched(k) => touch.push((k, columns::point_number(path, line, col, *v)?)),
+            Slot::Size => sizes.push((columns::split_unit(col).0, v * f)),
+            Slot::Probe => probe = Some(v * f),
             _ => {}
         }
     }
@@ -91,6 +112,7 @@ pub(super) fn observation(
         (tracker, "tracker (x,y,z)"),
         (seat.is_some(), "seat"),
         (distance, "distance (pivot, length)"),
+        (!touch.is_empty(), "a touch (sphere, plane or face)"),
     ]
     .iter()
     .filter(|k| k.0)
@@ -99,7 +121,7 @@ pub(super) fn observation(
     match kinds.len() {
         0 => {
             return Err(at(
-                "the row fills no measurement: give one kind per row (tracker x,y,z, a seat, or a pivot and its length)".into(),
+                "the row fills no measurement: give one kind per row (tracker x,y,z, a seat, a pivot and its length, or a touch)".into(),
             ))
         }
         1 => {}
@@ -112,6 +134,26 @@ pub(super) fn observation(
     }
     if let Some(s) = seat {
         return Ok(Observation::Seat(s));
+    }
+    if let Some(&(kind, point)) = touch.first() {
+        if touch.len() > 1 {
+            return Err(at("the row fills two touch columns (sphere, plane, face): one touch per row".into()));
+        }
+        let probe = probe.ok_or_else(|| at("a touch without its probe radius (fill probe_radius_mm)".into()))?;
+        let wanted = match kind {
+            PointKind::Sphere => Some("sphere_diameter"),
+            PointKind::Cube => Some("cube_edge"),
+            _ => None,
+        };
+        let size = match wanted {
+            Some(name) => sizes
+                .iter()
+                .find(|(n, _)| *n == name)
+                .map(|s| s.1)
+                .ok_or_else(|| at(format!("a touch without its size (fill {name}_mm)")))?,
+            None => f64::NAN,
+        };
+        return Ok(columns::touch(kind, point, size, probe));
     }
     if distance {
         return match (pivot, length) {
@@ -150,6 +192,7 @@ pub(super) fn needs_mixed(measurements: &[Measurement]) -> bool {
         Observation::Seat(_) => 1,
         Observation::Distance { relative: false, .. } => 2,
         Observation::Distance { relative: true, .. } => 3,
+        Observation::Touch(_) => 4,
     };
     measurements.windows(2).any(|w| kind(&w[0]) != kind(&w[1]))
 }
@@ -176,6 +219,12 @@ pub(super) fn cells(path: &Path, measurements: &[Measurement]) -> Result<(Vec<St
     push(length || reading, &["pivot"]);
     push(length, &["length_mm"]);
     push(reading, &["reading_mm"]);
+    let touch = |f: &dyn Fn(&crate::measure::Touch) -> bool| any(&|o| matches!(o, Observation::Touch(t) if f(t)));
+    use crate::measure::Touch;
+    push(touch(&|t| matches!(t, Touch::Sphere { .. })), &["sphere", "sphere_diameter_mm"]);
+    push(touch(&|t| matches!(t, Touch::Plane { .. })), &["plane"]);
+    push(touch(&|t| matches!(t, Touch::Face { .. })), &["face", "cube_edge_mm"]);
+    push(touch(&|_| true), &["probe_radius_mm"]);
     let col = |name: &str| header.iter().position(|h| h == name).expect("a column of the header");
     let mut rows = Vec::with_capacity(measurements.len());
     for (k, m) in measurements.iter().enumerate() {
@@ -205,6 +254,11 @@ pub(super) fn cells(path: &Path, measurements: &[Measurement]) -> Result<(Vec<St
                     path: path.to_path_buf(),
                     message: format!("pose {k}: point-set observations are not written to a file mixing kinds"),
                 })
+            }
+            Observation::Touch(t) => {
+                for (c, x) in columns::touch_columns(t).iter().zip(columns::touch_values(t)) {
+                    row[col(c)] = x;
+                }
             }
         }
         rows.push(row);
@@ -281,6 +335,42 @@ mod tests {
                 (x, y) => assert_eq!(x, y),
             }
         }
+    }
+
+    #[test]
+    fn touches_mix_with_tracker_rows_and_write_back() {
+        use crate::measure::Touch;
+        let d = read("id,q1_deg,x_mm,y_mm,z_mm,sphere,sphere_diameter_mm,plane,face,cube_edge_mm,probe_radius_mm\n0,10,1,2,3,,,,,,\n1,20,,,,2,25.4,,,,1.5\n2,30,,,,,,3,,,1.5\n3,40,,,,,,,5,50,1.5\n").unwrap();
+        assert_eq!(d.format, MeasurementFormat::Mixed);
+        let obs: Vec<&Observation> = d.measurements.iter().map(|m| &m.obs).collect();
+        assert_eq!(*obs[0], Observation::Position(Vector3::new(1.0, 2.0, 3.0)));
+        assert_eq!(
+            *obs[1],
+            Observation::Touch(Touch::Sphere {
+                sphere: 2,
+                diameter: 25.4,
+                probe: 1.5
+            })
+        );
+        assert_eq!(*obs[2], Observation::Touch(Touch::Plane { plane: 3, probe: 1.5 }));
+        assert_eq!(
+            *obs[3],
+            Observation::Touch(Touch::Face {
+                face: 5,
+                edge: 50.0,
+                probe: 1.5
+            })
+        );
+        let text = data_text(Path::new("m.csv"), &inputs(), &[0, 1, 2, 3], &d.measurements, None).unwrap();
+        let back = read(&text).unwrap();
+        assert_eq!(back.measurements.iter().map(|m| &m.obs).collect::<Vec<_>>(), obs, "{text}");
+        // A touch without its probe radius or its size, and two touches in one row: one line each.
+        let e = read("q1_deg,x_mm,y_mm,z_mm,plane\n10,1,2,3,\n20,,,,0\n").unwrap_err();
+        assert!(e.contains("probe_radius_mm") && !e.contains('\n'), "{e}");
+        let e = read("q1_deg,x_mm,y_mm,z_mm,sphere,probe_radius_mm\n10,1,2,3,,\n").unwrap_err();
+        assert!(e.contains("sphere_diameter_mm"), "{e}");
+        let e = read("q1_deg,x_mm,y_mm,z_mm,sphere,sphere_diameter_mm,plane,probe_radius_mm\n10,,,,1,25,2,1\n").unwrap_err();
+        assert!(e.contains("m.csv:2:") && e.contains("two touch columns"), "{e}");
     }
 
     #[test]

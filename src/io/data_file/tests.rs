@@ -160,3 +160,65 @@ fn observed_joint_columns_are_optional_all_or_none_and_round_trip() {
     assert!((back.measurements[0].joints[1] - 2.0).abs() < 1e-12);
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Touch files (sphere, plane, cube face) written and read back give the same rows; a plane
+/// touch with every value zero is a row, not a lost measurement; a touch file without the
+/// probe's radius, or with two kinds of touch, is a one-line error naming what is missing.
+#[test]
+fn touch_files_round_trip_and_name_what_is_missing() {
+    use crate::measure::Touch;
+    for touches in [
+        vec![
+            Touch::Sphere {
+                sphere: 0,
+                diameter: 25.4,
+                probe: 1.5,
+            },
+            Touch::Sphere {
+                sphere: 2,
+                diameter: 25.4,
+                probe: 1.5,
+            },
+        ],
+        vec![Touch::Plane { plane: 0, probe: 0.0 }, Touch::Plane { plane: 3, probe: 1.5 }],
+        vec![
+            Touch::Face {
+                face: 0,
+                edge: 50.0,
+                probe: 1.5,
+            },
+            Touch::Face {
+                face: 5,
+                edge: 50.0,
+                probe: 1.5,
+            },
+        ],
+    ] {
+        let rows: Vec<Measurement> = touches
+            .iter()
+            .map(|t| Measurement {
+                q: vec![0.0, 0.0],
+                obs: Observation::Touch(*t),
+                joints: Vec::new(),
+            })
+            .collect();
+        let text = data_text(Path::new("t.csv"), &inputs(), &[0, 1], &rows, None).unwrap();
+        let back = read(&text).unwrap();
+        assert_eq!((back.format, back.measurements), (MeasurementFormat::Touch, rows), "{text}");
+    }
+    let d = read("q1_deg,d2_mm,sphere,sphere_diameter_m,probe_radius_mm\n0,0,1,0.025,2\n").unwrap();
+    assert_eq!(
+        d.measurements[0].obs,
+        Observation::Touch(Touch::Sphere {
+            sphere: 1,
+            diameter: 25.0,
+            probe: 2.0
+        })
+    );
+    let e = read("q1_deg,d2_mm,plane\n0,0,1\n").unwrap_err();
+    assert!(e.starts_with("d.csv:1: plane touches need one 'probe_radius_mm' column"), "{e}");
+    let e = read("q1_deg,d2_mm,face,probe_radius_mm\n0,0,1,2\n").unwrap_err();
+    assert!(e.contains("face touches need one 'cube_edge_mm' column"), "{e}");
+    let e = read("q1_deg,d2_mm,plane,sphere,probe_radius_mm\n0,0,1,1,2\n").unwrap_err();
+    assert!(e.contains("one kind of touch per file"), "{e}");
+}

@@ -74,6 +74,8 @@ pub fn data_text(
         header.push("seat".into());
     } else if let Some(Observation::Distance { relative, .. }) = first {
         header.extend(["pivot", if *relative { "reading_mm" } else { "length_mm" }].map(String::from));
+    } else if let Some(Observation::Touch(t)) = first {
+        header.extend(columns::touch_columns(t).into_iter().map(String::from));
     } else if reflectors.is_some() {
         for r in 1..=3 {
             for a in ["x", "y", "z"] {
@@ -122,7 +124,12 @@ pub fn data_text(
             (None, Observation::Distance { pivot, length, relative }) if matches!(first, Some(Observation::Distance { relative: r, .. }) if r == relative) => {
                 row.extend([*pivot as f64, *length])
             }
-            (None, Observation::Seat(_) | Observation::Distance { .. }) => {
+            (None, Observation::Touch(t))
+                if first.is_some_and(|f| matches!(f, Observation::Touch(u) if columns::touch_columns(u) == columns::touch_columns(t))) =>
+            {
+                row.extend(columns::touch_values(t))
+            }
+            (None, Observation::Seat(_) | Observation::Distance { .. } | Observation::Touch(_)) => {
                 return Err(IoError::Invalid {
                     path: path.to_path_buf(),
                     message: format!(

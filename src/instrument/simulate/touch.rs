@@ -1,0 +1,158 @@
+//! A touch probe's touches on a virtual prototype: spheres, planes and a datum cube placed in
+//! its workspace, each touched at the configurations of a candidate set that come nearest it,
+//! moved onto the surface ([`super::onto`]).
+use super::within_limits;
+use crate::error::{CalibError, KinError};
+use crate::measure::touch::FACE_NAMES;
+use crate::measure::{Measurement, Observation, Touch};
+use crate::model::kind::InputSpec;
+use crate::model::Mechanism;
+use crate::se3::Pose;
+use nalgebra::{DVector, Translation3, UnitQuaternion, Vector3};
+use rand::SeedableRng;
+use rand_distr::{Distribution, Normal};
+
+/// One artifact a probe touches: its frame (mm, base frame; a sphere's centre, a plane's frame
+/// with `z` its normal, the cube's frame at its centre) and the touch a row records (the sphere's
+/// diameter, the cube face, the probe's radius).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Touched {
+    /// The artifact's frame.
+    pub frame: Pose,
+    /// What a touch on it records.
+    pub touch: Touch,
+}
+
+impl Touched {
+    /// A sphere of `diameter` (mm) at `centre`, touched by a tip of radius `probe`.
+    pub fn sphere(sphere: usize, centre: Vector3<f64>, diameter: f64, probe: f64) -> Touched {
+        Touched {
+            frame: Pose::from_parts(Translation3::from(centre), UnitQuaternion::identity()),
+            touch: Touch::Sphere { sphere, diameter, probe },
+        }
+    }
+
+    /// The plane through `origin` with unit normal `normal`.
+    pub fn plane(plane: usize, origin: Vector3<f64>, normal: Vector3<f64>, probe: f64) -> Touched {
+        let rotation = UnitQuaternion::rotation_between(&Vector3::z(), &normal)
+            .unwrap_or_else(|| UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI));
+        Touched {
+            frame: Pose::from_parts(Translation3::from(origin), rotation),
+            touch: Touch::Plane { plane, probe },
+        }
+    }
+
+    /// The six faces of a datum cube of `edge` (mm) in pose `cube`.
+    pub fn cube(cube: Pose, edge: f64, probe: f64) -> Vec<Touched> {
+        (0..6)
+            .map(|face| Touched {
+                frame: cube,
+                touch: Touch::Face { face, edge, probe },
+            })
+            .collect()
+    }
+
+    /// Its name in messages (`plane 2`, `cube face +x`).
+    fn name(&self) -> String {
+        match self.touch {
+            Touch::Face { face, .. } => format!("cube face {}", FACE_NAMES[face.min(5)]),
+            t => format!("{} {}", t.artifact().0.name(), t.artifact().1),
+        }
+    }
+}
+
+/// `per_artifact` touches on each of `artifacts` by `truth` (the real machine with its probe):
+/// for each artifact the configurations of `candidates` whose tool point is nearest its surface
+/// (each used once), moved onto it (the tip's centre `r` off the surface plus noise of σ
+/// `noise_mm` along the normal), within the limits of `inputs`. One [`Observation::Touch`] row
+/// each; an error names an artifact fewer configurations reached.
+pub fn touch_rows(
+    truth: &dyn Mechanism,
+    candidates: &[Vec<f64>],
+    artifacts: &[Touched],
+    per_artifact: usize,
+    noise_mm: f64,
+    seed: u64,
+    inputs: &[InputSpec],
+) -> Result<Vec<Measurement>, CalibError> {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let noise = Normal::new(0.0, noise_mm.max(0.0)).map_err(|e| CalibError::InvalidOption(e.to_string()))?;
+    let points: Vec<Option<Vector3<f64>>> = candidates
+        .iter()
+        .map(|q| truth.forward(q).ok().map(|t| t.translation.vector))
+        .collect();
+    let mut used = vec![false; candidates.len()];
+    // Approach directions (±1, [`InputSpec::approach_of`]) stay as drawn.
+    let fixed: Vec<bool> = (0..candidates.first().map_or(0, Vec::len))
+        .map(|k| inputs.get(k).is_some_and(|i| i.approach_of.is_some()))
+        .collect();
+    let mut out = Vec::new();
+    for a in artifacts {
+        let off = |p: &Vector3<f64>| a.touch.residual(&a.frame.inverse_transform_point(&(*p).into()).coords);
+        let mut order: Vec<(usize, f64)> = (points.iter().enumerate())
+            .filter_map(|(i, p)| p.map(|p| (i, off(&p).abs())))
+            .collect();
+        order.sort_by(|x, y| x.1.total_cmp(&y.1));
+        let mut found = 0;
+        for (i, _) in order {
+            if found == per_artifact {
+                break;
+            }
+            if used[i] {
+                continue;
+            }
+            let e = noise.sample(&mut rng);
+            let residual = |t: &Pose| DVector::from_element(1, off(&t.translation.vector) + e);
+            let Some(q) = onto_surface(truth, &candidates[i], &fixed, residual) else {
+                continue;
+            };
+            let Some(q) = within_limits(q, inputs) else { continue };
+            used[i] = true;
+            out.push(Measurement {
+                q,
+                obs: Observation::Touch(a.touch),
+                joints: Vec::new(),
+            });
+            found += 1;
+        }
+        if found < per_artifact {
+            return Err(CalibError::Kinematics {
+                pose: out.len(),
+                source: KinError::Unreachable(format!(
+                    "{}: {found} of {per_artifact} configurations reached it (move it into the workspace, or draw more configurations)",
+                    a.name()
+                )),
+            });
+        }
+    }
+    Ok(out)
+}
+
+/// Inputs near `q` (those of `fixed` kept) where the one residual vanishes: Gauss–Newton, the
+/// minimum-norm step, the Jacobian by central differences; `None` when it does not get there.
+fn onto_surface(truth: &dyn Mechanism, q: &[f64], fixed: &[bool], residual: impl Fn(&Pose) -> DVector<f64>) -> Option<Vec<f64>> {
+    let at = |q: &[f64]| truth.forward(q).ok().map(|p| residual(&p)[0]);
+    let mut q = q.to_vec();
+    for _ in 0..30 {
+        let r = at(&q)?;
+        if r.abs() < 1e-10 {
+            return Some(q);
+        }
+        let h = 1e-6;
+        let mut g = vec![0.0; q.len()];
+        for k in (0..q.len()).filter(|&k| !fixed.get(k).copied().unwrap_or(false)) {
+            let (mut up, mut down) = (q.clone(), q.clone());
+            up[k] += h;
+            down[k] -= h;
+            g[k] = (at(&up)? - at(&down)?) / (2.0 * h);
+        }
+        let n2: f64 = g.iter().map(|x| x * x).sum();
+        if n2 < 1e-24 {
+            return None;
+        }
+        for (v, d) in q.iter_mut().zip(&g) {
+            *v -= r * d / n2;
+        }
+    }
+    None
+}
