@@ -620,14 +620,26 @@ fn touch_run(
         )
     };
     let inputs = file.inputs();
-    let candidates = kinecal::simulate::random_configurations(truth, &inputs, 30 * a.per_point * artifacts.len(), rng)?;
-    let rows = touch_rows(truth, &candidates, &artifacts, a.per_point, a.noise_mm, rng.random(), &inputs).map_err(|e| match e {
-        CalibError::Kinematics { source, .. } => anyhow::anyhow!("{source}"),
-        e => anyhow::anyhow!("{e}"),
-    })?;
-    let ids: Vec<i64> = (0..rows.len() as i64).collect();
-    let data = data_text(&a.out, &file.data_columns(), &ids, &rows, None)?;
+    // `per` touches of each artifact at the random configurations nearest it, ids from `first`.
+    let mut touched = |per: usize, first: i64, path: &std::path::Path| -> anyhow::Result<String> {
+        let candidates = kinecal::simulate::random_configurations(truth, &inputs, 30 * per * artifacts.len(), rng)?;
+        let rows = touch_rows(truth, &candidates, &artifacts, per, a.noise_mm, rng.random(), &inputs).map_err(|e| match e {
+            CalibError::Kinematics { source, .. } => anyhow::anyhow!("{source}"),
+            e => anyhow::anyhow!("{e}"),
+        })?;
+        let ids: Vec<i64> = (first..first + rows.len() as i64).collect();
+        Ok(data_text(path, &file.data_columns(), &ids, &rows, None)?)
+    };
+    let data = touched(a.per_point, 0, &a.out)?;
     outputs.stage(&a.out, data.as_bytes())?;
+    if let Some(v) = &a.validation_out {
+        anyhow::ensure!(
+            a.validation_poses > 0,
+            "--validation-out needs --validation-poses N (N ≥ 1 touches per artifact)"
+        );
+        let held = touched(a.validation_poses, (a.per_point * artifacts.len()) as i64, v)?;
+        outputs.stage(v, held.as_bytes())?;
+    }
     outputs.commit()?;
     println!(
         "virtual prototype of {}: ±{} mm / ±{} deg errors (seed {}) → {}",
@@ -644,5 +656,14 @@ fn touch_run(
         a.noise_mm,
         a.out.display()
     );
+    if let Some(v) = &a.validation_out {
+        println!(
+            "{} {kind}s × {} touches (held out), noise {} mm → {}",
+            artifacts.len(),
+            a.validation_poses,
+            a.noise_mm,
+            v.display()
+        );
+    }
     Ok(())
 }

@@ -30,9 +30,8 @@
 //! [noise]            # optional: measurement standard deviations (identification weights)
 //! position = 0.02    # length unit
 //! orientation = 0.02 # angle unit
-//! seat = 0.005      # optional, length unit: seat (and distance = …: ballbar) rows' σ; default position
+//! seat = 0.005      # optional, length unit: seat rows' σ (distance = …: ballbar, probe = …: touches); default position
 //! ```
-//!
 //! # Conventions
 //! * A pose is `position` plus *one* rotation: `rpy = [roll, pitch, yaw]` meaning
 //!   `R = Rz(yaw)·Ry(pitch)·Rx(roll)` (fixed axes x, then y, then z), or `rotvec = [x, y, z]`
@@ -628,6 +627,7 @@ struct RawNoise {
     encoder_length: Option<f64>,
     seat: Option<f64>,
     distance: Option<f64>,
+    probe: Option<f64>,
 }
 
 #[derive(Deserialize)]

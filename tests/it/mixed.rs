@@ -302,6 +302,11 @@ fn noise_per_kind_in_the_model_file() {
     );
     let back = ModelFile::load_str(std::path::Path::new("m.toml"), &file.to_toml().unwrap()).unwrap();
     assert_eq!(back.noise, file.noise);
+    // The touch probe's σ too (the file written by `identify --kind-noise probe=…` reads back).
+    let file = ModelFile::load_str(std::path::Path::new("m.toml"), &with("probe = 0.004")).unwrap();
+    assert_eq!(file.noise.unwrap().sigma(RowKind::Probe), 0.004);
+    let back = ModelFile::load_str(std::path::Path::new("m.toml"), &file.to_toml().unwrap()).unwrap();
+    assert_eq!(back.noise, file.noise);
     let e = ModelFile::load_str(std::path::Path::new("m.toml"), &with("distance = 0"))
         .unwrap_err()
         .to_string();

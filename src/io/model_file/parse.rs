@@ -459,6 +459,7 @@ impl Ctx<'_> {
                 for (kind, v) in [
                     (crate::measure::RowKind::Seat, r.seat),
                     (crate::measure::RowKind::Distance, r.distance),
+                    (crate::measure::RowKind::Probe, r.probe),
                 ] {
                     let Some(v) = v else { continue };
                     if !(v.is_finite() && v > 0.0) {
