@@ -712,4 +712,16 @@ fn a_datum_cube_from_the_command_line() {
     (args[5], args[13], args[15]) = ("0.2", "cube2.csv", "truth2.toml");
     let e = fails(dir, &args);
     assert!(e.contains("--cube-edge-mm 0.2: under 1 mm") && e.contains("metres"), "{e}");
+    // Held-out touches of the same prototype: fresh configurations, ids after the first set's.
+    (args[5], args[13], args[15]) = ("200", "cube3.csv", "truth3.toml");
+    args.extend(["--validation-poses", "4", "--validation-out", "held.csv"]);
+    let out = ok(dir, &args);
+    assert!(out.contains("6 cube faces × 4 touches (held out)"), "{out}");
+    assert_eq!(
+        std::fs::read(dir.join("cube3.csv")).unwrap(),
+        std::fs::read(dir.join("cube.csv")).unwrap()
+    );
+    let held = std::fs::read_to_string(dir.join("held.csv")).unwrap();
+    assert_eq!(held.lines().count(), 1 + 24, "{held}");
+    assert!(held.lines().nth(1).unwrap().starts_with("120,"), "{held}");
 }
