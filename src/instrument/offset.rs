@@ -56,32 +56,15 @@ pub(super) fn fit_offset_and_pivots(rows: &[(usize, Pose, f64)], t0: Vector3<f64
         let jtj = j.transpose() * &j;
         let g = j.transpose() * &r;
         let cost = r.norm_squared();
-        let mut improved = false;
-        for _ in 0..20 {
-            let mut m = jtj.clone();
-            for d in 0..n {
-                m[(d, d)] += lambda * jtj[(d, d)].max(1e-12);
-            }
-            // Minimum-norm steps: a direction the lengths do not see (the offset and every
-            // pivot moved alike, on a machine that never turns its tool) stays where it is
-            // instead of drifting with round-off.
-            let svd = m.svd(true, true);
-            let floor = 1e-10 * svd.singular_values.max();
-            let Ok(step) = svd.solve(&(-&g), floor) else {
-                lambda *= 10.0;
-                continue;
-            };
-            let trial = &x + &step;
+        let improved = damped_step(&jtj, &g, &mut lambda, |step| {
+            let trial = &x + step;
             let rt = residual(&trial);
-            if rt.norm_squared() < cost {
-                x = trial;
-                r = rt;
-                lambda = (lambda / 3.0).max(1e-12);
-                improved = true;
-                break;
+            let lower = rt.norm_squared() < cost;
+            if lower {
+                (x, r) = (trial, rt);
             }
-            lambda *= 10.0;
-        }
+            lower
+        });
         if !improved || cost - r.norm_squared() <= 1e-15 * (1.0 + cost) {
             break;
         }
@@ -95,4 +78,28 @@ pub(super) fn fit_offset_and_pivots(rows: &[(usize, Pose, f64)], t0: Vector3<f64
         }
     }
     (Vector3::new(x[0], x[1], x[2]), r.norm_squared())
+}
+
+/// One Levenberg–Marquardt step on the normal equations `(jtj, g)`: the damping `lambda` raised
+/// tenfold until `try_step` accepts the step (it evaluates it and keeps it where it lowers the
+/// cost), then lowered threefold; whether a step was taken. Steps are minimum-norm: a direction
+/// the residuals do not see (the offset and every pivot moved alike, on a machine that never
+/// turns its tool) stays where it is instead of drifting with round-off.
+pub(super) fn damped_step(jtj: &DMatrix<f64>, g: &DVector<f64>, lambda: &mut f64, mut try_step: impl FnMut(&DVector<f64>) -> bool) -> bool {
+    for _ in 0..20 {
+        let mut m = jtj.clone();
+        for d in 0..jtj.nrows() {
+            m[(d, d)] += *lambda * jtj[(d, d)].max(1e-12);
+        }
+        let svd = m.svd(true, true);
+        let floor = 1e-10 * svd.singular_values.max();
+        if let Ok(step) = svd.solve(&(-g), floor) {
+            if try_step(&step) {
+                *lambda = (*lambda / 3.0).max(1e-12);
+                return true;
+            }
+        }
+        *lambda *= 10.0;
+    }
+    false
 }

@@ -361,28 +361,15 @@ fn fit_offset(rows: &[TouchRow], t0: Vector3<f64>, points: &mut [ArtifactPoint])
             );
         }
         let (jtj, g, cost) = (j.transpose() * &j, j.transpose() * &r, r.norm_squared());
-        let mut improved = false;
-        for _ in 0..20 {
-            let mut m = jtj.clone();
-            for d in 0..n {
-                m[(d, d)] += lambda * jtj[(d, d)].max(1e-12);
-            }
-            let svd = m.svd(true, true);
-            let floor = 1e-10 * svd.singular_values.max();
-            let Ok(dx) = svd.solve(&(-&g), floor) else {
-                lambda *= 10.0;
-                continue;
-            };
-            let (tt, pt) = step(&t, &pts, &dx);
+        let improved = super::offset::damped_step(&jtj, &g, &mut lambda, |dx| {
+            let (tt, pt) = step(&t, &pts, dx);
             let rt = touch_residuals(rows, &tt, &pt);
-            if rt.norm_squared() < cost {
+            let lower = rt.norm_squared() < cost;
+            if lower {
                 (t, pts, r) = (tt, pt, rt);
-                lambda = (lambda / 3.0).max(1e-12);
-                improved = true;
-                break;
             }
-            lambda *= 10.0;
-        }
+            lower
+        });
         if !improved || cost - r.norm_squared() <= 1e-15 * (1.0 + cost) {
             break;
         }
