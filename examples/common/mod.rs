@@ -76,13 +76,22 @@ pub fn run(
     whole: &[Vec<f64>],
     near: &[Vec<f64>],
 ) -> Outcome {
-    let opts = CalibrationOptions {
-        noise: Noise {
-            position: noise,
-            ..Noise::default()
-        },
-        ..opts
+    let noise = Noise {
+        position: noise,
+        ..Noise::default()
     };
+    run_with(file, data, CalibrationOptions { noise, ..opts }, truth, whole, near)
+}
+
+/// [`run`] with the noise (per kind) in `opts`.
+pub fn run_with(
+    file: &ModelFile,
+    data: DataSet,
+    opts: CalibrationOptions,
+    truth: &dyn Mechanism,
+    whole: &[Vec<f64>],
+    near: &[Vec<f64>],
+) -> Outcome {
     let cal = calibrate(file, &data, None, &opts).unwrap();
     let status = format!("{:?}", cal.report.verdict.status).to_lowercase();
     let text = cal.model_file.to_toml().unwrap();
