@@ -144,8 +144,9 @@ fn instrument(a: &ValidateArgs, name: &str, model: &dyn kinecal::Mechanism, data
     }
     for p in &h.pivots {
         let zero = p.zero_mm.map(|z| format!(" and its zero {z:.4} mm")).unwrap_or_default();
+        let what = p.kind.name();
         println!(
-            "pivot {}: {} rows, measured − modelled length {:.4} mm RMS, {:.4} mm max (pivot{zero} placed by these rows)",
+            "{what} {}: {} rows, measured − modelled length {:.4} mm RMS, {:.4} mm max ({what}{zero} placed by these rows)",
             p.pivot, p.rows, p.rms_mm, p.max_mm
         );
     }

@@ -28,7 +28,10 @@ pub struct SeatSpread {
 /// One pivot placed by the model's tool points and the measured lengths.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct PivotFit {
-    /// Pivot number.
+    /// A ballbar's pivot, or a reference sphere touched by a probe (a known distance from its
+    /// centre, `D/2 + r`).
+    pub kind: PointKind,
+    /// Pivot (or sphere) number.
     pub pivot: usize,
     /// Rows.
     pub rows: usize,
@@ -122,9 +125,11 @@ pub fn held_out(model: &dyn Mechanism, measurements: &[Measurement], distances: 
                 } else {
                     sphere_centre(rows).map(|c| (c, 0.0))
                 };
-                let (c, zero) = placed.ok_or_else(|| CalibError::InvalidOption(format!("pivot {id}: its rows do not place it")))?;
+                let (c, zero) =
+                    placed.ok_or_else(|| CalibError::InvalidOption(format!("{} {id}: its rows do not place it", kind.name())))?;
                 let e: Vec<f64> = rows.iter().map(|(p, l)| l + zero - (p - c).norm()).collect();
                 out.pivots.push(PivotFit {
+                    kind,
                     pivot: id,
                     rows: rows.len(),
                     rms_mm: (e.iter().map(|x| x * x).sum::<f64>() / e.len() as f64).sqrt(),

@@ -725,3 +725,45 @@ fn a_datum_cube_from_the_command_line() {
     assert_eq!(held.lines().count(), 1 + 24, "{held}");
     assert!(held.lines().nth(1).unwrap().starts_with("120,"), "{held}");
 }
+
+/// Sphere touches from the command line, held out and judged by `validate` in their own terms
+/// (the known distance from each sphere's centre, the sphere placed by the held-out rows).
+#[test]
+fn sphere_touches_are_validated_as_spheres() {
+    use crate::cli::ok;
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let args = [
+        "simulate",
+        "irb120",
+        "--spheres",
+        "300,0,300;350,-150,250",
+        "--sphere-diameter-mm",
+        "25.4",
+        "--probe-radius-mm",
+        "1.5",
+        "--per-point",
+        "30",
+        "--tool-mm",
+        "15,-10,120",
+        "-o",
+        "s.csv",
+        "--truth",
+        "truth.toml",
+        "--validation-poses",
+        "8",
+        "--validation-out",
+        "held.csv",
+    ];
+    ok(dir, &args);
+    ok(dir, &["identify", "irb120", "s.csv", "--out", "cal.toml"]);
+    let out = ok(dir, &["validate", "cal.toml", "held.csv"]);
+    for k in 0..2 {
+        let line = out
+            .lines()
+            .find(|l| l.starts_with(&format!("sphere {k}: 8 rows")))
+            .unwrap_or_else(|| panic!("{out}"));
+        let rms: f64 = line.split("length ").nth(1).unwrap().split(' ').next().unwrap().parse().unwrap();
+        assert!(rms < 1e-6, "{line}");
+    }
+}
