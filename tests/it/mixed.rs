@@ -407,3 +407,71 @@ fn with_noise_distances_and_seats_beside_each_alone() {
         }
     }
 }
+
+/// Touch-probe kinds alone and beside ten tracker points, noise-free: a UR5e from its URDF and
+/// the IRB 120, reference spheres and a datum cube standing in the tracker's frame.
+#[test]
+fn touches_alone_and_beside_tracker_points_recover_a_ur5e_and_an_irb120() {
+    use kinecal::instrument::simulate::{touch_rows, Touched};
+    let ur5e = kinecal::io::urdf::import(&crate::urdf::ur5e_urdf(), Some("base_link_inertia"), Some("tool0")).unwrap();
+    let machines = [
+        (
+            ur5e,
+            [[450.0, -150.0, 100.0], [450.0, 150.0, 100.0], [300.0, 0.0, 300.0]],
+            [400.0, 0.0, 150.0],
+        ),
+        (
+            builtin::model_file("irb120").unwrap(),
+            [[300.0, 0.0, 300.0], [350.0, -150.0, 250.0], [350.0, 150.0, 250.0]],
+            [350.0, 0.0, 250.0],
+        ),
+    ];
+    for (file, spheres, cube) in machines {
+        let nominal = file.build();
+        let (proto, _) = virtual_prototype(
+            &nominal,
+            &file.free_indices().unwrap(),
+            0.5,
+            0.1f64.to_radians(),
+            &mut ChaCha8Rng::seed_from_u64(11),
+        );
+        let tracker = se3::pose_from_parts(Vector3::new(2000.0, -300.0, 150.0), Vector3::new(0.02, -0.03, 2.5));
+        let truth = Framed::new(
+            proto,
+            tracker,
+            se3::pose_from_parts(Vector3::new(15.0, -10.0, 120.0), Vector3::zeros()),
+        );
+        let seen = |p: [f64; 3]| tracker.transform_point(&Vector3::from(p).into()).coords;
+        let spheres: Vec<Touched> = (0..3).map(|k| Touched::sphere(k, seen(spheres[k]), 25.4, 1.5)).collect();
+        let cube_pose = tracker * se3::pose_from_parts(Vector3::from(cube), Vector3::new(0.0, 0.0, 20f64.to_radians()));
+        let cube = Touched::cube(cube_pose, 100.0, 1.5);
+        let inputs = file.inputs();
+        let touched = |artifacts: &[Touched], per: usize, seed: u64| {
+            let candidates =
+                random_configurations(&truth, &inputs, 30 * per * artifacts.len(), &mut ChaCha8Rng::seed_from_u64(seed)).unwrap();
+            touch_rows(&truth, &candidates, artifacts, per, 0.0, seed, &inputs).unwrap()
+        };
+        for (what, rows) in [
+            ("3 spheres × 30", touched(&spheres, 30, 3)),
+            ("a datum cube, 6 faces × 10", touched(&cube, 10, 4)),
+        ] {
+            let name = &file.name;
+            exact(
+                &format!("{name}: {what}"),
+                fit(&file, &truth, rows.clone(), exact_noise(), Vec::new()).unwrap(),
+            );
+            if what.contains("cube") {
+                // Open (issue 31): ten tracker positions beside the cube's touches stop at
+                // σ̂₀ 14.8 on the UR5e (0.65 mm held out, "usable with warnings"), a wrong
+                // minimum, though each alone is exact; docs/instruments.md, "Not done yet".
+                continue;
+            }
+            let mut mixed = tracker_rows(&truth, &file, 10, 0.0);
+            mixed.extend(rows);
+            exact(
+                &format!("{name}: 10 tracker positions + {what}"),
+                fit(&file, &truth, mixed, exact_noise(), Vec::new()).unwrap(),
+            );
+        }
+    }
+}
