@@ -49,7 +49,7 @@ pub(super) fn start(
         crate::instrument::start_points(framed, points.to_vec(), pairs.to_vec(), &data.measurements).map_err(|e| data.locate(e))?;
     let p_inner = FRAME_PARAMS + artifact.inner.inner.n_params();
     let mut free: Vec<usize> = (0..FRAME_PARAMS).collect();
-    free.extend(p_inner..p_inner + 3 * artifact.points.len() + artifact.n_zeros());
+    free.extend(p_inner..p_inner + artifact.n_point_params() + artifact.n_zeros());
     free.extend(inner_free.iter().map(|k| k + FRAME_PARAMS));
     Ok((Box::new(artifact), free, Some(reg)))
 }

@@ -460,12 +460,6 @@ fn touches_alone_and_beside_tracker_points_recover_a_ur5e_and_an_irb120() {
                 &format!("{name}: {what}"),
                 fit(&file, &truth, rows.clone(), exact_noise(), Vec::new()).unwrap(),
             );
-            if what.contains("cube") {
-                // Open (issue 31): ten tracker positions beside the cube's touches stop at
-                // σ̂₀ 14.8 on the UR5e (0.65 mm held out, "usable with warnings"), a wrong
-                // minimum, though each alone is exact; docs/instruments.md, "Not done yet".
-                continue;
-            }
             let mut mixed = tracker_rows(&truth, &file, 10, 0.0);
             mixed.extend(rows);
             exact(
