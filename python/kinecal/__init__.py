@@ -160,6 +160,7 @@ def calibrate(
     reweight: bool = False,
     huber: float = 5.0,
     seat_distances: Sequence[str] = (),
+    kind_noise: Sequence[str] = (),
 ) -> Calibration:
     """Identify the model's free parameters from ``data`` — the call behind ``kinecal identify``,
     with the same options: the measurement and tool frames found from the data (``frames=
@@ -168,7 +169,9 @@ def calibrate(
     0.02 mm / 0.02°; ``encoder_noise_deg`` / ``encoder_noise_mm`` for the readings of observed
     joints, ``Model.observed``: default 0.01° / 0.01 mm), Huber loss (``huber`` robust σ, 0 = plain least squares), ``reflectors=
     "points"`` to fit three reflector centres; for seat data (a ``seat`` column), known distances
-    between seats as ``"A:B:MM"`` strings (``seat_distances``, docs/instruments.md)."""
+    between seats as ``"A:B:MM"`` strings (``seat_distances``, docs/instruments.md); each
+    instrument kind's own noise as ``"KIND=MM"`` strings (``kind_noise``, e.g. ``"probe=0.005"``,
+    ``"seat=0.01"``, ``"distance=0.001"``; a kind without its own takes ``noise_mm``)."""
     return Calibration(
         _kinecal.calibrate(
             model,
@@ -186,6 +189,7 @@ def calibrate(
             reweight=reweight,
             huber=huber,
             seat_distances=list(seat_distances),
+            kind_noise=list(kind_noise),
         )
     )
 

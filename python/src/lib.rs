@@ -430,7 +430,7 @@ fn method_of(name: &str) -> PyResult<Method> {
 /// Identify the model's free parameters from `data` (optionally validated on `validation`): the
 /// library call behind `kinecal identify`, with the same options and defaults.
 #[pyfunction]
-#[pyo3(signature = (model, data, validation = None, *, noise_mm = None, noise_deg = None, encoder_noise_deg = None, encoder_noise_mm = None, method = "gauss-newton", frames = "estimate", reflectors = "frame", starts = 3, seed = 1, reweight = false, huber = 5.0, seat_distances = Vec::new()))]
+#[pyo3(signature = (model, data, validation = None, *, noise_mm = None, noise_deg = None, encoder_noise_deg = None, encoder_noise_mm = None, method = "gauss-newton", frames = "estimate", reflectors = "frame", starts = 3, seed = 1, reweight = false, huber = 5.0, seat_distances = Vec::new(), kind_noise = Vec::new()))]
 #[allow(clippy::too_many_arguments)]
 fn calibrate(
     py: Python<'_>,
@@ -449,14 +449,20 @@ fn calibrate(
     reweight: bool,
     huber: f64,
     seat_distances: Vec<String>,
+    kind_noise: Vec<String>,
 ) -> PyResult<Calibration> {
     let base = model.file.noise.unwrap_or_default();
+    // Each kind's own σ, `KIND=MM` as `kinecal identify --kind-noise` takes it.
+    let mut kinds = base.kinds;
+    for k in &kind_noise {
+        kinds.set_from(k).map_err(|e| err(format!("kind_noise: {e}")))?;
+    }
     let noise = Noise {
         position: noise_mm.unwrap_or(base.position),
         orientation: noise_deg.map_or(base.orientation, f64::to_radians),
         joint_angle: encoder_noise_deg.map_or(base.joint_angle, f64::to_radians),
         joint_length: encoder_noise_mm.unwrap_or(base.joint_length),
-        kinds: base.kinds,
+        kinds,
     };
     if !(noise.position > 0.0 && noise.orientation > 0.0 && noise.position.is_finite() && noise.orientation.is_finite()) {
         return Err(err("noise_mm / noise_deg: must be finite and > 0"));

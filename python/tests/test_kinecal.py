@@ -61,6 +61,17 @@ def test_noise_free_calibration_recovers_the_prototype():
     assert "mx" in names and all(set(p) >= {"value", "std_dev", "unit", "status"} for p in cal.parameters)
 
 
+def test_kind_noise_is_stated_per_kind_and_checked():
+    m = kinecal.Model.load("irb120")
+    _, data = kinecal.simulate(m, 40, seed=5)
+    cal = kinecal.calibrate(m, data, kind_noise=["probe=0.005", "seat=0.01"], starts=1)
+    assert "probe = 0.005" in cal.model.to_toml() and "seat = 0.01" in cal.model.to_toml()
+    with pytest.raises(ValueError, match="KIND=MM"):
+        kinecal.calibrate(m, data, kind_noise=["touch=1"])
+    with pytest.raises(ValueError, match="> 0"):
+        kinecal.calibrate(m, data, kind_noise=["probe=0"])
+
+
 def test_noisy_calibration_validates_at_noise_level():
     m = kinecal.Model.load("irb120")
     truth, data = kinecal.simulate(m, 60, seed=7, noise_mm=0.02, noise_deg=0.01)
