@@ -150,5 +150,11 @@ fn instrument(a: &ValidateArgs, name: &str, model: &dyn kinecal::Mechanism, data
             p.pivot, p.rows, p.rms_mm, p.max_mm
         );
     }
+    for p in &h.planes {
+        println!(
+            "plane {}: {} rows, probe centres from their best plane {:.4} mm RMS, {:.4} mm max (0 if the model were exact)",
+            p.plane, p.rows, p.rms_mm, p.max_mm
+        );
+    }
     Ok(())
 }

@@ -45,6 +45,21 @@ pub struct PivotFit {
     pub zero_mm: Option<f64>,
 }
 
+/// One unknown plane's touches under a model: the probe-ball centres' distances from the plane
+/// that fits them best (0 if the model were exact: the centres lie on a plane `r` above the
+/// touched one).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PlaneFlatness {
+    /// Plane number.
+    pub plane: usize,
+    /// Rows (touches).
+    pub rows: usize,
+    /// RMS distance from the best plane (mm).
+    pub rms_mm: f64,
+    /// Largest distance from the best plane (mm).
+    pub max_mm: f64,
+}
+
 /// What [`held_out`] found.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct HeldOut {
@@ -52,8 +67,10 @@ pub struct HeldOut {
     pub seats: Vec<SeatSpread>,
     /// Each known distance between seats: `(a, b, known, modelled − known)` (mm).
     pub distances: Vec<(usize, usize, f64, f64)>,
-    /// Every pivot, by number.
+    /// Every pivot (and reference sphere), by number.
     pub pivots: Vec<PivotFit>,
+    /// Every unknown plane touched, by number.
+    pub planes: Vec<PlaneFlatness>,
 }
 
 impl HeldOut {
@@ -99,6 +116,7 @@ pub fn held_out(model: &dyn Mechanism, measurements: &[Measurement], distances: 
         seats: Vec::new(),
         distances: Vec::new(),
         pivots: Vec::new(),
+        planes: Vec::new(),
     };
     for (&(kind, id), rows) in &groups {
         match kind {
@@ -113,9 +131,22 @@ pub fn held_out(model: &dyn Mechanism, measurements: &[Measurement], distances: 
                     max_mm,
                 });
             }
-            PointKind::Plane | PointKind::Cube => {
+            PointKind::Plane => {
+                let points: Vec<Vector3<f64>> = rows.iter().map(|r| r.0).collect();
+                let (mean, n) = super::touch::fit_plane(&points).ok_or_else(|| {
+                    CalibError::InvalidOption(format!("plane {id}: its touches lie on a line; they do not place a plane"))
+                })?;
+                let d: Vec<f64> = points.iter().map(|p| (p - mean).dot(&n)).collect();
+                out.planes.push(PlaneFlatness {
+                    plane: id,
+                    rows: rows.len(),
+                    rms_mm: (d.iter().map(|x| x * x).sum::<f64>() / d.len() as f64).sqrt(),
+                    max_mm: d.iter().map(|x| x.abs()).fold(0.0, f64::max),
+                });
+            }
+            PointKind::Cube => {
                 return Err(CalibError::InvalidOption(format!(
-                    "{} {id}: plane and cube touches are not judged here; judge them by identify's residuals (a validation set)",
+                    "{} {id}: datum-cube touches are not judged here; judge them by identify's residuals (a validation set)",
                     kind.name()
                 )))
             }

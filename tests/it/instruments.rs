@@ -767,3 +767,52 @@ fn sphere_touches_are_validated_as_spheres() {
         assert!(rms < 1e-6, "{line}");
     }
 }
+
+/// Plane touches held out and judged by `validate`: the calibrated model's probe centres lie on
+/// a plane (their flatness), the nominal model's do not.
+#[test]
+fn plane_touches_are_validated_by_their_flatness() {
+    use crate::cli::ok;
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let args = [
+        "simulate",
+        "irb120",
+        "--planes",
+        "300,0,300;300,0,300;300,0,300",
+        "--plane-normals",
+        "1,0,0.3;0,1,0.3;0.3,-0.2,1",
+        "--probe-radius-mm",
+        "1.5",
+        "--per-point",
+        "40",
+        "--tool-mm",
+        "15,-10,120",
+        "-o",
+        "p.csv",
+        "--truth",
+        "truth.toml",
+        "--validation-poses",
+        "8",
+        "--validation-out",
+        "held.csv",
+    ];
+    ok(dir, &args);
+    ok(dir, &["identify", "irb120", "p.csv", "--out", "cal.toml"]);
+    let flatness = |model: &str| -> Vec<f64> {
+        let out = ok(dir, &["validate", model, "held.csv"]);
+        (0..3)
+            .map(|k| {
+                let line = out
+                    .lines()
+                    .find(|l| l.starts_with(&format!("plane {k}: 8 rows")))
+                    .unwrap_or_else(|| panic!("{out}"));
+                line.split("plane ").nth(2).unwrap().split(' ').next().unwrap().parse().unwrap()
+            })
+            .collect()
+    };
+    let (cal, nominal) = (flatness("cal.toml"), flatness("irb120"));
+    eprintln!("plane flatness (mm RMS), calibrated {cal:?}, nominal {nominal:?}");
+    assert!(cal.iter().all(|f| *f < 1e-6), "{cal:?}");
+    assert!(nominal.iter().all(|f| *f > 1e-3), "{nominal:?}");
+}
