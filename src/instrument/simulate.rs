@@ -227,13 +227,15 @@ fn approached(truth: &dyn Mechanism, goal: &Pose, mut q: Vec<f64>, previous: Opt
     (directions(&q) == wanted && wanted.iter().all(|&(k, d)| q[k] == d)).then_some(q)
 }
 
-/// Inputs near `q` where `residual` (of the tool pose) vanishes: Gauss–Newton over the inputs,
-/// minimum-norm steps (singular values below 1e-9 dropped), the Jacobian by central
-/// differences; at most `iterations` steps, done when `converged` holds. `None` when the
-/// forward kinematics fails on the way or it does not get there.
+/// Inputs near `q` where `residual` (of the tool pose) vanishes: Gauss–Newton over the inputs
+/// (those `fixed` marks kept as they are, e.g. approach directions), minimum-norm steps
+/// (singular values below 1e-9 dropped), the Jacobian by central differences; at most
+/// `iterations` steps, done when `converged` holds. `None` when the forward kinematics fails on
+/// the way or it does not get there.
 fn onto(
     truth: &dyn Mechanism,
     q: &[f64],
+    fixed: &[bool],
     iterations: usize,
     residual: impl Fn(&Pose) -> nalgebra::DVector<f64>,
     converged: impl Fn(&nalgebra::DVector<f64>) -> bool,
@@ -247,7 +249,7 @@ fn onto(
         }
         let h = 1e-6;
         let mut j = nalgebra::DMatrix::zeros(r.len(), q.len());
-        for k in 0..q.len() {
+        for k in (0..q.len()).filter(|&k| !fixed.get(k).copied().unwrap_or(false)) {
             let (mut up, mut down) = (q.clone(), q.clone());
             up[k] += h;
             down[k] -= h;
@@ -264,14 +266,14 @@ fn onto(
 /// Inputs near `q` whose tool point is at `point` ([`onto`]).
 fn onto_point(truth: &dyn Mechanism, q: &[f64], point: &Vector3<f64>) -> Option<Vec<f64>> {
     let residual = |p: &Pose| nalgebra::DVector::from_column_slice((p.translation.vector - point).as_slice());
-    onto(truth, q, 50, residual, |r| r.norm() < 1e-11).map(|(q, _)| q)
+    onto(truth, q, &[], 50, residual, |r| r.norm() < 1e-11).map(|(q, _)| q)
 }
 
 /// Inputs near `q` whose tool point lies at `length` from `pivot` ([`onto`]), within the limits
 /// of `inputs`, and the pose there.
 fn onto_length(truth: &dyn Mechanism, q: &[f64], pivot: &Vector3<f64>, length: f64, inputs: &[InputSpec]) -> Option<(Vec<f64>, Pose)> {
     let residual = |p: &Pose| nalgebra::DVector::from_element(1, (p.translation.vector - pivot).norm() - length);
-    let (q, pose) = onto(truth, q, 30, residual, |r| r[0].abs() < 1e-11 * length)?;
+    let (q, pose) = onto(truth, q, &[], 30, residual, |r| r[0].abs() < 1e-11 * length)?;
     within_limits(q, inputs).map(|q| (q, pose))
 }
 

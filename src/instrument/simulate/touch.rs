@@ -103,7 +103,7 @@ pub fn touch_rows(
             }
             let e = noise.sample(&mut rng);
             let residual = |t: &Pose| DVector::from_element(1, off(&t.translation.vector) + e);
-            let Some(q) = onto_surface(truth, &candidates[i], &fixed, residual) else {
+            let Some((q, _)) = super::onto(truth, &candidates[i], &fixed, 30, residual, |r| r[0].abs() < 1e-10) else {
                 continue;
             };
             let Some(q) = within_limits(q, inputs) else { continue };
@@ -126,33 +126,4 @@ pub fn touch_rows(
         }
     }
     Ok(out)
-}
-
-/// Inputs near `q` (those of `fixed` kept) where the one residual vanishes: Gauss–Newton, the
-/// minimum-norm step, the Jacobian by central differences; `None` when it does not get there.
-fn onto_surface(truth: &dyn Mechanism, q: &[f64], fixed: &[bool], residual: impl Fn(&Pose) -> DVector<f64>) -> Option<Vec<f64>> {
-    let at = |q: &[f64]| truth.forward(q).ok().map(|p| residual(&p)[0]);
-    let mut q = q.to_vec();
-    for _ in 0..30 {
-        let r = at(&q)?;
-        if r.abs() < 1e-10 {
-            return Some(q);
-        }
-        let h = 1e-6;
-        let mut g = vec![0.0; q.len()];
-        for k in (0..q.len()).filter(|&k| !fixed.get(k).copied().unwrap_or(false)) {
-            let (mut up, mut down) = (q.clone(), q.clone());
-            up[k] += h;
-            down[k] -= h;
-            g[k] = (at(&up)? - at(&down)?) / (2.0 * h);
-        }
-        let n2: f64 = g.iter().map(|x| x * x).sum();
-        if n2 < 1e-24 {
-            return None;
-        }
-        for (v, d) in q.iter_mut().zip(&g) {
-            *v -= r * d / n2;
-        }
-    }
-    None
 }
