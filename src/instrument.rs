@@ -299,11 +299,7 @@ pub fn start_points<M: Mechanism + Clone + 'static>(
             let length = |(k, _, l): &(usize, Pose, f64)| points[*k].zero.map_or(*l, |z| l - z.reference + z.value);
             let bar = rows.iter().map(length).sum::<f64>() / rows.len().max(1) as f64;
             let mut best: Option<(Vector3<f64>, f64, Vec<ArtifactPoint>)> = None;
-            for t0 in std::iter::once(Vector3::zeros()).chain((0..6).map(|k| {
-                let mut v = Vector3::zeros();
-                v[k / 2] = if k % 2 == 0 { bar } else { -bar };
-                v
-            })) {
+            for t0 in std::iter::once(Vector3::zeros()).chain(offset::along_each_axis(bar)) {
                 let mut candidate = points.clone();
                 if let Some((t, cost)) = offset_and_pivots(&rows, t0, &pivots, &mut candidate) {
                     // Another start replaces the first (the flange origin) only at a clearly

@@ -103,3 +103,13 @@ pub(super) fn damped_step(jtj: &DMatrix<f64>, g: &DVector<f64>, lambda: &mut f64
     }
     false
 }
+
+/// The six points at `length` along each axis, either way (`+x, −x, +y, −y, +z, −z`): where the
+/// tool-point offset fits are started besides the flange origin.
+pub(super) fn along_each_axis(length: f64) -> [Vector3<f64>; 6] {
+    std::array::from_fn(|k| {
+        let mut v = Vector3::zeros();
+        v[k / 2] = if k % 2 == 0 { length } else { -length };
+        v
+    })
+}

@@ -64,11 +64,14 @@ pub fn check(measurements: &[Measurement]) -> Result<(), CalibError> {
         };
         let (kind, id) = t.artifact();
         if !(size.is_finite() && size >= MIN_ARTIFACT_MM) {
+            let column = if kind == PointKind::Sphere {
+                "sphere_diameter"
+            } else {
+                "cube_edge"
+            };
             return bad(format!(
-                "{} {id}: {what} {size} mm is not a plausible size in mm (under {MIN_ARTIFACT_MM} mm): is it in metres? give it in mm ({}_mm), or in metres as {}_m",
+                "{} {id}: {what} {size} mm is not a plausible size in mm (under {MIN_ARTIFACT_MM} mm): is it in metres? give it in mm ({column}_mm), or in metres as {column}_m",
                 kind.name(),
-                if kind == PointKind::Sphere { "sphere_diameter" } else { "cube_edge" },
-                if kind == PointKind::Sphere { "sphere_diameter" } else { "cube_edge" },
             ));
         }
         if let Some(&other) = sizes.get(&(kind, id)) {
@@ -104,23 +107,32 @@ pub fn min_rows(kind: PointKind) -> usize {
 /// Point `point` moved by `delta` (its parameters' step): a centre by `δ`; a frame `P` by
 /// `P·exp(ξ)`, `ξ` the local twist whose components [`PointKind::twist_rows`] names.
 pub(super) fn retract_point(point: &mut ArtifactPoint, delta: &DVectorView<f64>) {
-    let Some(rotation) = point.rotation else {
+    if point.rotation.is_none() {
         point.centre += Vector3::new(delta[0], delta[1], delta[2]);
         return;
-    };
+    }
     let mut xi = se3::Twist::zeros();
     for (i, &row) in point.kind.twist_rows().iter().enumerate() {
         xi[row] = delta[i];
     }
-    let moved = Pose::from_parts(Translation3::from(point.centre), rotation) * se3::exp(&xi);
+    let moved = point.frame() * se3::exp(&xi);
     (point.centre, point.rotation) = (moved.translation.vector, Some(moved.rotation));
 }
 
+impl ArtifactPoint {
+    /// Its frame: its centre, turned by its rotation (planes, the cube).
+    pub fn frame(&self) -> Pose {
+        Pose::from_parts(
+            Translation3::from(self.centre),
+            self.rotation.unwrap_or_else(UnitQuaternion::identity),
+        )
+    }
+}
+
 impl<M> Artifact<M> {
-    /// Point `k`'s frame: its centre, turned by its rotation (planes, the cube).
+    /// Point `k`'s frame ([`ArtifactPoint::frame`]).
     pub(super) fn frame(&self, k: usize) -> Pose {
-        let p = &self.points[k];
-        Pose::from_parts(Translation3::from(p.centre), p.rotation.unwrap_or_else(UnitQuaternion::identity))
+        self.points[k].frame()
     }
 
     /// How many parameters the points have (three each, six for a cube).
@@ -290,14 +302,7 @@ const OFFSET_STARTS_MM: [f64; 2] = [100.0, 200.0];
 /// clearly lower cost (a machine that never turns its tool cannot tell the offset from the
 /// artifacts). Returns `t` and moves the points; an error when no start can place them.
 pub(super) fn offset_and_touched(rows: &[TouchRow], points: &mut [ArtifactPoint]) -> Result<Vector3<f64>, CalibError> {
-    let mut starts = vec![Vector3::zeros()];
-    for l in OFFSET_STARTS_MM {
-        for k in 0..6 {
-            let mut v = Vector3::zeros();
-            v[k / 2] = if k % 2 == 0 { l } else { -l };
-            starts.push(v);
-        }
-    }
+    let starts = std::iter::once(Vector3::zeros()).chain(OFFSET_STARTS_MM.into_iter().flat_map(super::offset::along_each_axis));
     let mut best: Option<(Vector3<f64>, f64, Vec<ArtifactPoint>)> = None;
     let mut first_error = None;
     for t0 in starts {
@@ -322,10 +327,8 @@ fn touch_residuals(rows: &[TouchRow], t: &Vector3<f64>, points: &[ArtifactPoint]
     DVector::from_iterator(
         rows.len(),
         rows.iter().map(|(k, pose, _, obs)| {
-            let p = &points[*k];
-            let frame = Pose::from_parts(Translation3::from(p.centre), p.rotation.unwrap_or_else(UnitQuaternion::identity));
             let tip = pose.translation.vector + pose.rotation * t;
-            touch_of(obs).residual(&frame.inverse_transform_point(&tip.into()).coords)
+            touch_of(obs).residual(&points[*k].frame().inverse_transform_point(&tip.into()).coords)
         }),
     )
 }
