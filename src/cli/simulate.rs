@@ -375,6 +375,37 @@ fn test_run(
     Ok(())
 }
 
+/// The instrument rows `draw(k, per)` makes (`k` 0: `--out`, `--per-point` per artifact; 1:
+/// `--validation-out`, `--validation-poses` per artifact, `per_what` naming that count) staged
+/// in `outputs`, the ids running on from one file to the next; what each file holds.
+fn stage_sets(
+    a: &SimulateArgs,
+    file: &ModelFile,
+    outputs: &mut Outputs,
+    per_what: &str,
+    mut draw: impl FnMut(usize, usize) -> anyhow::Result<Vec<kinecal::measure::Measurement>>,
+) -> anyhow::Result<Vec<Written>> {
+    let mut sets = vec![(a.out.clone(), a.per_point)];
+    if let Some(v) = &a.validation_out {
+        anyhow::ensure!(
+            a.validation_poses > 0,
+            "--validation-out needs --validation-poses N (N ≥ 1 {per_what})"
+        );
+        sets.push((v.clone(), a.validation_poses));
+    }
+    let mut written = Vec::new();
+    let mut first_id = 0i64;
+    for (k, (path, per)) in sets.into_iter().enumerate() {
+        let rows = draw(k, per)?;
+        let ids: Vec<i64> = (first_id..first_id + rows.len() as i64).collect();
+        first_id += rows.len() as i64;
+        let data = data_text(&path, &file.data_columns(), &ids, &rows, None)?;
+        outputs.stage(&path, data.as_bytes())?;
+        written.push(Written { path, poses: rows.len() });
+    }
+    Ok(written)
+}
+
 /// `--seats` or `--pivots`: instrument rows of `truth` to `--out` (and `--validation-out`).
 fn instrument_run(
     a: &SimulateArgs,
@@ -439,27 +470,10 @@ fn instrument_run(
             e => anyhow::anyhow!("{option}: {e}"),
         })
     };
-    let mut sets = vec![(a.out.clone(), a.per_point)];
-    if let Some(v) = &a.validation_out {
-        anyhow::ensure!(
-            a.validation_poses > 0,
-            "--validation-out needs --validation-poses N (N ≥ 1 rows per point)"
-        );
-        sets.push((v.clone(), a.validation_poses));
-    }
-    let mut written = Vec::new();
-    let mut first_id = 0i64;
-    for (k, (path, per_point)) in sets.into_iter().enumerate() {
-        let rows = match &a.at {
-            Some(at) if k == 0 => planned(at, file, truth, &points, a.seats.is_some(), a.noise_mm, rng.random())?,
-            _ => draw(&how(per_point, rng.random()))?,
-        };
-        let ids: Vec<i64> = (first_id..first_id + rows.len() as i64).collect();
-        first_id += rows.len() as i64;
-        let data = data_text(&path, &file.data_columns(), &ids, &rows, None)?;
-        outputs.stage(&path, data.as_bytes())?;
-        written.push(Written { path, poses: rows.len() });
-    }
+    let written = stage_sets(a, file, &mut outputs, "rows per point", |k, per_point| match &a.at {
+        Some(at) if k == 0 => planned(at, file, truth, &points, a.seats.is_some(), a.noise_mm, rng.random()),
+        _ => draw(&how(per_point, rng.random())),
+    })?;
     outputs.commit()?;
     let kind = if a.seats.is_some() { "seat" } else { "pivot" };
     let distances: Vec<String> = if a.seats.is_some() {
@@ -620,26 +634,14 @@ fn touch_run(
         )
     };
     let inputs = file.inputs();
-    // `per` touches of each artifact at the random configurations nearest it, ids from `first`.
-    let mut touched = |per: usize, first: i64, path: &std::path::Path| -> anyhow::Result<String> {
+    // `per` touches of each artifact at the random configurations nearest it.
+    stage_sets(a, file, &mut outputs, "touches per artifact", |_, per| {
         let candidates = kinecal::simulate::random_configurations(truth, &inputs, 30 * per * artifacts.len(), rng)?;
-        let rows = touch_rows(truth, &candidates, &artifacts, per, a.noise_mm, rng.random(), &inputs).map_err(|e| match e {
+        touch_rows(truth, &candidates, &artifacts, per, a.noise_mm, rng.random(), &inputs).map_err(|e| match e {
             CalibError::Kinematics { source, .. } => anyhow::anyhow!("{source}"),
             e => anyhow::anyhow!("{e}"),
-        })?;
-        let ids: Vec<i64> = (first..first + rows.len() as i64).collect();
-        Ok(data_text(path, &file.data_columns(), &ids, &rows, None)?)
-    };
-    let data = touched(a.per_point, 0, &a.out)?;
-    outputs.stage(&a.out, data.as_bytes())?;
-    if let Some(v) = &a.validation_out {
-        anyhow::ensure!(
-            a.validation_poses > 0,
-            "--validation-out needs --validation-poses N (N ≥ 1 touches per artifact)"
-        );
-        let held = touched(a.validation_poses, (a.per_point * artifacts.len()) as i64, v)?;
-        outputs.stage(v, held.as_bytes())?;
-    }
+        })
+    })?;
     outputs.commit()?;
     println!(
         "virtual prototype of {}: ±{} mm / ±{} deg errors (seed {}) → {}",
