@@ -17,18 +17,13 @@
 //! ```
 mod common;
 
-use common::{data_set, near_reference, print_progress, print_table, run, seats_near_reference, tracker_run, Outcome};
+use common::{data_set, near_reference, print_progress, print_table, prototype, run, tracker_run, Outcome, Prototype};
 use kinecal::calibrate::CalibrationOptions;
 use kinecal::instrument::simulate::{distance_rows, seat_distances, seat_rows};
 use kinecal::io::builtin;
 use kinecal::io::data_file::MeasurementFormat;
 use kinecal::io::model_file::ModelFile;
-use kinecal::model::framed::Framed;
-use kinecal::se3::Pose;
-use kinecal::simulate::{random_configurations, virtual_prototype};
 use nalgebra::Vector3;
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 
 /// Rows per calibration, every kind.
 const ROWS: usize = 120;
@@ -38,8 +33,7 @@ const RANGE: f64 = 0.8;
 fn main() {
     let draws: u64 = std::env::args().nth(1).and_then(|a| a.parse().ok()).unwrap_or(5);
     let file: ModelFile = builtin::model_file("irb120").unwrap();
-    let nominal = file.build();
-    let free = file.free_indices().unwrap();
+    let _nominal = file.build();
     let inputs = file.inputs();
     let ball = common::ball();
     let names = [
@@ -50,19 +44,17 @@ fn main() {
     ];
     let mut table: Vec<Vec<Outcome>> = vec![Vec::new(); names.len()];
     for seed in 1..=draws {
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let (proto, _) = virtual_prototype(&nominal, &free, 0.5, 0.1f64.to_radians(), &mut rng);
-        let truth = Framed::new(proto.clone(), Pose::identity(), ball);
-        let how = |per_point: usize, noise_mm: f64, seed: u64| near_reference(per_point, noise_mm, seed, &inputs);
         // Seats where the true ball stands near the reference; pivots 100 mm below three of them.
-        let seats = seats_near_reference(&truth);
+        let Prototype {
+            proto,
+            truth,
+            seats,
+            whole,
+            near,
+            mut rng,
+        } = prototype(&file, seed, None);
+        let how = |per_point: usize, noise_mm: f64, seed: u64| near_reference(per_point, noise_mm, seed, &inputs);
         let pivots: Vec<Vector3<f64>> = seats[..3].iter().map(|c| c - Vector3::new(0.0, 0.0, 100.0)).collect();
-        let whole = random_configurations(&*nominal, &inputs, 30, &mut rng).unwrap();
-        let near: Vec<Vec<f64>> = seat_rows(&truth, &seats, &how(10, 0.0, 1000 + seed))
-            .unwrap()
-            .into_iter()
-            .map(|m| m.q)
-            .collect();
         let seat_data = data_set(
             seat_rows(&truth, &seats, &how(ROWS / 4, 0.01, seed)).unwrap(),
             MeasurementFormat::Seat,

@@ -17,7 +17,9 @@
 //! ```
 mod common;
 
-use common::{data_set, near_reference, print_progress, print_table, run, seats_near_reference, tracker_run, Outcome};
+use common::{
+    data_set, near_reference, print_progress, print_table, prototype, run, seats_near_reference, tracker_run, Outcome, Prototype,
+};
 use kinecal::calibrate::CalibrationOptions;
 use kinecal::design::{instrument_blocks, plan_instrument, Criterion, InstrumentLayout, InstrumentPlanOptions, ObservabilityIndices};
 use kinecal::design::{SelectOptions, SelectionMethod};
@@ -28,9 +30,6 @@ use kinecal::io::data_file::MeasurementFormat;
 use kinecal::io::model_file::ModelFile;
 use kinecal::model::framed::Framed;
 use kinecal::se3::Pose;
-use kinecal::simulate::{random_configurations, virtual_prototype};
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 
 fn main() {
     let arg = |k: usize| std::env::args().nth(k);
@@ -39,7 +38,6 @@ fn main() {
     let criterion: Criterion = arg(3).and_then(|a| a.parse().ok()).unwrap_or(Criterion::DOptimal);
     let file: ModelFile = builtin::model_file("irb120").unwrap();
     let nominal = file.build();
-    let free = file.free_indices().unwrap();
     let inputs = file.inputs();
     let ball = common::ball();
     let how = |per_point: usize, noise_mm: f64, seed: u64| near_reference(per_point, noise_mm, seed, &inputs);
@@ -79,15 +77,14 @@ fn main() {
     ];
     let mut table: Vec<Vec<Outcome>> = vec![Vec::new(); 3];
     for seed in 1..=draws {
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let (proto, _) = virtual_prototype(&nominal, &free, 0.5, 0.1f64.to_radians(), &mut rng);
-        let truth = Framed::new(proto.clone(), Pose::identity(), ball);
-        let whole = random_configurations(&*nominal, &inputs, 30, &mut rng).unwrap();
-        let near: Vec<Vec<f64>> = seat_rows(&truth, &seats, &how(10, 0.0, 1000 + seed))
-            .unwrap()
-            .into_iter()
-            .map(|m| m.q)
-            .collect();
+        let Prototype {
+            proto,
+            truth,
+            whole,
+            near,
+            mut rng,
+            ..
+        } = prototype(&file, seed, Some(&seats));
         let seat_opts = || CalibrationOptions {
             seat_distances: seat_distances(&seats),
             ..CalibrationOptions::default()

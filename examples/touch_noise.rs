@@ -18,21 +18,19 @@
 //! ```
 mod common;
 
-use common::{
-    data_set, near_reference, print_progress, print_table, run_with, seats_near_reference, tracker, tracker_rows, tracker_run, Outcome,
-};
+use common::{data_set, print_progress, print_table, prototype, run_with, tracker, tracker_rows, tracker_run, Outcome, Prototype};
 use kinecal::calibrate::CalibrationOptions;
-use kinecal::instrument::simulate::{seat_rows, touch_rows, Touched};
+use kinecal::instrument::simulate::{touch_rows, Touched};
 use kinecal::io::builtin;
 use kinecal::io::data_file::MeasurementFormat;
 use kinecal::io::model_file::ModelFile;
 use kinecal::measure::{KindNoise, Measurement, Noise};
 use kinecal::model::framed::Framed;
-use kinecal::se3::{self, Pose};
-use kinecal::simulate::{random_configurations, virtual_prototype};
+use kinecal::se3::{self};
+use kinecal::simulate::random_configurations;
 use kinecal::Mechanism;
 use nalgebra::Vector3;
-use rand::{RngExt, SeedableRng};
+use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
 
 /// Touch rows per calibration.
@@ -54,7 +52,6 @@ fn main() {
     let draws: u64 = std::env::args().nth(1).and_then(|a| a.parse().ok()).unwrap_or(5);
     let file: ModelFile = builtin::model_file("irb120").unwrap();
     let nominal = file.build();
-    let free = file.free_indices().unwrap();
     let inputs = file.inputs();
     let ball = common::ball();
     let noise = Noise {
@@ -80,16 +77,14 @@ fn main() {
     ];
     let mut table: Vec<Vec<Outcome>> = vec![Vec::new(); names.len()];
     for seed in 1..=draws {
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let (proto, _) = virtual_prototype(&nominal, &free, 0.5, 0.1f64.to_radians(), &mut rng);
-        let truth = Framed::new(proto.clone(), Pose::identity(), ball);
-        let seats = seats_near_reference(&truth);
-        let whole = random_configurations(&*nominal, &inputs, 30, &mut rng).unwrap();
-        let near: Vec<Vec<f64>> = seat_rows(&truth, &seats, &near_reference(10, 0.0, 1000 + seed, &inputs))
-            .unwrap()
-            .into_iter()
-            .map(|m| m.q)
-            .collect();
+        let Prototype {
+            proto,
+            truth,
+            whole,
+            near,
+            mut rng,
+            ..
+        } = prototype(&file, seed, None);
         // Three spheres in front of the robot, within its reach from many directions.
         let centres = [
             Vector3::new(300.0, 0.0, 300.0),

@@ -206,3 +206,45 @@ pub fn near_reference(per_point: usize, noise_mm: f64, seed: u64, inputs: &[Inpu
         inputs: inputs.to_vec(),
     }
 }
+
+/// One IRB 120 prototype of the instrument examples and where it is judged ([`prototype`]).
+pub struct Prototype {
+    /// The prototype (errors ±0.5 mm / ±0.1° on the model file's free parameters).
+    pub proto: Box<dyn Mechanism>,
+    /// It with its [`ball`], in its own base frame.
+    pub truth: kinecal::model::framed::Framed<Box<dyn Mechanism>>,
+    /// The seats it is judged near.
+    pub seats: Vec<Vector3<f64>>,
+    /// 30 random configurations over the whole workspace.
+    pub whole: Vec<Vec<f64>>,
+    /// 40 configurations near the seats (10 new orientations at each).
+    pub near: Vec<Vec<f64>>,
+    /// The random draws, after those above.
+    pub rng: ChaCha8Rng,
+}
+
+/// Prototype `seed` of `file`, judged near `seats` (the true ball's [`seats_near_reference`]
+/// when `None`).
+pub fn prototype(file: &ModelFile, seed: u64, seats: Option<&[Vector3<f64>]>) -> Prototype {
+    use rand::SeedableRng;
+    let nominal = file.build();
+    let inputs = file.inputs();
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let (proto, _) = kinecal::simulate::virtual_prototype(&nominal, &file.free_indices().unwrap(), 0.5, 0.1f64.to_radians(), &mut rng);
+    let truth = kinecal::model::framed::Framed::new(proto.clone(), Pose::identity(), ball());
+    let seats = seats.map_or_else(|| seats_near_reference(&truth), <[_]>::to_vec);
+    let whole = random_configurations(&*nominal, &inputs, 30, &mut rng).unwrap();
+    let near = kinecal::instrument::simulate::seat_rows(&truth, &seats, &near_reference(10, 0.0, 1000 + seed, &inputs))
+        .unwrap()
+        .into_iter()
+        .map(|m| m.q)
+        .collect();
+    Prototype {
+        proto,
+        truth,
+        seats,
+        whole,
+        near,
+        rng,
+    }
+}
