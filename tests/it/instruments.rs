@@ -726,92 +726,75 @@ fn a_datum_cube_from_the_command_line() {
     assert!(held.lines().nth(1).unwrap().starts_with("120,"), "{held}");
 }
 
-/// Sphere touches from the command line, held out and judged by `validate` in their own terms
-/// (the known distance from each sphere's centre, the sphere placed by the held-out rows).
-#[test]
-fn sphere_touches_are_validated_as_spheres() {
+/// Touches on the IRB 120 from the command line (`artifact`: the artifact's options, `per_point`
+/// touches of each), 8 of each held out, the model identified from the others; then for each of
+/// `models` (`cal.toml`, or the nominal), `validate`'s figure after `after` on the lines
+/// `what k: 8 rows` of the first `n` artifacts.
+fn validated_touches(artifact: &[&str], per_point: &str, what: &str, after: &str, n: usize, models: &[&str]) -> Vec<Vec<f64>> {
     use crate::cli::ok;
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
-    let args = [
-        "simulate",
-        "irb120",
-        "--spheres",
-        "300,0,300;350,-150,250",
-        "--sphere-diameter-mm",
-        "25.4",
+    let mut args = vec!["simulate", "irb120"];
+    args.extend(artifact);
+    args.extend([
         "--probe-radius-mm",
         "1.5",
         "--per-point",
-        "30",
+        per_point,
         "--tool-mm",
         "15,-10,120",
         "-o",
-        "s.csv",
+        "touches.csv",
         "--truth",
         "truth.toml",
         "--validation-poses",
         "8",
         "--validation-out",
         "held.csv",
-    ];
+    ]);
     ok(dir, &args);
-    ok(dir, &["identify", "irb120", "s.csv", "--out", "cal.toml"]);
-    let out = ok(dir, &["validate", "cal.toml", "held.csv"]);
-    for k in 0..2 {
-        let line = out
-            .lines()
-            .find(|l| l.starts_with(&format!("sphere {k}: 8 rows")))
-            .unwrap_or_else(|| panic!("{out}"));
-        let rms: f64 = line.split("length ").nth(1).unwrap().split(' ').next().unwrap().parse().unwrap();
-        assert!(rms < 1e-6, "{line}");
-    }
+    ok(dir, &["identify", "irb120", "touches.csv", "--out", "cal.toml"]);
+    models
+        .iter()
+        .map(|model| {
+            let out = ok(dir, &["validate", model, "held.csv"]);
+            (0..n)
+                .map(|k| {
+                    let line = out
+                        .lines()
+                        .find(|l| l.starts_with(&format!("{what} {k}: 8 rows")))
+                        .unwrap_or_else(|| panic!("{out}"));
+                    line.split(after).nth(1).unwrap().split(' ').next().unwrap().parse().unwrap()
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// Sphere touches held out and judged by `validate` in their own terms (the known distance from
+/// each sphere's centre, the sphere placed by the held-out rows).
+#[test]
+fn sphere_touches_are_validated_as_spheres() {
+    let spheres = ["--spheres", "300,0,300;350,-150,250", "--sphere-diameter-mm", "25.4"];
+    let [cal] = &validated_touches(&spheres, "30", "sphere", "length ", 2, &["cal.toml"])[..] else {
+        unreachable!()
+    };
+    assert!(cal.iter().all(|rms| *rms < 1e-6), "{cal:?}");
 }
 
 /// Plane touches held out and judged by `validate`: the calibrated model's probe centres lie on
 /// a plane (their flatness), the nominal model's do not.
 #[test]
 fn plane_touches_are_validated_by_their_flatness() {
-    use crate::cli::ok;
-    let tmp = tempfile::tempdir().unwrap();
-    let dir = tmp.path();
-    let args = [
-        "simulate",
-        "irb120",
+    let planes = [
         "--planes",
         "300,0,300;300,0,300;300,0,300",
         "--plane-normals",
         "1,0,0.3;0,1,0.3;0.3,-0.2,1",
-        "--probe-radius-mm",
-        "1.5",
-        "--per-point",
-        "40",
-        "--tool-mm",
-        "15,-10,120",
-        "-o",
-        "p.csv",
-        "--truth",
-        "truth.toml",
-        "--validation-poses",
-        "8",
-        "--validation-out",
-        "held.csv",
     ];
-    ok(dir, &args);
-    ok(dir, &["identify", "irb120", "p.csv", "--out", "cal.toml"]);
-    let flatness = |model: &str| -> Vec<f64> {
-        let out = ok(dir, &["validate", model, "held.csv"]);
-        (0..3)
-            .map(|k| {
-                let line = out
-                    .lines()
-                    .find(|l| l.starts_with(&format!("plane {k}: 8 rows")))
-                    .unwrap_or_else(|| panic!("{out}"));
-                line.split("plane ").nth(2).unwrap().split(' ').next().unwrap().parse().unwrap()
-            })
-            .collect()
+    let [cal, nominal] = &validated_touches(&planes, "40", "plane", "best plane ", 3, &["cal.toml", "irb120"])[..] else {
+        unreachable!()
     };
-    let (cal, nominal) = (flatness("cal.toml"), flatness("irb120"));
     eprintln!("plane flatness (mm RMS), calibrated {cal:?}, nominal {nominal:?}");
     assert!(cal.iter().all(|f| *f < 1e-6), "{cal:?}");
     assert!(nominal.iter().all(|f| *f > 1e-3), "{nominal:?}");
