@@ -137,10 +137,10 @@ fn run(
 }
 
 /// The IRB 120's reference configuration: the tool pointing down in front of the robot.
-const IRB120_REFERENCE: [f64; 6] = [0.0, 0.35, 0.2, 0.0, 1.0, 0.0];
+pub const IRB120_REFERENCE: [f64; 6] = [0.0, 0.35, 0.2, 0.0, 1.0, 0.0];
 
 /// Seats in front of the IRB 120: the true tool point at configurations near the reference.
-fn irb120_points(truth: &dyn Mechanism, shifts: &[[f64; 3]]) -> Vec<Vector3<f64>> {
+pub fn irb120_points(truth: &dyn Mechanism, shifts: &[[f64; 3]]) -> Vec<Vector3<f64>> {
     shifts
         .iter()
         .map(|s| {

@@ -3,7 +3,7 @@
 //! round-off (the tracker places the base: no rigid motion removed when it is in the set); with
 //! noise the held-out 3-D error of the mixed set is printed beside each kind alone
 //! (`cargo test --test it mixed -- --nocapture`; the figures are in docs/instruments.md).
-use crate::instruments::{aligned_max, points_of};
+use crate::instruments::{aligned_max, irb120_points, points_of, IRB120_REFERENCE};
 use kinecal::calibrate::{calibrate, CalibrationOptions};
 use kinecal::instrument::simulate::{distance_rows, middle_of_limits, seat_rows, Placement, DEFAULT_BALLBAR_RANGE_MM};
 use kinecal::instrument::SeatDistance;
@@ -53,9 +53,6 @@ fn tracker_rows(truth: &dyn Mechanism, file: &ModelFile, n: usize, sigma: f64) -
         .collect()
 }
 
-/// The IRB 120's reference configuration: the tool pointing down in front of the robot.
-const IRB120_REFERENCE: [f64; 6] = [0.0, 0.35, 0.2, 0.0, 1.0, 0.0];
-
 /// Where rows are drawn about: the IRB 120's reference, else the middle of the limits.
 fn reference(file: &ModelFile) -> Vec<f64> {
     if file.name == "irb120" {
@@ -70,15 +67,14 @@ fn artifact_points(file: &ModelFile, truth: &dyn Mechanism) -> Vec<Vector3<f64>>
     if file.name != "irb120" {
         return points_of(truth, file);
     }
-    [[0.0, 0.0, 0.0], [0.5, 0.1, -0.1], [-0.5, -0.1, 0.2], [0.2, 0.3, 0.3]]
+    irb120_points(truth, &[[0.0, 0.0, 0.0], [0.5, 0.1, -0.1], [-0.5, -0.1, 0.2], [0.2, 0.3, 0.3]])
+}
+
+/// Ballbar pivots 100 mm below the first three [`artifact_points`].
+fn pivots(file: &ModelFile, truth: &dyn Mechanism) -> Vec<Vector3<f64>> {
+    artifact_points(file, truth)[..3]
         .iter()
-        .map(|s| {
-            let mut q = IRB120_REFERENCE.to_vec();
-            for k in 0..3 {
-                q[k] += s[k];
-            }
-            truth.forward(&q).unwrap().translation.vector
-        })
+        .map(|c| c - Vector3::new(0.0, 0.0, 100.0))
         .collect()
 }
 
@@ -194,8 +190,7 @@ fn tracker_points_and_seats_recover_serial_closed_and_limbs_machines() {
 fn distances_and_seats_recover_a_serial_arm() {
     let (file, truth) = truth_of("irb120");
     let how = placement(&file, 30, 30.0, 0.0);
-    let centres = artifact_points(&file, &truth);
-    let pivots: Vec<Vector3<f64>> = centres[..3].iter().map(|c| c - Vector3::new(0.0, 0.0, 100.0)).collect();
+    let pivots = pivots(&file, &truth);
     let mut rows = distance_rows(&truth, &pivots, 100.0, DEFAULT_BALLBAR_RANGE_MM, &how).unwrap();
     rows.extend(seats(&file, &truth, 3, &how));
     exact(
@@ -209,8 +204,7 @@ fn distances_and_seats_recover_a_serial_arm() {
 fn tracker_points_and_distances_recover_a_serial_arm() {
     let (file, truth) = truth_of("irb120");
     let how = placement(&file, 30, 30.0, 0.0);
-    let centres = artifact_points(&file, &truth);
-    let pivots: Vec<Vector3<f64>> = centres[..3].iter().map(|c| c - Vector3::new(0.0, 0.0, 100.0)).collect();
+    let pivots = pivots(&file, &truth);
     let mut rows = tracker_rows(&truth, &file, 10, 0.0);
     rows.extend(distance_rows(&truth, &pivots, 100.0, DEFAULT_BALLBAR_RANGE_MM, &how).unwrap());
     exact(
@@ -377,8 +371,7 @@ fn with_noise_distances_and_seats_beside_each_alone() {
         ..Noise::default()
     };
     let how = placement(&file, 30, 30.0, 0.005);
-    let centres = artifact_points(&file, &truth);
-    let pivots: Vec<Vector3<f64>> = centres[..3].iter().map(|c| c - Vector3::new(0.0, 0.0, 100.0)).collect();
+    let pivots = pivots(&file, &truth);
     let bar = distance_rows(&truth, &pivots, 100.0, DEFAULT_BALLBAR_RANGE_MM, &how).unwrap();
     let seat_set = seats(&file, &truth, 3, &how);
     let centre = |s: usize| {
