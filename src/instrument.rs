@@ -441,8 +441,14 @@ pub fn spread(points: &[Vector3<f64>]) -> (Vector3<f64>, f64, f64) {
     let n = points.len().max(1) as f64;
     let mean = points.iter().sum::<Vector3<f64>>() / n;
     let d: Vec<f64> = points.iter().map(|p| (p - mean).norm()).collect();
-    let rms = (d.iter().map(|x| x * x).sum::<f64>() / n).sqrt();
-    (mean, rms, d.iter().copied().fold(0.0, f64::max))
+    let (rms, max) = rms_and_max(&d);
+    (mean, rms, max)
+}
+
+/// The RMS of `values` and the largest magnitude (0 for none).
+fn rms_and_max(values: &[f64]) -> (f64, f64) {
+    let rms = (values.iter().map(|x| x * x).sum::<f64>() / values.len().max(1) as f64).sqrt();
+    (rms, values.iter().map(|x| x.abs()).fold(0.0, f64::max))
 }
 
 /// The centre `c` of the sphere on which points `p_i` lie at distances `L_i` (least squares:

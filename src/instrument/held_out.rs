@@ -2,7 +2,7 @@
 //! artifact), in the instrument's own terms: each seat's spread of the model's tool points about
 //! their mean (one point if the model were exact), the error of the known distances between
 //! seats, and for a ballbar each pivot's length residuals once the pivot is placed.
-use super::{sphere_and_zero, sphere_centre, spread, PointKind, SeatDistance};
+use super::{rms_and_max, sphere_and_zero, sphere_centre, spread, PointKind, SeatDistance};
 use crate::error::CalibError;
 use crate::measure::{Measurement, Observation};
 use crate::model::Mechanism;
@@ -137,11 +137,12 @@ pub fn held_out(model: &dyn Mechanism, measurements: &[Measurement], distances: 
                     CalibError::InvalidOption(format!("plane {id}: its touches lie on a line; they do not place a plane"))
                 })?;
                 let d: Vec<f64> = points.iter().map(|p| (p - mean).dot(&n)).collect();
+                let (rms_mm, max_mm) = rms_and_max(&d);
                 out.planes.push(PlaneFlatness {
                     plane: id,
                     rows: rows.len(),
-                    rms_mm: (d.iter().map(|x| x * x).sum::<f64>() / d.len() as f64).sqrt(),
-                    max_mm: d.iter().map(|x| x.abs()).fold(0.0, f64::max),
+                    rms_mm,
+                    max_mm,
                 });
             }
             PointKind::Cube => {
@@ -159,12 +160,13 @@ pub fn held_out(model: &dyn Mechanism, measurements: &[Measurement], distances: 
                 let (c, zero) =
                     placed.ok_or_else(|| CalibError::InvalidOption(format!("{} {id}: its rows do not place it", kind.name())))?;
                 let e: Vec<f64> = rows.iter().map(|(p, l)| l + zero - (p - c).norm()).collect();
+                let (rms_mm, max_mm) = rms_and_max(&e);
                 out.pivots.push(PivotFit {
                     kind,
                     pivot: id,
                     rows: rows.len(),
-                    rms_mm: (e.iter().map(|x| x * x).sum::<f64>() / e.len() as f64).sqrt(),
-                    max_mm: e.iter().map(|x| x.abs()).fold(0.0, f64::max),
+                    rms_mm,
+                    max_mm,
                     zero_mm: relative.contains(&id).then_some(zero),
                 });
             }
