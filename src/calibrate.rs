@@ -505,8 +505,7 @@ fn instrument_start(model: &ModelFile, i: &InstrumentData) -> Result<StartingMod
     // placement (its base) redundant rather than artifact coordinates, so that stays nominal.
     // The calibrated model stands where the nominal stood: its home still assembles, and
     // targets in its base frame mean what they meant.
-    let p_inner = FRAME_PARAMS + artifact.inner.inner.n_params();
-    let mut free: Vec<usize> = (p_inner..p_inner + artifact.n_point_params() + artifact.n_zeros()).collect();
+    let mut free: Vec<usize> = artifact.artifact_columns().collect();
     free.extend(crate::model::framed::TOOL_TRANSLATION);
     free.extend(inner_free.iter().map(|k| k + FRAME_PARAMS));
     Ok((Box::new(artifact), free, None))

@@ -519,12 +519,19 @@ impl<M: Mechanism> Artifact<M> {
         Ok((&q[..n], k as usize))
     }
 
+    /// The columns of the artifact's own parameters, after the mechanism's: the points' (three
+    /// each, six for a cube), then the zeros of pivots with readings.
+    pub fn artifact_columns(&self) -> std::ops::Range<usize> {
+        let p = self.inner.n_params();
+        p..p + self.n_point_params() + self.n_zeros()
+    }
+
     /// For index `k` past the points, the translation from its pair's second seat to its first
     /// and the Jacobian (the machine's columns zero).
     fn pair(&self, k: usize) -> Option<(Pose, Matrix6xX<f64>)> {
         let &(a, b) = self.pairs.get(k.checked_sub(self.points.len())?)?;
         let p = self.inner.n_params();
-        let mut jac = Matrix6xX::zeros(p + self.n_point_params() + self.n_zeros());
+        let mut jac = Matrix6xX::zeros(self.artifact_columns().end);
         for i in 0..3 {
             jac[(i, p + self.point_offset(a) + i)] = 1.0;
             jac[(i, p + self.point_offset(b) + i)] = -1.0;
@@ -537,7 +544,7 @@ impl<M: Mechanism> Artifact<M> {
     fn relative(&self, k: usize, (pose, jac): (Pose, Matrix6xX<f64>)) -> (Pose, Matrix6xX<f64>) {
         let p = jac.ncols();
         let shift = self.shift(k);
-        let mut out = Matrix6xX::zeros(p + self.n_point_params() + self.n_zeros());
+        let mut out = Matrix6xX::zeros(self.artifact_columns().end);
         // The inner twists are about the base origin; relative to the point they are seen through
         // the shift's adjoint.
         out.columns_mut(0, p)
@@ -581,7 +588,7 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Artifact<M> {
         out
     }
     fn n_params(&self) -> usize {
-        self.inner.n_params() + self.n_point_params() + self.n_zeros()
+        self.artifact_columns().end
     }
     fn forward(&self, q: &[f64]) -> Result<Pose, KinError> {
         if let Some(qi) = self.tracker_inputs(q) {

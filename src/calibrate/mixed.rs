@@ -47,9 +47,8 @@ pub(super) fn start(
     let framed = Framed::new(inner, reg.measurement, reg.tool);
     let artifact =
         crate::instrument::start_points(framed, points.to_vec(), pairs.to_vec(), &data.measurements).map_err(|e| data.locate(e))?;
-    let p_inner = FRAME_PARAMS + artifact.inner.inner.n_params();
     let mut free: Vec<usize> = (0..FRAME_PARAMS).collect();
-    free.extend(p_inner..p_inner + artifact.n_point_params() + artifact.n_zeros());
+    free.extend(artifact.artifact_columns());
     free.extend(inner_free.iter().map(|k| k + FRAME_PARAMS));
     Ok((Box::new(artifact), free, Some(reg)))
 }

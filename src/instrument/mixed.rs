@@ -36,14 +36,14 @@ impl<M: Mechanism> Artifact<M> {
     /// tracker row does not depend on them.
     pub(super) fn padded(&self, jac: Matrix6xX<f64>) -> Matrix6xX<f64> {
         let p = jac.ncols();
-        let mut out = Matrix6xX::zeros(p + self.n_point_params() + self.n_zeros());
+        let mut out = Matrix6xX::zeros(self.artifact_columns().end);
         out.columns_mut(0, p).copy_from(&jac);
         out
     }
 
     /// Observed joints' rows over the inner parameters with the artifact's columns appended.
     pub(super) fn padded_rows(&self, rows: &DMatrix<f64>) -> DMatrix<f64> {
-        let mut out = DMatrix::zeros(rows.nrows(), rows.ncols() + self.n_point_params() + self.n_zeros());
+        let mut out = DMatrix::zeros(rows.nrows(), self.artifact_columns().end);
         out.columns_mut(0, rows.ncols()).copy_from(rows);
         out
     }
