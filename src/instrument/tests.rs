@@ -381,3 +381,50 @@ fn touched_artifacts_start_from_the_touches() {
     let e = touch::place(&line, &mut one).unwrap_err();
     assert!(e.to_string().contains("plane 0: its touches lie on a line"), "{e}");
 }
+
+/// Two planes' touches whose probe centres all lie in one plane (what a point the machine keeps
+/// in a plane gives) collapse; the same touches with one plane's centres lifted off it do not.
+#[test]
+fn touched_planes_that_are_one_plane_are_seen() {
+    let plane = |k: usize| Observation::Touch(Touch::Plane { plane: k, probe: 1.5 });
+    let (p0, p1) = (plane(0), plane(1));
+    let at = |x: f64, y: f64, z: f64| se3::pose_from_parts(Vector3::new(x, y, z), Vector3::zeros());
+    let point = |id: usize| ArtifactPoint {
+        kind: PointKind::Plane,
+        id,
+        centre: Vector3::zeros(),
+        zero: None,
+        rotation: None,
+    };
+    let points = [point(0), point(1)];
+    // Every tip at z = 0: plane 0 along x, plane 1 along y.
+    let flat: Vec<touch::TouchRow> = [(0, at(0.0, 0.0, 0.0)), (0, at(50.0, 10.0, 0.0)), (0, at(100.0, 0.0, 0.0))]
+        .into_iter()
+        .map(|(k, pose)| (k, pose, Vector3::zeros(), &p0))
+        .chain(
+            [at(0.0, 50.0, 0.0), at(10.0, 100.0, 0.0), at(-20.0, 80.0, 0.0)]
+                .into_iter()
+                .map(|pose| (1, pose, Vector3::zeros(), &p1)),
+        )
+        .collect();
+    assert!(touch::planes_collapse(&flat, &Vector3::zeros(), &points));
+    // Plane 1 tilted up out of z = 0.
+    let lifted: Vec<touch::TouchRow> = flat
+        .iter()
+        .map(|&(k, pose, f, obs)| {
+            (
+                k,
+                if k == 1 {
+                    at(pose.translation.x, pose.translation.y, pose.translation.y)
+                } else {
+                    pose
+                },
+                f,
+                obs,
+            )
+        })
+        .collect();
+    assert!(!touch::planes_collapse(&lifted, &Vector3::zeros(), &points));
+    // A tool-point offset moves every tip alike: still one plane.
+    assert!(touch::planes_collapse(&flat, &Vector3::new(0.0, 0.0, 120.0), &points));
+}

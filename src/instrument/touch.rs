@@ -305,6 +305,7 @@ pub(super) fn offset_and_touched(rows: &[TouchRow], points: &mut [ArtifactPoint]
     let starts = std::iter::once(Vector3::zeros()).chain(OFFSET_STARTS_MM.into_iter().flat_map(super::offset::along_each_axis));
     let mut best: Option<(Vector3<f64>, f64, Vec<ArtifactPoint>)> = None;
     let mut first_error = None;
+    let mut flat_offset = None;
     for t0 in starts {
         let mut candidate = points.to_vec();
         let moved: Vec<TouchRow> = rows.iter().map(|r| (r.0, r.1 * Translation3::from(t0), r.2, r.3)).collect();
@@ -313,13 +314,52 @@ pub(super) fn offset_and_touched(rows: &[TouchRow], points: &mut [ArtifactPoint]
             continue;
         }
         let (t, cost) = fit_offset(rows, t0, &mut candidate);
+        if planes_collapse(rows, &t, &candidate) {
+            flat_offset.get_or_insert(t);
+            continue;
+        }
         if best.as_ref().is_none_or(|b| cost < 0.5 * b.1) {
             best = Some((t, cost, candidate));
         }
     }
-    let (t, _, placed) = best.ok_or_else(|| first_error.expect("a start failed"))?;
+    let (t, _, placed) = best.ok_or_else(|| match (flat_offset, first_error) {
+        (Some(t), _) => CalibError::InvalidOption(format!(
+            "the touched planes cannot be told apart: every tool-point offset found (e.g. {:.1}, {:.1}, {:.1} mm) puts the probe centre of every touch in one plane, \
+             a point the machine keeps in a plane (such as a 3-PRS head's spherical joints); give the probe's offset in the model's tool frame, or touch spheres or a datum cube",
+            t.x, t.y, t.z
+        )),
+        (None, e) => e.expect("a start failed"),
+    })?;
     points.clone_from_slice(&placed);
     Ok(t)
+}
+
+/// Whether, at tool-point offset `t`, the probe centres of two or more touched planes all lie in
+/// one plane: a degenerate fit (each plane's touches on a line, or the planes one plane) that a
+/// point the machine keeps in a plane gives at zero cost, whatever the planes touched (a 3-PRS
+/// head's spherical joints move in fixed planes). Distinct planes with the right offset cannot
+/// do it: a plane's touches in a second plane lie on their line of intersection.
+pub(super) fn planes_collapse(rows: &[TouchRow], t: &Vector3<f64>, points: &[ArtifactPoint]) -> bool {
+    let on_planes = |k: &usize| points[*k].kind == PointKind::Plane;
+    let tips: Vec<Vector3<f64>> = rows
+        .iter()
+        .filter(|r| on_planes(&r.0))
+        .map(|(_, pose, _, _)| pose.translation.vector + pose.rotation * t)
+        .collect();
+    let planes = rows
+        .iter()
+        .map(|r| r.0)
+        .filter(on_planes)
+        .collect::<std::collections::BTreeSet<_>>();
+    if planes.len() < 2 {
+        return false;
+    }
+    let mean = tips.iter().sum::<Vector3<f64>>() / tips.len() as f64;
+    let scatter = tips.iter().fold(Matrix3::zeros(), |a, p| a + (p - mean) * (p - mean).transpose());
+    let eig = scatter.symmetric_eigen().eigenvalues;
+    let (lo, hi) = (eig.min(), eig.max());
+    // Thicknesses (square roots): below a millionth of the spread is one plane to round-off.
+    lo.max(0.0).sqrt() <= 1e-6 * hi.sqrt()
 }
 
 /// The touches' residuals for tool-point offset `t` and artifacts `points`.
