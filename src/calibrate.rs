@@ -475,6 +475,25 @@ fn nominal_mechanism(model: &ModelFile) -> Result<Nominal, IoError> {
     Ok((inner, inner_free, model.frames.map_or(Pose::identity(), |f| f.tool)))
 }
 
+/// Unknown planes (with seats at most) on a machine whose inputs all turn: nothing gives a
+/// length ([`crate::instrument::touch::no_length`]). A warning naming the scale as weakly seen,
+/// first among the reasons when the verdict failed (with noise the fit shrinks the machine).
+fn judge_scale(model: &ModelFile, data: &DataSet, opts: &CalibrationOptions, report: &mut CalibrationReport) {
+    let turns_only = model.inputs().iter().all(|inp| inp.unit != crate::params::Unit::Length);
+    if !turns_only || !crate::instrument::touch::no_length(&data.measurements, &opts.seat_distances) {
+        return;
+    }
+    let why = format!(
+        "nothing measured gives a length: unknown planes' offsets absorb any scale and '{}' has no length input, so only the lengths its model file fixes and the probe radius hold its scale, weakly (with noise the fit shrinks the machine); touch something of known size as well: a datum cube (face, cube_edge_mm), spheres of known diameter, a ballbar, two seats at a known distance, or a few tracker points",
+        model.name
+    );
+    if report.verdict.status == crate::report::Status::Failed {
+        report.fail(why);
+    } else {
+        report.warn(why);
+    }
+}
+
 /// The starting model for instrument data: the nominal mechanism with its tool-point offset
 /// and the artifact points started from the data ([`crate::instrument::start_points`]); free,
 /// in priority order: the artifact points, the tool point's offset, the model's free parameters. The base is not
@@ -562,6 +581,7 @@ fn judge<M: Mechanism + Clone>(
         &data.measurements,
         &opts.noise,
     ));
+    judge_scale(model, data, opts, &mut report);
     let spread = j.outcomes.iter().filter_map(|s| s.max_difference_mm).fold(0.0, f64::max);
     let unchecked: Vec<String> = (j.outcomes.iter().enumerate())
         .filter_map(|(k, s)| s.unchecked.as_ref().map(|why| format!("start {} ({why})", k + 1)))

@@ -23,6 +23,21 @@ use crate::se3::{self, Pose};
 use nalgebra::{DMatrix, DVector, DVectorView, Matrix3, Translation3, UnitQuaternion, Vector3};
 use std::collections::BTreeMap;
 
+/// Whether nothing in `measurements` gives a length, so that a machine whose inputs all turn
+/// has no scale: every row an unknown plane's touch or a seat, no known distance between seats
+/// (`seat_distances`). A plane's offset absorbs any scale and the probe radius holds it only
+/// weakly; with noise the fit shrinks the machine (module docs of [`crate::instrument`]). A
+/// cube's edge, a sphere's diameter, a ballbar's lengths and tracker rows all give one.
+pub fn no_length(measurements: &[Measurement], seat_distances: &[super::SeatDistance]) -> bool {
+    seat_distances.is_empty()
+        && measurements
+            .iter()
+            .any(|m| matches!(m.obs, Observation::Touch(Touch::Plane { .. })))
+        && measurements
+            .iter()
+            .all(|m| matches!(m.obs, Observation::Touch(Touch::Plane { .. }) | Observation::Seat(_)))
+}
+
 /// Touches a plane needs at least: three not on a line place it.
 pub const MIN_PLANE_ROWS: usize = 3;
 

@@ -799,3 +799,70 @@ fn plane_touches_are_validated_by_their_flatness() {
     assert!(cal.iter().all(|f| *f < 1e-6), "{cal:?}");
     assert!(nominal.iter().all(|f| *f > 1e-3), "{nominal:?}");
 }
+
+/// Unknown planes alone on an arm whose joints all turn give no length: noise-free the fit is
+/// exact and warns that the scale is weakly seen; with 5 µm of probe noise it shrinks the
+/// machine, fails, and names that cause first.
+#[test]
+fn planes_alone_name_the_scale_they_do_not_give() {
+    use crate::cli::{kinecal, ok};
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let why = "nothing measured gives a length";
+    for (noise, data, truth) in [("0", "planes.csv", "truth.toml"), ("0.005", "noisy.csv", "truth2.toml")] {
+        ok(
+            dir,
+            &[
+                "simulate",
+                "irb120",
+                "--planes",
+                "300,0,300;300,0,300;300,0,300",
+                "--plane-normals",
+                "1,0,0.3;0,1,0.3;0.3,-0.2,1",
+                "--probe-radius-mm",
+                "1.5",
+                "--per-point",
+                "40",
+                "--tool-mm",
+                "15,-10,120",
+                "--noise-mm",
+                noise,
+                "--seed",
+                "2",
+                "-o",
+                data,
+                "--truth",
+                truth,
+            ],
+        );
+    }
+    let out = ok(
+        dir,
+        &[
+            "identify",
+            "irb120",
+            "planes.csv",
+            "--kind-noise",
+            "probe=0.005",
+            "--out",
+            "cal.toml",
+        ],
+    );
+    assert!(out.contains("verdict: usable with warnings") && out.contains(why), "{out}");
+    let failed = kinecal(
+        dir,
+        &[
+            "identify",
+            "irb120",
+            "noisy.csv",
+            "--kind-noise",
+            "probe=0.005",
+            "--out",
+            "noisy.toml",
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&failed.stderr);
+    assert_eq!(failed.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains(&format!("verdict: failed: {why}")), "{stderr}");
+    assert!(!dir.join("noisy.toml").exists());
+}
