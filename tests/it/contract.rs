@@ -469,32 +469,50 @@ type InstrumentRows = (Vec<Measurement>, Vec<kinecal::instrument::SeatDistance>)
 #[test]
 fn every_mechanism_is_calibrated_by_distances() {
     instrument_contract("distance", |k, nominal, truth| {
-        let qs = (k.configurations)(nominal, 120, 33);
-        let points: Vec<Vector3<f64>> = qs.iter().map(|q| truth.forward(q).unwrap().translation.vector).collect();
-        let centre = points.iter().sum::<Vector3<f64>>() / points.len() as f64;
-        let size = (points.iter().map(|p| (p - centre).norm_squared()).sum::<f64>() / points.len() as f64).sqrt();
-        let anchors = [
-            Vector3::new(1.0, 0.0, -1.0),
-            Vector3::new(-1.0, 1.0, -1.0),
-            Vector3::new(0.0, -1.0, -1.5),
-        ]
-        .map(|d| centre + d * 2.0 * size);
-        let rows = qs
-            .iter()
-            .zip(&points)
-            .enumerate()
-            .map(|(i, (q, p))| Measurement {
-                q: q.clone(),
-                joints: Vec::new(),
-                obs: Observation::Distance {
-                    pivot: i % 3,
-                    length: (p - anchors[i % 3]).norm(),
-                    relative: false,
-                },
-            })
-            .collect();
-        Some((rows, Vec::new()))
+        let (qs, points, centre, size) = sampled_workspace(k, nominal, truth, 120, 33);
+        Some((distance_rows(&qs, &points, &anchors(centre, size)), Vec::new()))
     });
+}
+
+/// Configurations, the tool points there, their mean and RMS spread (mm).
+type Sampled = (Vec<Vec<f64>>, Vec<Vector3<f64>>, Vector3<f64>, f64);
+
+/// `n` configurations of kind `k` (seed `seed`), the truth's tool points there, their mean and
+/// their RMS spread about it (mm).
+fn sampled_workspace(k: &Kind, nominal: &dyn Mechanism, truth: &dyn Mechanism, n: usize, seed: u64) -> Sampled {
+    let qs = (k.configurations)(nominal, n, seed);
+    let points: Vec<Vector3<f64>> = qs.iter().map(|q| truth.forward(q).unwrap().translation.vector).collect();
+    let centre = points.iter().sum::<Vector3<f64>>() / points.len() as f64;
+    let size = (points.iter().map(|p| (p - centre).norm_squared()).sum::<f64>() / points.len() as f64).sqrt();
+    (qs, points, centre, size)
+}
+
+/// Three points around and below a workspace of middle `centre` and spread `size`, at twice the
+/// spread from its middle: the distance contract's pivots and the sphere contract's centres.
+fn anchors(centre: Vector3<f64>, size: f64) -> [Vector3<f64>; 3] {
+    [
+        Vector3::new(1.0, 0.0, -1.0),
+        Vector3::new(-1.0, 1.0, -1.0),
+        Vector3::new(0.0, -1.0, -1.5),
+    ]
+    .map(|d| centre + d * 2.0 * size)
+}
+
+/// Known lengths from `anchors` (pivots 0, 1, 2 in turn) to the tool `points` at `qs`.
+fn distance_rows(qs: &[Vec<f64>], points: &[Vector3<f64>], anchors: &[Vector3<f64>; 3]) -> Vec<Measurement> {
+    qs.iter()
+        .zip(points)
+        .enumerate()
+        .map(|(i, (q, p))| Measurement {
+            q: q.clone(),
+            joints: Vec::new(),
+            obs: Observation::Distance {
+                pivot: i % 3,
+                length: (p - anchors[i % 3]).norm(),
+                relative: false,
+            },
+        })
+        .collect()
 }
 
 /// Four seats where the tool point stands at four configurations, the tool turned up to 30° (or
@@ -575,10 +593,7 @@ fn touch_contract(
     artifacts: impl Fn(Vector3<f64>, f64) -> Vec<kinecal::instrument::simulate::Touched>,
 ) {
     instrument_contract_up_to(what, scale, floor, |k, nominal, truth| {
-        let qs = (k.configurations)(nominal, 400, 34);
-        let points: Vec<Vector3<f64>> = qs.iter().map(|q| truth.forward(q).unwrap().translation.vector).collect();
-        let centre = points.iter().sum::<Vector3<f64>>() / points.len() as f64;
-        let size = (points.iter().map(|p| (p - centre).norm_squared()).sum::<f64>() / points.len() as f64).sqrt();
+        let (qs, _, centre, size) = sampled_workspace(k, nominal, truth, 400, 34);
         let inputs = k.file.map(|f| f().inputs()).unwrap_or_default();
         let rows = kinecal::instrument::simulate::touch_rows(truth, &qs, &artifacts(centre, size), per, 0.0, 5, &inputs)
             .unwrap_or_else(|e| panic!("{what}: {}: {e}", k.name));
@@ -593,7 +608,6 @@ const PROBE_MM: f64 = 1.5;
 /// through it, 40 touches each.
 #[test]
 fn every_mechanism_is_calibrated_by_sphere_touches() {
-    use kinecal::instrument::simulate::Touched;
     // The linear delta's trap (its instrument floor) is deeper with spheres: 7.9e-2 mm.
     let floor = |k: &Kind| {
         if k.name.starts_with("linear delta") {
@@ -602,19 +616,46 @@ fn every_mechanism_is_calibrated_by_sphere_touches() {
             k.instrument_floor_mm
         }
     };
-    touch_contract("sphere", false, 40, floor, |centre, size| {
-        [
-            Vector3::new(1.0, 0.0, -1.0),
-            Vector3::new(-1.0, 1.0, -1.0),
-            Vector3::new(0.0, -1.0, -1.5),
-        ]
+    touch_contract("sphere", false, 40, floor, spheres);
+}
+
+/// Three spheres centred at [`anchors`] whose surfaces pass through the workspace's middle.
+fn spheres(centre: Vector3<f64>, size: f64) -> Vec<kinecal::instrument::simulate::Touched> {
+    anchors(centre, size)
         .iter()
         .enumerate()
-        .map(|(k, d)| {
-            let radius = 2.0 * size * d.norm();
-            Touched::sphere(k, centre + d * 2.0 * size, 2.0 * (radius - PROBE_MM), PROBE_MM)
-        })
+        .map(|(k, c)| kinecal::instrument::simulate::Touched::sphere(k, *c, 2.0 * ((c - centre).norm() - PROBE_MM), PROBE_MM))
         .collect()
+}
+
+/// A datum cube at the workspace's middle, turned by (0.1, 0.2, 0.3) rad, its edge the spread.
+fn datum_cube(centre: Vector3<f64>, size: f64) -> Vec<kinecal::instrument::simulate::Touched> {
+    kinecal::instrument::simulate::Touched::cube(se3::pose_from_parts(centre, Vector3::new(0.1, 0.2, 0.3)), size, PROBE_MM)
+}
+
+/// Every kind in one fit, each weighted by its own σ: ten tracker positions, 30 known lengths
+/// from three pivots, and touches (three spheres and a datum cube, 10 each per sphere and face).
+#[test]
+fn every_mechanism_is_calibrated_by_a_mixed_set() {
+    instrument_contract("mixed", |k, nominal, truth| {
+        let (qs, points, centre, size) = sampled_workspace(k, nominal, truth, 400, 35);
+        let mut rows: Vec<Measurement> = qs[..10]
+            .iter()
+            .zip(&points)
+            .map(|(q, p)| Measurement {
+                q: q.clone(),
+                joints: Vec::new(),
+                obs: Observation::Position(*p),
+            })
+            .collect();
+        rows.extend(distance_rows(&qs[10..40], &points[10..40], &anchors(centre, size)));
+        let mut artifacts = spheres(centre, size);
+        artifacts.extend(datum_cube(centre, size));
+        let inputs = k.file.map(|f| f().inputs()).unwrap_or_default();
+        let touched = kinecal::instrument::simulate::touch_rows(truth, &qs[40..], &artifacts, 10, 0.0, 5, &inputs)
+            .unwrap_or_else(|e| panic!("mixed: {}: {e}", k.name));
+        rows.extend(touched);
+        Some((rows, Vec::new()))
     });
 }
 
@@ -647,15 +688,5 @@ fn every_mechanism_is_calibrated_by_plane_touches() {
 /// faces touched 20 times each.
 #[test]
 fn every_mechanism_is_calibrated_by_datum_cube_touches() {
-    use kinecal::instrument::simulate::Touched;
-    touch_contract(
-        "cube",
-        false,
-        20,
-        |k| k.instrument_floor_mm,
-        |centre, size| {
-            let pose = se3::pose_from_parts(centre, Vector3::new(0.1, 0.2, 0.3));
-            Touched::cube(pose, size, PROBE_MM)
-        },
-    );
+    touch_contract("cube", false, 20, |k| k.instrument_floor_mm, datum_cube);
 }
