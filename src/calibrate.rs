@@ -8,6 +8,7 @@ mod checks;
 mod mixed;
 mod robust;
 mod starts;
+pub use starts::{start_agreement, StartAgreement, WORSE_MARGIN, WORSE_MINIMUM};
 pub mod tolerances;
 mod variants;
 
@@ -582,33 +583,13 @@ fn judge<M: Mechanism + Clone>(
         &opts.noise,
     ));
     judge_scale(model, data, opts, &mut report);
-    let spread = j.outcomes.iter().filter_map(|s| s.max_difference_mm).fold(0.0, f64::max);
-    let unchecked: Vec<String> = (j.outcomes.iter().enumerate())
-        .filter_map(|(k, s)| s.unchecked.as_ref().map(|why| format!("start {} ({why})", k + 1)))
-        .collect();
-    if !unchecked.is_empty() {
-        report.flags.push(format!(
-            "{} of {} starts left out of the agreement check, not comparable: {}",
-            unchecked.len(),
-            j.outcomes.len(),
-            unchecked.join("; ")
-        ));
-        if unchecked.len() + 1 == j.outcomes.len() {
-            report.warn(format!(
-                "no other start could be compared with the kept solution ({} left out: their perturbed machines could not be evaluated at every pose), so whether the fit has other minima was not checked: run again with another --seed or more --starts",
-                unchecked.len()
-            ));
-        }
+    let agreement = starts::start_agreement(j.outcomes, j.start_tolerance_mm);
+    report.flags.extend(agreement.flags);
+    if let Some(w) = agreement.warning {
+        report.warn(w);
     }
-    if spread > j.start_tolerance_mm {
-        let compared: Vec<&StartOutcome> = j.outcomes.iter().filter(|s| s.max_difference_mm.is_some()).collect();
-        let sigmas: Vec<String> = compared.iter().map(|s| format!("{:.3}", s.sigma0)).collect();
-        report.fail(format!(
-            "the {} starts disagree: their predictions differ by up to {spread:.4} mm (more than the noise, {:.4} mm; σ̂₀ {}): the fit has several minima here and the kept one (the lowest) may not be the true geometry: check the nominal model and the tolerances, add or spread the poses, or fix parameters",
-            compared.len(),
-            j.start_tolerance_mm,
-            sigmas.join(" / ")
-        ));
+    if let Some(f) = agreement.failure {
+        report.fail(f);
     }
     Ok(report)
 }

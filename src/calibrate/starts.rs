@@ -180,3 +180,116 @@ pub fn other_starts(
     };
     Ok(Starts { identification, outcomes })
 }
+
+/// A start whose σ̂₀ is above this many times the kept one's (plus [`WORSE_MARGIN`]) ended in a
+/// clearly worse minimum: a cost more than twice the kept one's, beyond chance for any fit with
+/// a few rows to spare. It does not question the kept solution and is set aside from the
+/// agreement check (a flag names it); starts that fit about as well and predict differently do.
+pub const WORSE_MINIMUM: f64 = 1.5;
+
+/// The σ̂₀ margin of [`WORSE_MINIMUM`] (in units of the stated noise): noise-free fits end at
+/// σ̂₀ ≈ 0, where a ratio says nothing.
+pub const WORSE_MARGIN: f64 = 0.05;
+
+impl StartOutcome {
+    /// Whether this start ended in a clearly worse minimum than a kept solution of σ̂₀ `kept`
+    /// ([`WORSE_MINIMUM`], [`WORSE_MARGIN`]).
+    pub fn clearly_worse_than(&self, kept: f64) -> bool {
+        self.sigma0.is_finite() && self.sigma0 > WORSE_MINIMUM * kept + WORSE_MARGIN
+    }
+}
+
+/// What the starts' agreement says ([`start_agreement`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct StartAgreement {
+    /// Starts left out of the check (not comparable, or a clearly worse minimum).
+    pub flags: Vec<String>,
+    /// No other start could be compared at all.
+    pub warning: Option<String>,
+    /// Starts that fit about as well predict differently: the verdict fails.
+    pub failure: Option<String>,
+}
+
+/// The starts' agreement: the kept solution (first of `outcomes`) against every other start that
+/// fits about as well (not beyond [`WORSE_MINIMUM`]); predictions more than `tolerance_mm` apart
+/// are a failure naming the starts' σ̂₀. Starts left out (not comparable, or a clearly worse
+/// minimum) are flags; none compared at all is a warning.
+pub fn start_agreement(outcomes: &[StartOutcome], tolerance_mm: f64) -> StartAgreement {
+    let mut out = StartAgreement::default();
+    let kept = outcomes.first().map_or(0.0, |s| s.sigma0);
+    let worse = |s: &StartOutcome| s.clearly_worse_than(kept);
+    let worse_starts: Vec<String> = (outcomes.iter().enumerate())
+        .filter(|(_, s)| s.max_difference_mm.is_some() && worse(s))
+        .map(|(k, s)| format!("start {} (σ̂₀ {:.3})", k + 1, s.sigma0))
+        .collect();
+    if !worse_starts.is_empty() {
+        out.flags.push(format!(
+            "{} of {} starts ended in a clearly worse minimum than the kept one (σ̂₀ {kept:.3}), set aside from the agreement check: {}",
+            worse_starts.len(),
+            outcomes.len(),
+            worse_starts.join("; ")
+        ));
+    }
+    let compared: Vec<&StartOutcome> = outcomes.iter().filter(|s| s.max_difference_mm.is_some() && !worse(s)).collect();
+    let spread = compared.iter().filter_map(|s| s.max_difference_mm).fold(0.0, f64::max);
+    let unchecked: Vec<String> = (outcomes.iter().enumerate())
+        .filter_map(|(k, s)| s.unchecked.as_ref().map(|why| format!("start {} ({why})", k + 1)))
+        .collect();
+    if !unchecked.is_empty() {
+        out.flags.push(format!(
+            "{} of {} starts left out of the agreement check, not comparable: {}",
+            unchecked.len(),
+            outcomes.len(),
+            unchecked.join("; ")
+        ));
+        if unchecked.len() + 1 == outcomes.len() {
+            out.warning = Some(format!(
+                "no other start could be compared with the kept solution ({} left out: their perturbed machines could not be evaluated at every pose), so whether the fit has other minima was not checked: run again with another --seed or more --starts",
+                unchecked.len()
+            ));
+        }
+    }
+    if spread > tolerance_mm {
+        let sigmas: Vec<String> = compared.iter().map(|s| format!("{:.3}", s.sigma0)).collect();
+        out.failure = Some(format!(
+            "the {} starts disagree: their predictions differ by up to {spread:.4} mm (more than the noise, {:.4} mm; σ̂₀ {}): the fit has several minima here and the kept one (the lowest) may not be the true geometry: check the nominal model and the tolerances, add or spread the poses, or fix parameters",
+            compared.len(),
+            tolerance_mm,
+            sigmas.join(" / ")
+        ));
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn outcome(sigma0: f64, difference: f64) -> StartOutcome {
+        StartOutcome {
+            sigma0,
+            converged: true,
+            max_difference_mm: Some(difference),
+            unchecked: None,
+        }
+    }
+
+    /// Starts that fit about as well and predict differently fail; a start in a clearly worse
+    /// minimum is set aside (a flag), however far its predictions are.
+    #[test]
+    fn only_starts_that_fit_about_as_well_can_disagree() {
+        let equal = start_agreement(&[outcome(1.2, 0.0), outcome(1.25, 0.5), outcome(1.3, 0.01)], 0.08);
+        assert!(
+            equal.failure.as_deref().is_some_and(|f| f.contains("the 3 starts disagree")),
+            "{equal:?}"
+        );
+        let worse = start_agreement(&[outcome(1.337, 0.0), outcome(1.337, 0.01), outcome(16.7, 0.81)], 0.08);
+        assert_eq!(worse.failure, None, "{worse:?}");
+        assert!(worse.flags[0].contains("start 3 (σ̂₀ 16.700)"), "{worse:?}");
+        // Noise-free: σ̂₀ ≈ 0 for the kept fit; a start at 0.001 still counts, one at 0.43 does not.
+        let exact = start_agreement(&[outcome(0.0, 0.0), outcome(0.001, 265.0)], 0.06);
+        assert!(exact.failure.is_some(), "{exact:?}");
+        let apart = start_agreement(&[outcome(0.0, 0.0), outcome(0.43, 265.0)], 0.06);
+        assert_eq!(apart.failure, None, "{apart:?}");
+    }
+}

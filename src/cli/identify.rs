@@ -326,18 +326,17 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         );
     }
     if cal.starts.len() > 1 {
-        let spread = cal.starts.iter().filter_map(|s| s.max_difference_mm).fold(0.0, f64::max);
-        let compared = cal.starts.iter().filter(|s| s.max_difference_mm.is_some()).count();
+        let kept = cal.starts[0].sigma0;
+        let compared: Vec<_> = (cal.starts.iter())
+            .filter(|s| s.max_difference_mm.is_some() && !s.clearly_worse_than(kept))
+            .collect();
+        let spread = compared.iter().filter_map(|s| s.max_difference_mm).fold(0.0, f64::max);
         let agree = if spread <= cal.start_tolerance_mm { "agree" } else { "DISAGREE" };
-        if compared > 1 {
+        if compared.len() > 1 {
             println!(
-                "{compared} starts {agree}: predictions within {spread:.2e} mm of the kept solution (σ̂₀ {})",
-                cal.starts
-                    .iter()
-                    .filter(|s| s.max_difference_mm.is_some())
-                    .map(|s| format!("{:.4}", s.sigma0))
-                    .collect::<Vec<_>>()
-                    .join(" / ")
+                "{} starts {agree}: predictions within {spread:.2e} mm of the kept solution (σ̂₀ {})",
+                compared.len(),
+                compared.iter().map(|s| format!("{:.4}", s.sigma0)).collect::<Vec<_>>().join(" / ")
             );
         } else {
             println!("no other start could be compared with the kept solution:");
@@ -345,6 +344,12 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         for (k, s) in cal.starts.iter().enumerate() {
             if let Some(why) = &s.unchecked {
                 println!("start {} left out of the agreement check: {why}", k + 1);
+            } else if s.clearly_worse_than(kept) {
+                println!(
+                    "start {} ended in a clearly worse minimum (σ̂₀ {:.4}, the kept {kept:.4}), set aside from the agreement check",
+                    k + 1,
+                    s.sigma0
+                );
             }
         }
     }

@@ -182,12 +182,16 @@ fn join_errors_name_the_file() {
     assert!(!d.join("x.csv").exists() && !d.join("a.csv").exists());
 }
 
+/// Tolerances of ±300° let the perturbed starts begin far from the nominal geometry: one of six
+/// ends in a clearly worse minimum (σ̂₀ in the thousands against 0.000), far from the others'
+/// predictions. It does not question the kept solution, which the other starts reproduce: it
+/// is set aside and named, and the calibration stands. (Starts that fit about as well and
+/// predict differently fail: `calibrate::starts` unit tests.)
 #[test]
-fn starts_that_reach_other_minima_fail() {
+fn a_start_in_a_clearly_worse_minimum_is_set_aside() {
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
     exports(d);
-    // Tolerances of ±300° let the perturbed starts begin far from the nominal geometry.
     let text = fs::read_to_string(d.join("m.toml")).unwrap();
     let wide: String = text
         .lines()
@@ -202,10 +206,11 @@ fn starts_that_reach_other_minima_fail() {
         .join("\n");
     fs::write(d.join("wide.toml"), wide).unwrap();
     let out = kinecal(d, &["identify", "wide.toml", "d.csv", "--starts", "6", "--out", "c.toml"]);
-    let stderr = String::from_utf8(out.stderr).unwrap();
-    assert_eq!(out.status.code(), Some(2), "{stderr}");
-    assert!(stderr.contains("starts disagree"), "{stderr}");
-    assert!(!d.join("c.toml").exists());
+    let (stdout, stderr) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    eprintln!("{stdout}{stderr}");
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    assert!(stdout.contains("clearly worse minimum"), "{stdout}");
+    assert!(d.join("c.toml").exists());
 }
 
 /// The third form of `data join`: one raw export per seat (the Panda's sockets as its controller
