@@ -94,6 +94,9 @@ pub fn run_with(
 ) -> Outcome {
     let cal = calibrate(file, &data, None, &opts).unwrap();
     let status = format!("{:?}", cal.report.verdict.status).to_lowercase();
+    if std::env::var_os("KINECAL_REASONS").is_some() {
+        eprintln!("{status}: {}", cal.report.verdict.reasons.join(" | "));
+    }
     let text = cal.model_file.to_toml().unwrap();
     let back = ModelFile::load_str(std::path::Path::new("cal.toml"), &text).unwrap().build();
     (held_out(&*back, truth, whole), held_out(&*back, truth, near), status)

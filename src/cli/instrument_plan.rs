@@ -39,21 +39,29 @@ pub struct InstrumentArgs {
     /// (comma-separated); default the middle of each input's limits.
     #[arg(long, value_name = "Q1,Q2,…", allow_hyphen_values = true)]
     pub reference: Option<String>,
-    /// Rows each seat or pivot gets at least (never fewer than 2 per seat, 4 per pivot).
+    /// Rows each seat or pivot gets at least (never fewer than 2 per seat, 4 per pivot; for
+    /// touches 4 per sphere, 3 per plane or cube face).
     #[arg(long, default_value_t = 0)]
     pub min_per_point: usize,
+    /// A touch probe's artifacts instead: where to touch them ([`kinecal::design::plan_touches`];
+    /// `--candidates-per-point` candidates per sphere, plane or cube face).
+    #[command(flatten)]
+    pub touch: super::touch_args::TouchArgs,
 }
 
 impl InstrumentArgs {
     /// Whether an instrument plan is asked for.
     pub fn active(&self) -> bool {
-        self.seats.is_some() || self.pivots.is_some()
+        self.seats.is_some() || self.pivots.is_some() || self.touch.active()
     }
 }
 
 /// Run an instrument plan.
 pub fn run(args: &PlanArgs, file: ModelFile) -> anyhow::Result<()> {
     let a = &args.instrument;
+    if a.touch.active() {
+        return touch_run(args, file);
+    }
     let (option, text) = match (&a.seats, &a.pivots) {
         (Some(s), _) => ("--seats", s),
         (None, Some(p)) => ("--pivots", p),
@@ -158,6 +166,105 @@ pub fn run(args: &PlanArgs, file: ModelFile) -> anyhow::Result<()> {
         sel.method,
         sel.criterion,
         plan.rows.len(),
+        plan.repairs
+    );
+    println!("indices (scaled, dimensionless): {}", sel.indices);
+    println!(
+        "wrote {} (measure it: kinecal simulate {} --at {} {measure} …)",
+        args.output.display(),
+        file.name,
+        args.output.display()
+    );
+    Ok(())
+}
+
+/// Plan where to touch `--spheres`, `--planes` or `--cube` ([`kinecal::design::plan_touches`]).
+fn touch_run(args: &PlanArgs, file: ModelFile) -> anyhow::Result<()> {
+    use kinecal::design::{plan_touches, TouchLayout};
+    use kinecal::instrument::simulate::Placement;
+    let a = &args.instrument;
+    let (kind, artifacts, probe) = a.touch.artifacts()?;
+    let ball = match &a.tool_mm {
+        Some(t) => match parse_points(t).map_err(|e| anyhow::anyhow!("--tool-mm {e}"))?.as_slice() {
+            [b] => *b,
+            _ => anyhow::bail!("--tool-mm '{t}': one point X,Y,Z (mm)"),
+        },
+        None => Vector3::zeros(),
+    };
+    anyhow::ensure!(a.candidates_per_point > 0, "--candidates-per-point: must be at least 1");
+    let layout = TouchLayout { artifacts, ball };
+    let opts = InstrumentPlanOptions {
+        draw: Placement {
+            per_point: a.candidates_per_point,
+            reference: Vec::new(),
+            max_tilt: 0.0,
+            noise_mm: args.noise_position_mm,
+            seed: args.sampling.seed,
+            inputs: file.inputs(),
+        },
+        min_per_point: a.min_per_point,
+        method: args.method,
+        select: SelectOptions {
+            n: args.n,
+            criterion: args.criterion,
+            pool: args.pool,
+            shortlist: args.shortlist,
+            ..Default::default()
+        },
+    };
+    let mut outputs = Outputs::new(args.force);
+    if let Some(m) = &args.model {
+        outputs.input(std::path::Path::new(m));
+    }
+    outputs.output(&args.output)?;
+    let plan = plan_touches(&file, &layout, &opts)?;
+    let sel = &plan.selection;
+    let mut counts = std::collections::BTreeMap::new();
+    for m in &plan.rows {
+        if let Some((k, id)) = m.obs.artifact_point() {
+            *counts.entry(format!("{} {id}", k.name())).or_insert(0usize) += 1;
+        }
+    }
+    let per: Vec<String> = counts.iter().map(|(k, c)| format!("{k}: {c}")).collect();
+    let measure = a.touch.command_line();
+    let mut text = format!(
+        "# kinecal plan: {:?} on {}, {} touches of {} {kind}s ({}) from {} candidates, {} repair moves\n# {}\n# identifiable columns: {}\n# measure on a virtual prototype: kinecal simulate {} --at {} {measure} --tool-mm X,Y,Z …\n",
+        sel.method,
+        sel.criterion,
+        plan.rows.len(),
+        layout.artifacts.len(),
+        per.join(", "),
+        plan.candidates.len(),
+        plan.repairs,
+        sel.indices,
+        plan.column_names.join(" "),
+        file.name,
+        args.output.display()
+    );
+    let ids: Vec<i64> = (0..plan.rows.len() as i64).collect();
+    text += &data_text(&args.output, &file.data_columns(), &ids, &plan.rows, None)?;
+    outputs.stage(&args.output, text.as_bytes())?;
+    outputs.commit()?;
+    if args.json {
+        let v = serde_json::json!({"model": file.name, "instrument": kind, "artifacts": layout.artifacts.len(), "rows": plan.rows.len(),
+            "rows_per_artifact": counts, "candidates": plan.candidates.len(), "repairs": plan.repairs, "probe_radius_mm": probe,
+            "method": sel.method, "criterion": sel.criterion, "indices": sel.indices, "columns": plan.column_names, "output": args.output});
+        println!("{}", serde_json::to_string_pretty(&v)?);
+        return Ok(());
+    }
+    println!(
+        "{}: {} candidate touches ({} per {kind}), {} identifiable columns (the probe offset, the geometry, the {kind}s)",
+        file.name,
+        plan.candidates.len(),
+        a.candidates_per_point,
+        plan.columns.len()
+    );
+    println!(
+        "{:?} on {}: {} touches, {} ({} moves to give each its minimum)",
+        sel.method,
+        sel.criterion,
+        plan.rows.len(),
+        per.join(", "),
         plan.repairs
     );
     println!("indices (scaled, dimensionless): {}", sel.indices);

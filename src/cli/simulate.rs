@@ -63,7 +63,7 @@ pub struct SimulateArgs {
     #[arg(long, default_value_t = 0.0)]
     pub encoder_noise_mm: f64,
     /// What is measured.
-    #[arg(long, value_enum, default_value_t = MeasureKind::Pose)]
+    #[arg(long, value_enum, default_value_t = MeasureKind::Pose, conflicts_with_all = ["spheres", "planes", "cube"])]
     pub measure: MeasureKind,
     /// Data file to write (CSV).
     #[arg(long, short)]
@@ -75,7 +75,7 @@ pub struct SimulateArgs {
     /// configurations of `--at` (the commands `kinecal compensate` writes: their `id` is the test
     /// pose), and `--out` gets the attained poses (`pose,cycle,x_mm,…,yaw_deg`) for `kinecal
     /// assess`
-    #[arg(long, value_name = "N", requires = "at", conflicts_with = "validation_out")]
+    #[arg(long, value_name = "N", requires = "at", conflicts_with_all = ["validation_out", "spheres", "planes", "cube"])]
     pub cycles: Option<usize>,
     /// Repeatability of the virtual robot in a test run: standard deviation per axis of where it
     /// arrives (mm), beside the measurement noise
@@ -130,36 +130,9 @@ pub struct SimulateArgs {
     /// (mm, `X,Y,Z`); written as the truth's tool frame. Default: the flange origin.
     #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
     pub tool_mm: Option<String>,
-    /// Touch-probe data: reference spheres centred at these points (mm, base frame,
-    /// `X,Y,Z;…`), each touched `--per-point` times at the random configurations nearest its
-    /// surface, moved onto it; columns `sphere,sphere_diameter_mm,probe_radius_mm`. Needs
-    /// `--sphere-diameter-mm` and `--probe-radius-mm`.
-    #[arg(long, value_name = "X,Y,Z;…", requires = "sphere_diameter_mm", conflicts_with_all = ["seats", "pivots", "planes", "cube", "measure", "cycles", "at"])]
-    pub spheres: Option<String>,
-    /// The reference spheres' diameter (mm).
-    #[arg(long, value_name = "D", requires = "spheres")]
-    pub sphere_diameter_mm: Option<f64>,
-    /// Touch-probe data: planes through these points (mm, base frame, `X,Y,Z;…`), their normals
-    /// `--plane-normals`, each touched `--per-point` times; columns `plane,probe_radius_mm`.
-    #[arg(long, value_name = "X,Y,Z;…", requires = "plane_normals", conflicts_with_all = ["seats", "pivots", "cube", "measure", "cycles", "at"])]
-    pub planes: Option<String>,
-    /// The planes' normals (`NX,NY,NZ;…`, one per plane; normalised).
-    #[arg(long, value_name = "NX,NY,NZ;…", allow_hyphen_values = true, requires = "planes")]
-    pub plane_normals: Option<String>,
-    /// Touch-probe data: a datum cube centred here (mm, base frame, `X,Y,Z`), its edges along the
-    /// base axes turned by `--cube-rotation-deg`; each face (0..5: +x, −x, +y, −y, +z, −z)
-    /// touched `--per-point` times; columns `face,cube_edge_mm,probe_radius_mm`.
-    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true, requires = "cube_edge_mm", conflicts_with_all = ["seats", "pivots", "measure", "cycles", "at"])]
-    pub cube: Option<String>,
-    /// The datum cube's edge (mm).
-    #[arg(long, value_name = "E", requires = "cube")]
-    pub cube_edge_mm: Option<f64>,
-    /// The datum cube's orientation: a rotation vector (degrees, `RX,RY,RZ`).
-    #[arg(long, value_name = "RX,RY,RZ", allow_hyphen_values = true, requires = "cube")]
-    pub cube_rotation_deg: Option<String>,
-    /// The touch probe's tip radius (mm; 0 for a pointed tip).
-    #[arg(long, value_name = "R")]
-    pub probe_radius_mm: Option<f64>,
+    /// Touch-probe data: spheres, planes or a datum cube (the same options as `kinecal plan`).
+    #[command(flatten)]
+    pub touch: super::touch_args::TouchArgs,
     /// Print a JSON summary instead of text.
     #[arg(long)]
     pub json: bool,
@@ -200,7 +173,7 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
     let free = file.free_indices()?;
     let mut rng = ChaCha8Rng::seed_from_u64(a.seed);
     let (truth, _delta) = virtual_prototype(&nominal, &free, a.error_mm, a.error_deg.to_radians(), &mut rng);
-    let touches = a.spheres.is_some() || a.planes.is_some() || a.cube.is_some();
+    let touches = a.touch.active();
     let instrument = a.seats.is_some() || a.pivots.is_some() || touches;
     anyhow::ensure!(
         instrument || (a.tool_mm.is_none() && a.reference.is_none()),
@@ -574,73 +547,39 @@ fn touch_run(
     rng: &mut ChaCha8Rng,
     mut outputs: Outputs,
 ) -> anyhow::Result<()> {
-    use kinecal::instrument::simulate::{touch_rows, Touched};
+    use kinecal::instrument::simulate::{touch_planned, touch_rows};
     use rand::RngExt;
     anyhow::ensure!(a.per_point > 0, "--per-point: must be at least 1");
-    let probe = a.probe_radius_mm.filter(|r| r.is_finite() && *r >= 0.0).ok_or_else(|| {
-        anyhow::anyhow!("--probe-radius-mm: the radius of the probe's tip ball is needed (mm, not negative; 0 for a pointed tip)")
-    })?;
-    let size = |option: &str, v: Option<f64>| -> anyhow::Result<f64> {
-        let v = v.unwrap_or(f64::NAN);
-        anyhow::ensure!(
-            v.is_finite() && v >= kinecal::instrument::touch::MIN_ARTIFACT_MM,
-            "{option} {v}: under 1 mm is not a plausible size in mm (is it in metres?)"
-        );
-        Ok(v)
-    };
-    let parse = |option: &str, text: &str| parse_points(text).map_err(|e| anyhow::anyhow!("{option} {e}"));
-    let (kind, artifacts): (&str, Vec<Touched>) = if let Some(text) = &a.spheres {
-        let d = size("--sphere-diameter-mm", a.sphere_diameter_mm)?;
-        let centres = parse("--spheres", text)?;
-        (
-            "sphere",
-            centres.iter().enumerate().map(|(k, c)| Touched::sphere(k, *c, d, probe)).collect(),
-        )
-    } else if let Some(text) = &a.planes {
-        let origins = parse("--planes", text)?;
-        let normals = parse("--plane-normals", a.plane_normals.as_deref().unwrap_or_default())?;
-        anyhow::ensure!(
-            normals.len() == origins.len(),
-            "--plane-normals: {} normals for {} planes",
-            normals.len(),
-            origins.len()
-        );
-        let mut planes = Vec::new();
-        for (k, (o, n)) in origins.iter().zip(&normals).enumerate() {
-            let n = n
-                .try_normalize(1e-12)
-                .ok_or_else(|| anyhow::anyhow!("--plane-normals: plane {k}'s normal is zero"))?;
-            planes.push(Touched::plane(k, *o, n, probe));
-        }
-        ("plane", planes)
-    } else {
-        let text = a.cube.as_deref().expect("called with a touch option");
-        let [centre] = parse("--cube", text)?
-            .try_into()
-            .map_err(|_| anyhow::anyhow!("--cube '{text}': one point X,Y,Z (mm)"))?;
-        let rotation = match &a.cube_rotation_deg {
-            Some(r) => {
-                let [v] = parse("--cube-rotation-deg", r)?
-                    .try_into()
-                    .map_err(|_| anyhow::anyhow!("--cube-rotation-deg '{r}': RX,RY,RZ (deg)"))?;
-                v.map(f64::to_radians)
-            }
-            None => nalgebra::Vector3::zeros(),
-        };
-        let edge = size("--cube-edge-mm", a.cube_edge_mm)?;
-        (
-            "cube face",
-            Touched::cube(kinecal::se3::pose_from_parts(centre, rotation), edge, probe),
-        )
-    };
+    let (kind, artifacts, probe) = a.touch.artifacts()?;
     let inputs = file.inputs();
-    // `per` touches of each artifact at the random configurations nearest it.
-    stage_sets(a, file, &mut outputs, "touches per artifact", |_, per| {
-        let candidates = kinecal::simulate::random_configurations(truth, &inputs, 30 * per * artifacts.len(), rng)?;
-        touch_rows(truth, &candidates, &artifacts, per, a.noise_mm, rng.random(), &inputs).map_err(|e| match e {
-            CalibError::Kinematics { source, .. } => anyhow::anyhow!("{source}"),
-            e => anyhow::anyhow!("{e}"),
-        })
+    let plain = |e: CalibError| match e {
+        CalibError::Kinematics { source, .. } => anyhow::anyhow!("{source}"),
+        e => anyhow::anyhow!("{e}"),
+    };
+    // A touch plan (`kinecal plan --spheres …`): its rows moved onto the real surfaces.
+    let plan = match &a.at {
+        Some(at) => {
+            use kinecal::io::data_file::{read_data, InputColumns};
+            let plan = read_data(at, &file.data_columns(), InputColumns::Required)?;
+            anyhow::ensure!(
+                plan.measurements
+                    .iter()
+                    .all(|m| matches!(m.obs, kinecal::measure::Observation::Touch(_))),
+                "{}: not a plan of touches (plan with kinecal plan --spheres/--planes/--cube, and measure with the same options)",
+                at.display()
+            );
+            Some((at, plan.measurements))
+        }
+        None => None,
+    };
+    // `per` touches of each artifact at the random configurations nearest it, or the plan.
+    stage_sets(a, file, &mut outputs, "touches per artifact", |k, per| match (&plan, k) {
+        (Some((at, rows)), 0) => touch_planned(truth, rows, &artifacts, a.noise_mm, rng.random(), &inputs)
+            .map_err(|e| anyhow::anyhow!("{}: {}", at.display(), plain(e))),
+        _ => {
+            let candidates = kinecal::simulate::random_configurations(truth, &inputs, 30 * per * artifacts.len(), rng)?;
+            touch_rows(truth, &candidates, &artifacts, per, a.noise_mm, rng.random(), &inputs).map_err(plain)
+        }
     })?;
     outputs.commit()?;
     println!(
@@ -651,13 +590,22 @@ fn touch_run(
         a.seed,
         a.truth.display()
     );
-    println!(
-        "{} {kind}s × {} touches, probe radius {probe} mm, noise {} mm → {}",
-        artifacts.len(),
-        a.per_point,
-        a.noise_mm,
-        a.out.display()
-    );
+    match &plan {
+        Some((at, rows)) => println!(
+            "{} planned touches of {}, probe radius {probe} mm, noise {} mm → {}",
+            rows.len(),
+            at.display(),
+            a.noise_mm,
+            a.out.display()
+        ),
+        None => println!(
+            "{} {kind}s × {} touches, probe radius {probe} mm, noise {} mm → {}",
+            artifacts.len(),
+            a.per_point,
+            a.noise_mm,
+            a.out.display()
+        ),
+    }
     if let Some(v) = &a.validation_out {
         println!(
             "{} {kind}s × {} touches (held out), noise {} mm → {}",

@@ -193,11 +193,6 @@ pub fn instrument_blocks(
     noise_mm: f64,
     columns: Option<&[usize]>,
 ) -> Result<CandidateJacobians, CalibError> {
-    if !(noise_mm.is_finite() && noise_mm > 0.0) {
-        return Err(CalibError::InvalidOption(format!(
-            "the measurement noise must be finite and > 0, got {noise_mm} mm"
-        )));
-    }
     let (model, free) = instrument_model(file, layout)?;
     if rows.is_empty() {
         return Err(CalibError::InvalidOption("no seat or distance row to plan from".into()));
@@ -207,6 +202,26 @@ pub fn instrument_blocks(
             "row {i} is not a row of one of the layout's {} {}s",
             layout.points.len(),
             layout.kind().name()
+        )));
+    }
+    artifact_blocks(&model, &free, rows, noise_mm, columns, |m| {
+        m.obs.artifact_point().expect("checked above").1
+    })
+}
+
+/// [`instrument_blocks`] on an [`Artifact`]-wrapped `model` whose free columns are `free`: row
+/// `m` refers to the model's point `point_of(m)`.
+pub(super) fn artifact_blocks(
+    model: &NominalArtifact,
+    free: &[usize],
+    rows: &[Measurement],
+    noise_mm: f64,
+    columns: Option<&[usize]>,
+    point_of: impl Fn(&Measurement) -> usize,
+) -> Result<CandidateJacobians, CalibError> {
+    if !(noise_mm.is_finite() && noise_mm > 0.0) {
+        return Err(CalibError::InvalidOption(format!(
+            "the measurement noise must be finite and > 0, got {noise_mm} mm"
         )));
     }
     let noise = Noise {
@@ -220,7 +235,7 @@ pub fn instrument_blocks(
         .map(|(i, m)| {
             // The wrapper's inputs: the machine's, then the row's point.
             let mut q = m.q.clone();
-            q.push(m.obs.artifact_point().expect("checked above").1 as f64);
+            q.push(point_of(m) as f64);
             let (pose, jac) = model
                 .forward_with_jacobian(&q)
                 .map_err(|source| CalibError::Kinematics { pose: i, source })?;
@@ -249,7 +264,7 @@ pub fn instrument_blocks(
             for (k, b) in sample.iter().enumerate() {
                 stacked.view_mut((3 * k, 0), (3, p)).copy_from(b);
             }
-            analyze(&stacked, &free, DEFAULT_RANK_TOLERANCE).identifiable
+            analyze(&stacked, free, DEFAULT_RANK_TOLERANCE).identifiable
         }
     };
     let mut data = Vec::with_capacity(raw.len() * 3 * columns.len());
@@ -263,7 +278,7 @@ pub fn instrument_blocks(
 
 /// The criterion's value of the rows `set` of `blocks`, then the regularised `log det` (which
 /// ranks sets whose criterion is zero before full rank).
-fn score(blocks: &CandidateJacobians, set: &[usize], criterion: Criterion) -> (f64, f64) {
+pub(super) fn score(blocks: &CandidateJacobians, set: &[usize], criterion: Criterion) -> (f64, f64) {
     let m = blocks.information(set);
     let value = ObservabilityIndices::from_information(&m, blocks.rows_per_candidate() * set.len()).value(criterion);
     let k = m.nrows();
@@ -274,17 +289,17 @@ fn score(blocks: &CandidateJacobians, set: &[usize], criterion: Criterion) -> (f
     (value, log_det)
 }
 
-/// Give every point at least `min` rows of `selected` (each row's point in `point_of`): for a
-/// point short of them, add its candidate that scores best, then drop the member (of a point
-/// above its minimum) whose removal scores best. Returns the moves made.
-fn give_each_point(
+/// Give every point `k` at least `min[k]` rows of `selected` (each row's point in `point_of`):
+/// for a point short of them, add its candidate that scores best, then drop the member (of a
+/// point above its minimum) whose removal scores best. Returns the moves made.
+pub(super) fn give_each_point(
     blocks: &CandidateJacobians,
     point_of: &[usize],
-    points: usize,
-    min: usize,
+    min: &[usize],
     criterion: Criterion,
     selected: &mut Vec<usize>,
 ) -> usize {
+    let points = min.len();
     let better = |a: (f64, f64), b: (f64, f64)| a.0 > b.0 || (a.0 == b.0 && a.1 > b.1);
     let mut moves = 0;
     loop {
@@ -292,7 +307,7 @@ fn give_each_point(
         for &i in selected.iter() {
             counts[point_of[i]] += 1;
         }
-        let Some(short) = (0..points).find(|&k| counts[k] < min) else {
+        let Some(short) = (0..points).find(|&k| counts[k] < min[k]) else {
             return moves;
         };
         let mut best: Option<(usize, (f64, f64))> = None;
@@ -308,7 +323,7 @@ fn give_each_point(
         selected.push(add);
         let mut drop: Option<(usize, (f64, f64))> = None;
         for (pos, &j) in selected.iter().enumerate() {
-            if point_of[j] == short || counts[point_of[j]] <= min {
+            if point_of[j] == short || counts[point_of[j]] <= min[point_of[j]] {
                 continue;
             }
             let trial: Vec<usize> = selected.iter().enumerate().filter(|&(p, _)| p != pos).map(|(_, &x)| x).collect();
@@ -363,8 +378,7 @@ pub fn plan_instrument(file: &ModelFile, layout: &InstrumentLayout, opts: &Instr
     let repairs = give_each_point(
         &blocks,
         &point_of,
-        layout.points.len(),
-        min,
+        &vec![min; layout.points.len()],
         opts.select.criterion,
         &mut selection.selected,
     );

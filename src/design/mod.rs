@@ -36,6 +36,7 @@ pub mod lazy;
 pub mod plan;
 pub mod sampling;
 pub mod select;
+pub mod touch;
 
 pub use candidates::{candidates_in_input_box, candidates_in_workspace, Candidate, CandidateFilter, GenerationReport, Sampling, Workspace};
 pub use closed::{actuator_condition, candidates_in_platform_box, PlatformGeneration};
@@ -49,6 +50,7 @@ pub use sampling::{
     SampledSpace,
 };
 pub use select::{candidate_pool, exchange, greedy, select, sffs, ExchangeStart, SelectOptions, Selection, SelectionMethod, Step};
+pub use touch::{plan_touches, touch_blocks, touch_candidates, touch_model, TouchLayout};
 
 use std::io::Write;
 

@@ -267,3 +267,178 @@ fn cli_plan_seats_simulate_at_identify_recovers_the_prototype() {
         assert_eq!(e.trim().lines().count(), 1, "{e}");
     }
 }
+
+/// Three spheres and a datum cube in front of the IRB 120 (mm, base frame).
+fn touch_layout() -> kinecal::design::TouchLayout {
+    use kinecal::instrument::simulate::Touched;
+    let mut artifacts: Vec<Touched> = [[300.0, 0.0, 300.0], [350.0, -150.0, 250.0], [350.0, 150.0, 250.0]]
+        .iter()
+        .enumerate()
+        .map(|(k, c)| Touched::sphere(k, Vector3::from(*c), 25.4, 1.5))
+        .collect();
+    artifacts.extend(Touched::cube(
+        se3::pose_from_parts(Vector3::new(350.0, 0.0, 100.0), Vector3::new(0.1, 0.2, 0.3)),
+        100.0,
+        1.5,
+    ));
+    kinecal::design::TouchLayout {
+        artifacts,
+        ball: Vector3::from(BALL),
+    }
+}
+
+/// A touch plan: the touches asked for, each sphere and cube face its minimum, every planned
+/// configuration touching its nominal surface, deterministic, and at least as good by its
+/// criterion as as many candidates taken evenly.
+#[test]
+fn a_touch_plan_gives_each_sphere_and_face_its_minimum_and_beats_evenly_taken_touches() {
+    use kinecal::design::{plan_touches, touch_blocks, touch_model};
+    let file = builtin::model_file("irb120").unwrap();
+    let layout = touch_layout();
+    let opts = options(&file, 60, 40, 0, Criterion::DOptimal);
+    let plan = plan_touches(&file, &layout, &opts).unwrap();
+    assert_eq!(plan.rows.len(), 60);
+    let (model, _) = touch_model(&file, &layout).unwrap();
+    let mut counts = std::collections::BTreeMap::new();
+    for m in &plan.rows {
+        let kinecal::measure::Observation::Touch(t) = m.obs else {
+            panic!("not a touch")
+        };
+        let face = match t {
+            kinecal::measure::Touch::Face { face, .. } => face,
+            _ => 0,
+        };
+        *counts.entry((t.artifact(), face)).or_insert(0usize) += 1;
+        // The planned configuration touches the nominal artifact.
+        let (kind, id) = t.artifact();
+        let a = layout.artifacts.iter().find(|a| a.touch.artifact() == (kind, id)).unwrap();
+        let tip = model.inner.forward(&m.q).unwrap().translation.vector;
+        let r = t.residual(&a.frame.inverse_transform_point(&tip.into()).coords);
+        assert!(r.abs() < 1e-8, "{kind:?} {id}: {r} mm off its surface");
+    }
+    eprintln!(
+        "touch plan: {} candidates, per artifact (and face) {:?}, {} repair moves, {} columns, {}",
+        plan.candidates.len(),
+        counts.values().collect::<Vec<_>>(),
+        plan.repairs,
+        plan.columns.len(),
+        plan.selection.indices
+    );
+    assert_eq!(counts.len(), 9, "three spheres and six faces: {counts:?}");
+    assert!(
+        counts.iter().all(|((k, _), &c)| c >= kinecal::instrument::touch::min_rows(k.0)),
+        "{counts:?}"
+    );
+    assert_eq!(
+        plan.rows,
+        plan_touches(&file, &layout, &opts).unwrap().rows,
+        "the same seed gives the same plan"
+    );
+    // As many candidates taken evenly through the list (every sphere and face in proportion).
+    let step = plan.candidates.len() as f64 / 60.0;
+    let even: Vec<Measurement> = (0..60).map(|k| plan.candidates[(k as f64 * step) as usize].clone()).collect();
+    let both: Vec<Measurement> = plan.rows.iter().chain(&even).cloned().collect();
+    let blocks = touch_blocks(&file, &layout, &both, 0.01, Some(&plan.columns)).unwrap();
+    let value =
+        |set: Vec<usize>| ObservabilityIndices::from_information(&blocks.information(&set), 3 * set.len()).value(Criterion::DOptimal);
+    let (planned, evenly) = (value((0..60).collect()), value((60..120).collect()));
+    eprintln!("log det on the plan's columns: planned {planned:.3}, evenly taken {evenly:.3}");
+    assert!(planned > evenly, "planned {planned} ≤ evenly taken {evenly}");
+    // A layout without artifacts and a plan smaller than the minimum touches are refused.
+    let none = kinecal::design::TouchLayout {
+        artifacts: Vec::new(),
+        ball: Vector3::zeros(),
+    };
+    assert!(plan_touches(&file, &none, &opts)
+        .unwrap_err()
+        .to_string()
+        .contains("no sphere, plane or cube face"));
+    let small = options(&file, 20, 40, 0, Criterion::DOptimal);
+    let e = plan_touches(&file, &layout, &small).unwrap_err().to_string();
+    assert!(e.contains("30 are needed"), "{e}");
+}
+
+/// The command line plans where to touch a datum cube, measures the plan on a virtual prototype
+/// (`simulate --at` moves each planned configuration onto the real faces) and identifies it
+/// back noise-free; a plan file of seats is refused as a touch plan.
+#[test]
+fn cli_plan_cube_touches_simulate_at_identify_recovers_the_prototype() {
+    use crate::cli::{fails, json, ok};
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let cube = [
+        "--cube",
+        "350,0,250",
+        "--cube-edge-mm",
+        "100",
+        "--cube-rotation-deg",
+        "5,10,15",
+        "--probe-radius-mm",
+        "1.5",
+        "--tool-mm",
+        "15,-10,120",
+    ];
+    let plan = [
+        &[
+            "plan",
+            "--model",
+            "irb120",
+            "-n",
+            "48",
+            "--candidates-per-point",
+            "30",
+            "--criterion",
+            "d",
+        ][..],
+        &cube,
+        &["--output", "p.csv"],
+    ]
+    .concat();
+    let summary = json(dir, &plan);
+    assert_eq!(summary["rows"], 48);
+    assert_eq!(summary["rows_per_artifact"]["cube 0"], 48, "{summary}");
+    let text = std::fs::read_to_string(dir.join("p.csv")).unwrap();
+    assert!(
+        text.lines()
+            .find(|l| !l.starts_with('#'))
+            .unwrap()
+            .ends_with(",face,cube_edge_mm,probe_radius_mm"),
+        "{text}"
+    );
+    let sim = [
+        &["simulate", "irb120", "--at", "p.csv", "-o", "touches.csv", "--truth", "truth.toml"][..],
+        &cube,
+    ]
+    .concat();
+    let out = ok(dir, &sim);
+    assert!(out.contains("48 planned touches of p.csv"), "{out}");
+    let out = ok(dir, &["identify", "irb120", "touches.csv", "--out", "cal.toml"]);
+    eprintln!("{out}");
+    assert!(out.contains("σ̂₀ = 0.000") && !out.contains("verdict: failed"), "{out}");
+    // A seat plan is not a touch plan.
+    ok(
+        dir,
+        &[
+            "plan",
+            "--model",
+            "irb120",
+            "--seats",
+            "400,0,300;450,100,250",
+            "--tool-mm",
+            "15,-10,120",
+            "-n",
+            "12",
+            "--output",
+            "seats.csv",
+        ],
+    );
+    let e = fails(
+        dir,
+        &[
+            &["simulate", "irb120", "--at", "seats.csv", "-o", "t2.csv", "--truth", "t2.toml"][..],
+            &cube,
+        ]
+        .concat(),
+    );
+    assert!(e.contains("not a plan of touches"), "{e}");
+}

@@ -127,3 +127,53 @@ pub fn touch_rows(
     }
     Ok(out)
 }
+
+/// A touch plan (rows of [`crate::design::plan_touches`], planned on the nominal) measured on
+/// `truth`: each planned configuration moved onto its artifact of `artifacts` (the one with the
+/// row's sphere, plane or cube face) by `truth`, the tip's centre `r` off the surface plus noise
+/// of σ `noise_mm` along the normal (seed `seed`), within the limits of `inputs`: what a probe
+/// approaching the surface from the planned configuration records. A row whose artifact is not
+/// given, or that the truth cannot move onto it, is an error naming the row.
+pub fn touch_planned(
+    truth: &dyn Mechanism,
+    planned: &[Measurement],
+    artifacts: &[Touched],
+    noise_mm: f64,
+    seed: u64,
+    inputs: &[InputSpec],
+) -> Result<Vec<Measurement>, CalibError> {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let noise = Normal::new(0.0, noise_mm.max(0.0)).map_err(|e| CalibError::InvalidOption(e.to_string()))?;
+    let fixed: Vec<bool> = (0..planned.first().map_or(0, |m| m.q.len()))
+        .map(|k| inputs.get(k).is_some_and(|i| i.approach_of.is_some()))
+        .collect();
+    let unreachable = |i: usize, why: String| CalibError::Kinematics {
+        pose: i,
+        source: KinError::Unreachable(why),
+    };
+    planned
+        .iter()
+        .enumerate()
+        .map(|(i, m)| {
+            let Observation::Touch(touch) = m.obs else {
+                return Err(CalibError::InvalidOption(format!("row {i}: not a touch")));
+            };
+            let a = artifacts.iter().find(|a| a.touch == touch).ok_or_else(|| {
+                CalibError::InvalidOption(format!(
+                    "row {i}: it touches an artifact not given (a different size, radius or number)"
+                ))
+            })?;
+            let off = |p: &Vector3<f64>| a.touch.residual(&a.frame.inverse_transform_point(&(*p).into()).coords);
+            let e = noise.sample(&mut rng);
+            let residual = |t: &Pose| DVector::from_element(1, off(&t.translation.vector) + e);
+            let (q, _) = super::onto(truth, &m.q, &fixed, 30, residual, |r| r[0].abs() < 1e-10)
+                .ok_or_else(|| unreachable(i, format!("{}: the machine does not reach it from this configuration", a.name())))?;
+            let q = within_limits(q, inputs).ok_or_else(|| unreachable(i, format!("{}: reached only beyond the limits", a.name())))?;
+            Ok(Measurement {
+                q,
+                obs: m.obs.clone(),
+                joints: Vec::new(),
+            })
+        })
+        .collect()
+}
