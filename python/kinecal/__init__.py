@@ -41,6 +41,8 @@ __all__ = [
     "plan",
     "plan_sampled",
     "plan_instrument",
+    "simulate_touches",
+    "plan_touches",
     "SampledPlan",
     "__version__",
 ]
@@ -348,3 +350,22 @@ def plan_instrument(
     (n, inputs) in rad / mm, each row's point, summary dict)."""
     q, point_of, summary = _kinecal.plan_instrument(model, [list(p) for p in points], n, **options)
     return q, list(point_of), json.loads(summary)
+
+
+def simulate_touches(model: Model, *, probe_radius_mm: float, **options: Any) -> Tuple[Model, Data]:
+    """Touch-probe data on a virtual prototype (``kinecal simulate --spheres / --planes /
+    --cube``): returns (true model, data). One kind per call: ``spheres`` (centres, mm) with
+    ``sphere_diameter_mm``; ``planes`` ((point, normal) pairs); or ``cube`` (centre) with
+    ``cube_edge_mm`` and ``cube_rotation_deg``. Other options: ``per_artifact`` (touches per
+    sphere, plane or cube face), ``tool_mm`` (the probe ball on the flange), ``seed``,
+    ``error_mm``, ``error_deg``, ``noise_mm`` (along each surface's normal)."""
+    return _kinecal.simulate_touches(model, probe_radius_mm=probe_radius_mm, **options)
+
+
+def plan_touches(model: Model, n: int = 40, *, probe_radius_mm: float, **options: Any) -> Tuple[Data, Dict[str, Any]]:
+    """Plan where to touch on ``model``'s nominal geometry (``kinecal plan --spheres / --planes /
+    --cube``, the same library call): the artifacts as in :func:`simulate_touches`, and
+    ``tool_mm``, ``candidates_per_artifact``, ``min_per_artifact``, ``criterion``, ``method``,
+    ``noise_mm``, ``seed``. Returns (the planned touches as data, summary dict)."""
+    data, summary = _kinecal.plan_touches(model, n, probe_radius_mm=probe_radius_mm, **options)
+    return data, json.loads(summary)

@@ -928,6 +928,164 @@ fn plan_instrument<'py>(
     Ok((rows_array(py, &q, inputs.len()), point_of, summary.to_string()))
 }
 
+/// The touched artifacts of the keyword arguments ([`kinecal::instrument::simulate::TouchSpec`]):
+/// spheres (centres, one diameter), planes (point, normal), a cube (centre, edge, rotation in
+/// degrees), the probe radius (mm).
+#[allow(clippy::too_many_arguments)]
+fn touch_spec(
+    spheres: Vec<[f64; 3]>,
+    sphere_diameter_mm: Option<f64>,
+    planes: Vec<([f64; 3], [f64; 3])>,
+    cube: Option<[f64; 3]>,
+    cube_edge_mm: Option<f64>,
+    cube_rotation_deg: [f64; 3],
+    probe_radius_mm: f64,
+) -> PyResult<Vec<kinecal::instrument::simulate::Touched>> {
+    let spec = kinecal::instrument::simulate::TouchSpec {
+        spheres: spheres.into_iter().map(Vector3::from).collect(),
+        sphere_diameter_mm,
+        planes: planes.into_iter().map(|(o, n)| (o.into(), n.into())).collect(),
+        cube: cube.map(|c| {
+            (
+                c.into(),
+                Vector3::from(cube_rotation_deg).map(f64::to_radians),
+                cube_edge_mm.unwrap_or(f64::NAN),
+            )
+        }),
+        probe_radius_mm,
+    };
+    spec.artifacts().map(|(_, a)| a).map_err(err)
+}
+
+/// Touch-probe data on a virtual prototype (`kinecal simulate --spheres / --planes / --cube`):
+/// the prototype's errors (±`error_mm` / ±`error_deg`, seed `seed`), the probe ball at `tool_mm`
+/// on its flange, `per_artifact` touches per sphere, plane or cube face at the random
+/// configurations nearest it, moved onto it, noise σ `noise_mm` along the normal. Returns (true
+/// model, data).
+#[pyfunction]
+#[pyo3(signature = (model, *, probe_radius_mm, spheres = Vec::new(), sphere_diameter_mm = None, planes = Vec::new(), cube = None, cube_edge_mm = None, cube_rotation_deg = [0.0, 0.0, 0.0], per_artifact = 20, tool_mm = [0.0, 0.0, 0.0], seed = 1, error_mm = 0.5, error_deg = 0.1, noise_mm = 0.0))]
+#[allow(clippy::too_many_arguments)]
+fn simulate_touches(
+    model: &Model,
+    probe_radius_mm: f64,
+    spheres: Vec<[f64; 3]>,
+    sphere_diameter_mm: Option<f64>,
+    planes: Vec<([f64; 3], [f64; 3])>,
+    cube: Option<[f64; 3]>,
+    cube_edge_mm: Option<f64>,
+    cube_rotation_deg: [f64; 3],
+    per_artifact: usize,
+    tool_mm: [f64; 3],
+    seed: u64,
+    error_mm: f64,
+    error_deg: f64,
+    noise_mm: f64,
+) -> PyResult<(Model, Data)> {
+    for (name, v) in [("error_mm", error_mm), ("error_deg", error_deg), ("noise_mm", noise_mm)] {
+        if !(v.is_finite() && v >= 0.0) {
+            return Err(err(format!("{name}: must be a finite value ≥ 0, got {v}")));
+        }
+    }
+    if per_artifact == 0 {
+        return Err(err("per_artifact: must be at least 1"));
+    }
+    let artifacts = touch_spec(
+        spheres,
+        sphere_diameter_mm,
+        planes,
+        cube,
+        cube_edge_mm,
+        cube_rotation_deg,
+        probe_radius_mm,
+    )?;
+    let free = model.file.free_indices().map_err(err)?;
+    let inputs = model.file.inputs();
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let (proto, _) = virtual_prototype(&model.mech, &free, error_mm, error_deg.to_radians(), &mut rng);
+    let tool = kinecal::se3::pose_from_parts(Vector3::from(tool_mm), Vector3::zeros());
+    let truth = kinecal::model::framed::Framed::new(proto, Pose::identity(), tool);
+    let truth_file = model.file.with_geometry_of(&truth).map_err(err)?;
+    let rows = kinecal::instrument::simulate::random_touches(&truth, &inputs, &artifacts, per_artifact, noise_mm, &mut rng).map_err(err)?;
+    Ok((
+        Model::of(truth_file),
+        Data {
+            set: DataSet::from_measurements("<simulated touches>", rows),
+        },
+    ))
+}
+
+/// Plan where to touch (`kinecal plan --spheres / --planes / --cube`, the same library call,
+/// [`kinecal::design::plan_touches`]) on `model`'s nominal geometry with the probe ball at
+/// `tool_mm`. Returns (the planned touches as data, summary as JSON).
+#[pyfunction]
+#[pyo3(signature = (model, n = 40, *, probe_radius_mm, spheres = Vec::new(), sphere_diameter_mm = None, planes = Vec::new(), cube = None, cube_edge_mm = None, cube_rotation_deg = [0.0, 0.0, 0.0], tool_mm = [0.0, 0.0, 0.0], candidates_per_artifact = 100, min_per_artifact = 0, criterion = "d", method = "sffs", noise_mm = 0.005, seed = 1))]
+#[allow(clippy::too_many_arguments)]
+fn plan_touches(
+    model: &Model,
+    n: usize,
+    probe_radius_mm: f64,
+    spheres: Vec<[f64; 3]>,
+    sphere_diameter_mm: Option<f64>,
+    planes: Vec<([f64; 3], [f64; 3])>,
+    cube: Option<[f64; 3]>,
+    cube_edge_mm: Option<f64>,
+    cube_rotation_deg: [f64; 3],
+    tool_mm: [f64; 3],
+    candidates_per_artifact: usize,
+    min_per_artifact: usize,
+    criterion: &str,
+    method: &str,
+    noise_mm: f64,
+    seed: u64,
+) -> PyResult<(Data, String)> {
+    use kinecal::design::{InstrumentPlanOptions, SelectOptions, TouchLayout};
+    let artifacts = touch_spec(
+        spheres,
+        sphere_diameter_mm,
+        planes,
+        cube,
+        cube_edge_mm,
+        cube_rotation_deg,
+        probe_radius_mm,
+    )?;
+    let layout = TouchLayout {
+        artifacts,
+        ball: tool_mm.into(),
+    };
+    let opts = InstrumentPlanOptions {
+        draw: kinecal::instrument::simulate::Placement {
+            per_point: candidates_per_artifact,
+            reference: Vec::new(),
+            max_tilt: 0.0,
+            noise_mm,
+            seed,
+            inputs: model.file.inputs(),
+        },
+        min_per_point: min_per_artifact,
+        method: method.parse().map_err(err)?,
+        select: SelectOptions {
+            n,
+            criterion: criterion.parse().map_err(err)?,
+            ..Default::default()
+        },
+    };
+    let plan = kinecal::design::plan_touches(&model.file, &layout, &opts).map_err(err)?;
+    let mut counts = std::collections::BTreeMap::new();
+    for m in &plan.rows {
+        if let Some((k, id)) = m.obs.artifact_point() {
+            *counts.entry(format!("{} {id}", k.name())).or_insert(0usize) += 1;
+        }
+    }
+    let summary = serde_json::json!({"rows": plan.rows.len(), "rows_per_artifact": counts, "candidates": plan.candidates.len(),
+        "repairs": plan.repairs, "indices": plan.selection.indices, "columns": plan.column_names});
+    Ok((
+        Data {
+            set: DataSet::from_measurements("<touch plan>", plan.rows),
+        },
+        summary.to_string(),
+    ))
+}
+
 /// The compiled core of the `kinecal` package.
 #[pymodule]
 fn _kinecal(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -947,5 +1105,7 @@ fn _kinecal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(plan, m)?)?;
     m.add_function(wrap_pyfunction!(plan_sampled, m)?)?;
     m.add_function(wrap_pyfunction!(plan_instrument, m)?)?;
+    m.add_function(wrap_pyfunction!(simulate_touches, m)?)?;
+    m.add_function(wrap_pyfunction!(plan_touches, m)?)?;
     Ok(())
 }

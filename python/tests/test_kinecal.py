@@ -288,3 +288,21 @@ def test_plan_instrument_gives_each_seat_its_rows():
     np.testing.assert_array_equal(q, again)
     with pytest.raises(kinecal.KinecalError, match="must be positive"):
         kinecal.plan_instrument(m, seats[:1], 8, ballbar_mm=-100.0)
+
+
+def test_touches_are_simulated_planned_and_calibrated():
+    m = kinecal.Model.load("irb120")
+    spheres = [[300.0, 0.0, 300.0], [350.0, -150.0, 250.0], [350.0, 150.0, 250.0]]
+    truth, data = kinecal.simulate_touches(
+        m, probe_radius_mm=1.5, spheres=spheres, sphere_diameter_mm=25.4, per_artifact=30, tool_mm=[15.0, -10.0, 120.0], seed=3
+    )
+    cal = kinecal.calibrate(m, data, starts=1)
+    assert cal.verdict != "failed" and cal.sigma0 < 1e-3, cal.reasons
+    plan, summary = kinecal.plan_touches(
+        m, 48, probe_radius_mm=1.5, cube=[350.0, 0.0, 250.0], cube_edge_mm=100.0, cube_rotation_deg=[5.0, 10.0, 15.0], tool_mm=[15.0, -10.0, 120.0]
+    )
+    assert summary["rows"] == 48 and summary["rows_per_artifact"] == {"cube 0": 48}
+    with pytest.raises(kinecal.KinecalError, match="metres"):
+        kinecal.simulate_touches(m, probe_radius_mm=1.5, spheres=spheres, sphere_diameter_mm=0.0254)
+    with pytest.raises(kinecal.KinecalError, match="one kind"):
+        kinecal.simulate_touches(m, probe_radius_mm=1.5, spheres=spheres, sphere_diameter_mm=25.4, cube=[0.0, 0.0, 0.0], cube_edge_mm=100.0)

@@ -547,7 +547,7 @@ fn touch_run(
     rng: &mut ChaCha8Rng,
     mut outputs: Outputs,
 ) -> anyhow::Result<()> {
-    use kinecal::instrument::simulate::{touch_planned, touch_rows};
+    use kinecal::instrument::simulate::{random_touches, touch_planned};
     use rand::RngExt;
     anyhow::ensure!(a.per_point > 0, "--per-point: must be at least 1");
     let (kind, artifacts, probe) = a.touch.artifacts()?;
@@ -576,10 +576,7 @@ fn touch_run(
     stage_sets(a, file, &mut outputs, "touches per artifact", |k, per| match (&plan, k) {
         (Some((at, rows)), 0) => touch_planned(truth, rows, &artifacts, a.noise_mm, rng.random(), &inputs)
             .map_err(|e| anyhow::anyhow!("{}: {}", at.display(), plain(e))),
-        _ => {
-            let candidates = kinecal::simulate::random_configurations(truth, &inputs, 30 * per * artifacts.len(), rng)?;
-            touch_rows(truth, &candidates, &artifacts, per, a.noise_mm, rng.random(), &inputs).map_err(plain)
-        }
+        _ => random_touches(truth, &inputs, &artifacts, per, a.noise_mm, rng).map_err(plain),
     })?;
     outputs.commit()?;
     println!(

@@ -2,8 +2,7 @@
 //! unknown planes or a datum cube, and the probe's tip radius, parsed into
 //! [`kinecal::instrument::simulate::Touched`] artifacts.
 use clap::Args;
-use kinecal::instrument::simulate::{parse_points, Touched};
-use kinecal::instrument::touch::MIN_ARTIFACT_MM;
+use kinecal::instrument::simulate::{parse_points, TouchSpec, Touched};
 
 /// Spheres, planes or a datum cube touched by a probe.
 #[derive(Args, Debug, Clone, Default)]
@@ -67,31 +66,23 @@ impl TouchArgs {
     }
 
     /// The artifacts: their kind's name (`sphere`, `plane`, `cube face`), one [`Touched`] per
-    /// sphere, plane or cube face, and the probe radius (mm). One-line errors for a missing
-    /// radius, a size under 1 mm (metres?), a count of normals that does not match, a zero normal.
+    /// sphere, plane or cube face, and the probe radius (mm), through
+    /// [`kinecal::instrument::simulate::TouchSpec::artifacts`]; its one-line errors are prefixed
+    /// with the options they concern.
     pub fn artifacts(&self) -> anyhow::Result<(&'static str, Vec<Touched>, f64)> {
         let probe = self.probe_radius_mm.filter(|r| r.is_finite() && *r >= 0.0).ok_or_else(|| {
             anyhow::anyhow!("--probe-radius-mm: the radius of the probe's tip ball is needed (mm, not negative; 0 for a pointed tip)")
         })?;
-        let size = |option: &str, v: Option<f64>| -> anyhow::Result<f64> {
-            let v = v.unwrap_or(f64::NAN);
-            anyhow::ensure!(
-                v.is_finite() && v >= MIN_ARTIFACT_MM,
-                "{option} {v}: under 1 mm is not a plausible size in mm (is it in metres?)"
-            );
-            Ok(v)
-        };
         let parse = |option: &str, text: &str| parse_points(text).map_err(|e| anyhow::anyhow!("{option} {e}"));
-        if let Some(text) = &self.spheres {
-            let d = size("--sphere-diameter-mm", self.sphere_diameter_mm)?;
-            let centres = parse("--spheres", text)?;
-            return Ok((
-                "sphere",
-                centres.iter().enumerate().map(|(k, c)| Touched::sphere(k, *c, d, probe)).collect(),
-                probe,
-            ));
-        }
-        if let Some(text) = &self.planes {
+        let mut spec = TouchSpec {
+            probe_radius_mm: probe,
+            sphere_diameter_mm: self.sphere_diameter_mm,
+            ..TouchSpec::default()
+        };
+        let options = if let Some(text) = &self.spheres {
+            spec.spheres = parse("--spheres", text)?;
+            "--spheres/--sphere-diameter-mm"
+        } else if let Some(text) = &self.planes {
             let origins = parse("--planes", text)?;
             let normals = parse("--plane-normals", self.plane_normals.as_deref().unwrap_or_default())?;
             anyhow::ensure!(
@@ -100,36 +91,32 @@ impl TouchArgs {
                 normals.len(),
                 origins.len()
             );
-            let mut planes = Vec::new();
-            for (k, (o, n)) in origins.iter().zip(&normals).enumerate() {
-                let n = n
-                    .try_normalize(1e-12)
-                    .ok_or_else(|| anyhow::anyhow!("--plane-normals: plane {k}'s normal is zero"))?;
-                planes.push(Touched::plane(k, *o, n, probe));
-            }
-            return Ok(("plane", planes, probe));
-        }
-        let text = self
-            .cube
-            .as_deref()
-            .ok_or_else(|| anyhow::anyhow!("touches need --spheres, --planes or --cube"))?;
-        let [centre] = parse("--cube", text)?
-            .try_into()
-            .map_err(|_| anyhow::anyhow!("--cube '{text}': one point X,Y,Z (mm)"))?;
-        let rotation = match &self.cube_rotation_deg {
-            Some(r) => {
-                let [v] = parse("--cube-rotation-deg", r)?
-                    .try_into()
-                    .map_err(|_| anyhow::anyhow!("--cube-rotation-deg '{r}': RX,RY,RZ (deg)"))?;
-                v.map(f64::to_radians)
-            }
-            None => nalgebra::Vector3::zeros(),
+            spec.planes = origins.into_iter().zip(normals).collect();
+            "--planes/--plane-normals"
+        } else {
+            let text = self
+                .cube
+                .as_deref()
+                .ok_or_else(|| anyhow::anyhow!("touches need --spheres, --planes or --cube"))?;
+            let [centre] = parse("--cube", text)?
+                .try_into()
+                .map_err(|_| anyhow::anyhow!("--cube '{text}': one point X,Y,Z (mm)"))?;
+            let rotation = match &self.cube_rotation_deg {
+                Some(r) => {
+                    let [v] = parse("--cube-rotation-deg", r)?
+                        .try_into()
+                        .map_err(|_| anyhow::anyhow!("--cube-rotation-deg '{r}': RX,RY,RZ (deg)"))?;
+                    v.map(f64::to_radians)
+                }
+                None => nalgebra::Vector3::zeros(),
+            };
+            spec.cube = Some((centre, rotation, self.cube_edge_mm.unwrap_or(f64::NAN)));
+            "--cube/--cube-edge-mm"
         };
-        let edge = size("--cube-edge-mm", self.cube_edge_mm)?;
-        Ok((
-            "cube face",
-            Touched::cube(kinecal::se3::pose_from_parts(centre, rotation), edge, probe),
-            probe,
-        ))
+        let (kind, artifacts) = spec.artifacts().map_err(|e| match e {
+            kinecal::CalibError::InvalidOption(m) => anyhow::anyhow!("{options}: {m}"),
+            e => anyhow::anyhow!("{options}: {e}"),
+        })?;
+        Ok((kind, artifacts, probe))
     }
 }

@@ -11,7 +11,7 @@ use rand::{Rng, RngExt, SeedableRng};
 use rand_distr::{Distribution, Normal};
 
 mod touch;
-pub use touch::{touch_planned, touch_rows, Touched};
+pub use touch::{random_touches, touch_planned, touch_rows, TouchSpec, Touched};
 
 /// How instrument rows are drawn ([`seat_rows`], [`distance_rows`]).
 #[derive(Debug, Clone, PartialEq)]

@@ -711,7 +711,10 @@ fn a_datum_cube_from_the_command_line() {
     assert!(out.contains("verdict: calibrated"), "{out}");
     (args[5], args[13], args[15]) = ("0.2", "cube2.csv", "truth2.toml");
     let e = fails(dir, &args);
-    assert!(e.contains("--cube-edge-mm 0.2: under 1 mm") && e.contains("metres"), "{e}");
+    assert!(
+        e.contains("--cube-edge-mm: cube edge 0.2: under 1 mm") && e.contains("metres"),
+        "{e}"
+    );
     // Held-out touches of the same prototype: fresh configurations, ids after the first set's.
     (args[5], args[13], args[15]) = ("200", "cube3.csv", "truth3.toml");
     args.extend(["--validation-poses", "4", "--validation-out", "held.csv"]);

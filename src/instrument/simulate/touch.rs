@@ -61,6 +61,93 @@ impl Touched {
     }
 }
 
+/// What a probe touches, as a user states it: reference spheres of one diameter, planes (a point
+/// on each and its normal), a datum cube (centre, rotation vector, edge), all in mm (rad for
+/// the rotation) in the base frame, and the probe's tip radius. [`TouchSpec::artifacts`] checks
+/// it and makes the [`Touched`] artifacts; one kind per set.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TouchSpec {
+    /// The spheres' centres.
+    pub spheres: Vec<Vector3<f64>>,
+    /// The spheres' diameter (mm).
+    pub sphere_diameter_mm: Option<f64>,
+    /// The planes: a point on each and its normal (any length but zero).
+    pub planes: Vec<(Vector3<f64>, Vector3<f64>)>,
+    /// The datum cube: its centre, its rotation vector (rad) and its edge (mm).
+    pub cube: Option<(Vector3<f64>, Vector3<f64>, f64)>,
+    /// The probe's tip radius (mm; 0 for a pointed tip).
+    pub probe_radius_mm: f64,
+}
+
+impl TouchSpec {
+    /// The artifacts (one per sphere, plane or cube face) and their kind's name (`sphere`,
+    /// `plane`, `cube face`). One-line errors: no artifact or more than one kind, a negative or
+    /// missing radius, a diameter or edge under [`crate::instrument::touch::MIN_ARTIFACT_MM`]
+    /// (metres?), a zero normal.
+    pub fn artifacts(&self) -> Result<(&'static str, Vec<Touched>), CalibError> {
+        let bad = |m: String| CalibError::InvalidOption(m);
+        let r = self.probe_radius_mm;
+        if !(r.is_finite() && r >= 0.0) {
+            return Err(bad(format!(
+                "probe radius {r} mm: the radius of the probe's tip ball is needed (mm, not negative; 0 for a pointed tip)"
+            )));
+        }
+        let kinds = usize::from(!self.spheres.is_empty()) + usize::from(!self.planes.is_empty()) + usize::from(self.cube.is_some());
+        if kinds != 1 {
+            return Err(bad(format!(
+                "give one kind of artifact per set (spheres, planes or a cube), got {kinds}"
+            )));
+        }
+        let size = |what: &str, v: Option<f64>| {
+            let v = v.unwrap_or(f64::NAN);
+            if v.is_finite() && v >= crate::instrument::touch::MIN_ARTIFACT_MM {
+                Ok(v)
+            } else {
+                Err(bad(format!(
+                    "{what} {v}: under 1 mm is not a plausible size in mm (is it in metres?)"
+                )))
+            }
+        };
+        if !self.spheres.is_empty() {
+            let d = size("sphere diameter", self.sphere_diameter_mm)?;
+            return Ok((
+                "sphere",
+                self.spheres.iter().enumerate().map(|(k, c)| Touched::sphere(k, *c, d, r)).collect(),
+            ));
+        }
+        if !self.planes.is_empty() {
+            let planes = (self.planes.iter().enumerate())
+                .map(|(k, (o, n))| {
+                    let n = n
+                        .try_normalize(1e-12)
+                        .ok_or_else(|| bad(format!("plane {k}: its normal is zero")))?;
+                    Ok(Touched::plane(k, *o, n, r))
+                })
+                .collect::<Result<_, CalibError>>()?;
+            return Ok(("plane", planes));
+        }
+        let (centre, rotation, edge) = self.cube.expect("one kind, checked above");
+        let edge = size("cube edge", Some(edge))?;
+        Ok(("cube face", Touched::cube(crate::se3::pose_from_parts(centre, rotation), edge, r)))
+    }
+}
+
+/// `per_artifact` touches on each of `artifacts` by `truth` at random configurations: the
+/// nearest of `30 · per_artifact` per artifact, drawn within the limits of `inputs` from `rng`
+/// ([`touch_rows`], noise σ `noise_mm` along each normal).
+pub fn random_touches<R: rand::Rng>(
+    truth: &dyn Mechanism,
+    inputs: &[InputSpec],
+    artifacts: &[Touched],
+    per_artifact: usize,
+    noise_mm: f64,
+    rng: &mut R,
+) -> Result<Vec<Measurement>, CalibError> {
+    let candidates = crate::simulate::random_configurations(truth, inputs, 30 * per_artifact * artifacts.len(), rng)
+        .map_err(|source| CalibError::Kinematics { pose: 0, source })?;
+    touch_rows(truth, &candidates, artifacts, per_artifact, noise_mm, rng.next_u64(), inputs)
+}
+
 /// `per_artifact` touches on each of `artifacts` by `truth` (the real machine with its probe):
 /// for each artifact the configurations of `candidates` whose tool point is nearest its surface
 /// (each used once), moved onto it (the tip's centre `r` off the surface plus noise of σ
