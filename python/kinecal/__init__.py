@@ -34,6 +34,7 @@ __all__ = [
     "KinecalError",
     "calibrate",
     "validate",
+    "validate_instrument",
     "identifiability",
     "assess",
     "compensate",
@@ -199,6 +200,15 @@ def calibrate(
 def validate(model: Model, data: Data) -> Validation:
     """Per-pose errors of ``model`` on ``data`` (``kinecal validate``)."""
     return Validation(*_kinecal.validate(model, data))
+
+
+def validate_instrument(model: Model, data: Data, seat_distances: Sequence[str] = ()) -> Dict[str, Any]:
+    """``model`` judged on held-out instrument rows in the instrument's own terms (``kinecal
+    validate`` of seat, distance or touch data): ``seats`` (each seat's spread, mm),
+    ``distances`` (the known ``"A:B:MM"`` seat distances: a, b, known, modelled − known),
+    ``pivots`` (each pivot's or reference sphere's length residuals), ``planes`` (each unknown
+    plane's flatness) and ``cubes`` (each datum cube's fit), RMS and largest values in mm."""
+    return json.loads(_kinecal.validate_instrument(model, data, list(seat_distances)))
 
 
 def identifiability(model: Model, data: Data, tolerance: float = 1e-8) -> Dict[str, Any]:

@@ -525,6 +525,21 @@ fn validate<'py>(
     Ok((json, pos, ori))
 }
 
+/// `model` judged on instrument rows in the instrument's own terms (`kinecal validate` of seat,
+/// distance or touch data, [`kinecal::instrument::held_out`]): each seat's spread, the known
+/// `seat_distances` ("A:B:MM"), each pivot's or sphere's length residuals, each plane's flatness,
+/// each datum cube's fit. Returns the result as JSON.
+#[pyfunction]
+#[pyo3(signature = (model, data, seat_distances = Vec::new()))]
+fn validate_instrument(model: &Model, data: &Data, seat_distances: Vec<String>) -> PyResult<String> {
+    let distances = seat_distances
+        .iter()
+        .map(|s| s.parse().map_err(|e: String| err(format!("seat_distances: {e}"))))
+        .collect::<PyResult<Vec<kinecal::instrument::SeatDistance>>>()?;
+    let held = kinecal::instrument::held_out(&*model.mech, &data.set.measurements, &distances).map_err(|e| err(data.set.locate(e)))?;
+    serde_json::to_string(&held).map_err(err)
+}
+
 /// ISO 9283 figures of an attained test file against a commanded one (`kinecal assess --json`),
 /// with distance figures between the `(from, to)` test poses of `distances`.
 #[pyfunction]
@@ -1096,6 +1111,7 @@ fn _kinecal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Calibration>()?;
     m.add_function(wrap_pyfunction!(calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(validate, m)?)?;
+    m.add_function(wrap_pyfunction!(validate_instrument, m)?)?;
     m.add_function(wrap_pyfunction!(identifiability, m)?)?;
     m.add_function(wrap_pyfunction!(assess, m)?)?;
     m.add_function(wrap_pyfunction!(assess_circle, m)?)?;

@@ -298,6 +298,15 @@ def test_touches_are_simulated_planned_and_calibrated():
     )
     cal = kinecal.calibrate(m, data, starts=1)
     assert cal.verdict != "failed" and cal.sigma0 < 1e-3, cal.reasons
+    # Judged as spheres: each placed by the model's probe centres, its length residuals.
+    _, held = kinecal.simulate_touches(
+        m, probe_radius_mm=1.5, spheres=spheres, sphere_diameter_mm=25.4, per_artifact=8, tool_mm=[15.0, -10.0, 120.0], seed=3
+    )
+    judged = kinecal.validate_instrument(cal.model, held)
+    assert [p["kind"] for p in judged["pivots"]] == ["Sphere"] * 3
+    assert all(p["rms_mm"] < 1e-6 for p in judged["pivots"]), judged
+    nominal = kinecal.validate_instrument(m, held)
+    assert all(p["rms_mm"] > 1e-3 for p in nominal["pivots"]), nominal
     plan, summary = kinecal.plan_touches(
         m, 48, probe_radius_mm=1.5, cube=[350.0, 0.0, 250.0], cube_edge_mm=100.0, cube_rotation_deg=[5.0, 10.0, 15.0], tool_mm=[15.0, -10.0, 120.0]
     )
