@@ -87,31 +87,9 @@ pub fn run(args: &PlanArgs, file: ModelFile) -> anyhow::Result<()> {
         bar_length: a.ballbar_mm,
         ball,
     };
-    let opts = InstrumentPlanOptions {
-        draw: Placement {
-            per_point: a.candidates_per_point,
-            reference: kinecal::instrument::simulate::reference_configuration(a.reference.as_deref(), &inputs)
-                .map_err(anyhow::Error::msg)?,
-            max_tilt: a.tilt_deg.to_radians(),
-            noise_mm: args.noise_position_mm,
-            seed: args.sampling.seed,
-            inputs: inputs.clone(),
-        },
-        min_per_point: a.min_per_point,
-        method: args.method,
-        select: SelectOptions {
-            n: args.n,
-            criterion: args.criterion,
-            pool: args.pool,
-            shortlist: args.shortlist,
-            ..Default::default()
-        },
-    };
-    let mut outputs = Outputs::new(args.force);
-    if let Some(m) = &args.model {
-        outputs.input(std::path::Path::new(m));
-    }
-    outputs.output(&args.output)?;
+    let reference = kinecal::instrument::simulate::reference_configuration(a.reference.as_deref(), &inputs).map_err(anyhow::Error::msg)?;
+    let opts = plan_options(args, reference, a.tilt_deg.to_radians(), inputs.clone());
+    let mut outputs = plan_outputs(args)?;
     let plan = plan_instrument(&file, &layout, &opts).map_err(|e| anyhow::anyhow!("{option}: {e}"))?;
     let kind = layout.kind().name();
     let sel = &plan.selection;
@@ -181,7 +159,6 @@ pub fn run(args: &PlanArgs, file: ModelFile) -> anyhow::Result<()> {
 /// Plan where to touch `--spheres`, `--planes` or `--cube` ([`kinecal::design::plan_touches`]).
 fn touch_run(args: &PlanArgs, file: ModelFile) -> anyhow::Result<()> {
     use kinecal::design::{plan_touches, TouchLayout};
-    use kinecal::instrument::simulate::Placement;
     let a = &args.instrument;
     let (kind, artifacts, probe) = a.touch.artifacts()?;
     let ball = match &a.tool_mm {
@@ -193,30 +170,8 @@ fn touch_run(args: &PlanArgs, file: ModelFile) -> anyhow::Result<()> {
     };
     anyhow::ensure!(a.candidates_per_point > 0, "--candidates-per-point: must be at least 1");
     let layout = TouchLayout { artifacts, ball };
-    let opts = InstrumentPlanOptions {
-        draw: Placement {
-            per_point: a.candidates_per_point,
-            reference: Vec::new(),
-            max_tilt: 0.0,
-            noise_mm: args.noise_position_mm,
-            seed: args.sampling.seed,
-            inputs: file.inputs(),
-        },
-        min_per_point: a.min_per_point,
-        method: args.method,
-        select: SelectOptions {
-            n: args.n,
-            criterion: args.criterion,
-            pool: args.pool,
-            shortlist: args.shortlist,
-            ..Default::default()
-        },
-    };
-    let mut outputs = Outputs::new(args.force);
-    if let Some(m) = &args.model {
-        outputs.input(std::path::Path::new(m));
-    }
-    outputs.output(&args.output)?;
+    let opts = plan_options(args, Vec::new(), 0.0, file.inputs());
+    let mut outputs = plan_outputs(args)?;
     let plan = plan_touches(&file, &layout, &opts)?;
     let sel = &plan.selection;
     let mut counts = std::collections::BTreeMap::new();
@@ -275,4 +230,44 @@ fn touch_run(args: &PlanArgs, file: ModelFile) -> anyhow::Result<()> {
         args.output.display()
     );
     Ok(())
+}
+
+/// The plan's options from the command line: candidates drawn per point about `reference`,
+/// tilted up to `max_tilt` (rad; unused for touches), within `inputs`' limits.
+fn plan_options(
+    args: &PlanArgs,
+    reference: Vec<f64>,
+    max_tilt: f64,
+    inputs: Vec<kinecal::model::kind::InputSpec>,
+) -> InstrumentPlanOptions {
+    let a = &args.instrument;
+    InstrumentPlanOptions {
+        draw: Placement {
+            per_point: a.candidates_per_point,
+            reference,
+            max_tilt,
+            noise_mm: args.noise_position_mm,
+            seed: args.sampling.seed,
+            inputs,
+        },
+        min_per_point: a.min_per_point,
+        method: args.method,
+        select: SelectOptions {
+            n: args.n,
+            criterion: args.criterion,
+            pool: args.pool,
+            shortlist: args.shortlist,
+            ..Default::default()
+        },
+    }
+}
+
+/// The plan file as the one output (never replacing the model file read).
+fn plan_outputs(args: &PlanArgs) -> anyhow::Result<Outputs> {
+    let mut outputs = Outputs::new(args.force);
+    if let Some(m) = &args.model {
+        outputs.input(std::path::Path::new(m));
+    }
+    outputs.output(&args.output)?;
+    Ok(outputs)
 }

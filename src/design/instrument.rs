@@ -292,7 +292,7 @@ pub(super) fn score(blocks: &CandidateJacobians, set: &[usize], criterion: Crite
 /// Give every point `k` at least `min[k]` rows of `selected` (each row's point in `point_of`):
 /// for a point short of them, add its candidate that scores best, then drop the member (of a
 /// point above its minimum) whose removal scores best. Returns the moves made.
-pub(super) fn give_each_point(
+fn give_each_point(
     blocks: &CandidateJacobians,
     point_of: &[usize],
     min: &[usize],
@@ -370,30 +370,48 @@ pub fn plan_instrument(file: &ModelFile, layout: &InstrumentLayout, opts: &Instr
         )));
     }
     let blocks = instrument_blocks(file, layout, &candidates, opts.draw.noise_mm, None)?;
-    let mut selection = select(&blocks, opts.method, &opts.select, &mut |_| {})?;
+    let selection = select(&blocks, opts.method, &opts.select, &mut |_| {})?;
     let point_of: Vec<usize> = candidates
         .iter()
         .map(|m| m.obs.artifact_point().expect("an instrument row").1)
         .collect();
-    let repairs = give_each_point(
+    let mins = vec![min; layout.points.len()];
+    let params = instrument_model(file, layout)?.0.params();
+    Ok(repaired_plan(
         &blocks,
+        candidates,
+        selection,
         &point_of,
-        &vec![min; layout.points.len()],
+        &mins,
         opts.select.criterion,
-        &mut selection.selected,
-    );
+        &params,
+    ))
+}
+
+/// The plan of a selection on `blocks` of `candidates` once [`give_each_point`] has given each
+/// point `k` (each candidate's in `point_of`) its `mins[k]` rows: the rows in candidate order,
+/// the indices of the set, the columns named from `params`.
+pub(super) fn repaired_plan(
+    blocks: &CandidateJacobians,
+    candidates: Vec<Measurement>,
+    mut selection: Selection,
+    point_of: &[usize],
+    mins: &[usize],
+    criterion: Criterion,
+    params: &[crate::params::Param],
+) -> InstrumentPlan {
+    let repairs = give_each_point(blocks, point_of, mins, criterion, &mut selection.selected);
     selection.selected.sort_unstable();
     let m = blocks.information(&selection.selected);
     selection.indices = ObservabilityIndices::from_information(&m, blocks.rows_per_candidate() * selection.selected.len());
-    let params = instrument_model(file, layout)?.0.params();
-    Ok(InstrumentPlan {
+    InstrumentPlan {
         rows: selection.selected.iter().map(|&i| candidates[i].clone()).collect(),
         column_names: blocks.columns().iter().map(|&c| params[c].name.clone()).collect(),
         columns: blocks.columns().to_vec(),
         candidates,
         selection,
         repairs,
-    })
+    }
 }
 
 /// Whether `m` is a row of one of `layout`'s points (a seat row for seats, a distance for pivots).

@@ -16,8 +16,7 @@
 //! artifacts are estimated, up to `log det` of the artifacts' own block (module docs of
 //! [`super::instrument`]); for touches that block depends on where each artifact is touched,
 //! so the criterion also rewards touches that place the artifacts well, which the fit needs too.
-use super::indices::ObservabilityIndices;
-use super::instrument::{artifact_blocks, give_each_point, InstrumentPlan, InstrumentPlanOptions, NominalArtifact};
+use super::instrument::{artifact_blocks, repaired_plan, InstrumentPlan, InstrumentPlanOptions, NominalArtifact};
 use super::select::select;
 use crate::error::CalibError;
 use crate::instrument::simulate::{touch_rows, Touched};
@@ -212,23 +211,20 @@ pub fn plan_touches(file: &ModelFile, layout: &TouchLayout, opts: &InstrumentPla
         )));
     }
     let blocks = touch_blocks(file, layout, &candidates, opts.draw.noise_mm, None)?;
-    let mut selection = select(&blocks, opts.method, &opts.select, &mut |_| {})?;
+    let selection = select(&blocks, opts.method, &opts.select, &mut |_| {})?;
     let group_index: Vec<usize> = candidates
         .iter()
         .map(|m| groups.iter().position(|g| Some(*g) == group_of(m)).expect("a group of the layout"))
         .collect();
     let mins: Vec<usize> = groups.iter().map(min).collect();
-    let repairs = give_each_point(&blocks, &group_index, &mins, opts.select.criterion, &mut selection.selected);
-    selection.selected.sort_unstable();
-    let m = blocks.information(&selection.selected);
-    selection.indices = ObservabilityIndices::from_information(&m, blocks.rows_per_candidate() * selection.selected.len());
     let params = touch_model(file, layout)?.0.params();
-    Ok(InstrumentPlan {
-        rows: selection.selected.iter().map(|&i| candidates[i].clone()).collect(),
-        column_names: blocks.columns().iter().map(|&c| params[c].name.clone()).collect(),
-        columns: blocks.columns().to_vec(),
+    Ok(repaired_plan(
+        &blocks,
         candidates,
         selection,
-        repairs,
-    })
+        &group_index,
+        &mins,
+        opts.select.criterion,
+        &params,
+    ))
 }

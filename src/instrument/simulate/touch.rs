@@ -162,17 +162,13 @@ pub fn touch_rows(
     seed: u64,
     inputs: &[InputSpec],
 ) -> Result<Vec<Measurement>, CalibError> {
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-    let noise = Normal::new(0.0, noise_mm.max(0.0)).map_err(|e| CalibError::InvalidOption(e.to_string()))?;
+    let (mut rng, noise) = seeded_noise(noise_mm, seed)?;
     let points: Vec<Option<Vector3<f64>>> = candidates
         .iter()
         .map(|q| truth.forward(q).ok().map(|t| t.translation.vector))
         .collect();
     let mut used = vec![false; candidates.len()];
-    // Approach directions (±1, [`InputSpec::approach_of`]) stay as drawn.
-    let fixed: Vec<bool> = (0..candidates.first().map_or(0, Vec::len))
-        .map(|k| inputs.get(k).is_some_and(|i| i.approach_of.is_some()))
-        .collect();
+    let fixed = approach_inputs(candidates.first().map_or(0, Vec::len), inputs);
     let mut out = Vec::new();
     for a in artifacts {
         let off = |p: &Vector3<f64>| a.touch.residual(&a.frame.inverse_transform_point(&(*p).into()).coords);
@@ -229,11 +225,8 @@ pub fn touch_planned(
     seed: u64,
     inputs: &[InputSpec],
 ) -> Result<Vec<Measurement>, CalibError> {
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-    let noise = Normal::new(0.0, noise_mm.max(0.0)).map_err(|e| CalibError::InvalidOption(e.to_string()))?;
-    let fixed: Vec<bool> = (0..planned.first().map_or(0, |m| m.q.len()))
-        .map(|k| inputs.get(k).is_some_and(|i| i.approach_of.is_some()))
-        .collect();
+    let (mut rng, noise) = seeded_noise(noise_mm, seed)?;
+    let fixed = approach_inputs(planned.first().map_or(0, |m| m.q.len()), inputs);
     let unreachable = |i: usize, why: String| CalibError::Kinematics {
         pose: i,
         source: KinError::Unreachable(why),
@@ -263,4 +256,16 @@ pub fn touch_planned(
             })
         })
         .collect()
+}
+
+/// The generator seeded `seed` and the normal noise of σ `noise_mm` (0 below 0) the touches draw.
+fn seeded_noise(noise_mm: f64, seed: u64) -> Result<(rand_chacha::ChaCha8Rng, Normal<f64>), CalibError> {
+    let noise = Normal::new(0.0, noise_mm.max(0.0)).map_err(|e| CalibError::InvalidOption(e.to_string()))?;
+    Ok((rand_chacha::ChaCha8Rng::seed_from_u64(seed), noise))
+}
+
+/// Which of `n` inputs are approach directions (±1, [`InputSpec::approach_of`]): they stay as
+/// drawn while a configuration is moved onto a surface.
+fn approach_inputs(n: usize, inputs: &[InputSpec]) -> Vec<bool> {
+    (0..n).map(|k| inputs.get(k).is_some_and(|i| i.approach_of.is_some())).collect()
 }
