@@ -39,7 +39,7 @@ mod planned;
 pub mod simulate;
 pub mod touch;
 pub mod zero;
-pub use held_out::{held_out, HeldOut, PivotFit, SeatSpread};
+pub use held_out::{held_out, CubeFit, HeldOut, PivotFit, SeatSpread};
 pub use mixed::{has_tracker_rows, NO_POINT};
 use offset::fit_offset_and_pivots;
 pub use planned::measure_planned;

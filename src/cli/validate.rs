@@ -113,8 +113,9 @@ fn mixed(a: &ValidateArgs, name: &str, model: &dyn kinecal::Mechanism, data: &Da
     instrument(a, name, model, &rows)
 }
 
-/// Instrument data: each seat's spread and the known distances' errors, each pivot's length
-/// residuals ([`kinecal::instrument::held_out`]).
+/// Instrument data: each seat's spread and the known distances' errors, each pivot's (and
+/// sphere's) length residuals, each plane's flatness, each datum cube's touches from its placed
+/// faces ([`kinecal::instrument::held_out`]).
 fn instrument(a: &ValidateArgs, name: &str, model: &dyn kinecal::Mechanism, data: &DataSet) -> anyhow::Result<()> {
     let h = kinecal::instrument::held_out(model, &data.measurements, &a.seat_distances).map_err(|e| data.locate(e))?;
     if a.json {
@@ -154,6 +155,12 @@ fn instrument(a: &ValidateArgs, name: &str, model: &dyn kinecal::Mechanism, data
         println!(
             "plane {}: {} rows, probe centres from their best plane {:.4} mm RMS, {:.4} mm max (0 if the model were exact)",
             p.plane, p.rows, p.rms_mm, p.max_mm
+        );
+    }
+    for c in &h.cubes {
+        println!(
+            "cube {}: {} rows, probe centres from the placed cube's faces {:.4} mm RMS, {:.4} mm max (0 if the model were exact)",
+            c.cube, c.rows, c.rms_mm, c.max_mm
         );
     }
     Ok(())

@@ -1,8 +1,10 @@
 //! A calibration judged on instrument data it was not fitted on (held-out placements of the
 //! artifact), in the instrument's own terms: each seat's spread of the model's tool points about
 //! their mean (one point if the model were exact), the error of the known distances between
-//! seats, and for a ballbar each pivot's length residuals once the pivot is placed.
-use super::{rms_and_max, sphere_and_zero, sphere_centre, spread, PointKind, SeatDistance};
+//! seats, and for a ballbar each pivot's length residuals once the pivot is placed; a touch
+//! probe's spheres like pivots, each plane by its flatness, a datum cube by the touches'
+//! distances from its faces once the cube is placed on them.
+use super::{rms_and_max, sphere_and_zero, sphere_centre, spread, ArtifactPoint, PointKind, SeatDistance};
 use crate::error::CalibError;
 use crate::measure::{Measurement, Observation};
 use crate::model::Mechanism;
@@ -60,6 +62,21 @@ pub struct PlaneFlatness {
     pub max_mm: f64,
 }
 
+/// A datum cube's touches under a model: the cube (its edge known) placed on them by least
+/// squares (6 unknowns, started as identification starts it, [`super::touch`]), the probe-ball
+/// centres' distances from their faces (less `r`; 0 if the model were exact).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CubeFit {
+    /// Cube number.
+    pub cube: usize,
+    /// Rows (touches, every face).
+    pub rows: usize,
+    /// RMS of the touches' residuals `r + e/2 − s·p_a` once the cube is placed (mm).
+    pub rms_mm: f64,
+    /// Largest |residual| (mm).
+    pub max_mm: f64,
+}
+
 /// What [`held_out`] found.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct HeldOut {
@@ -71,6 +88,8 @@ pub struct HeldOut {
     pub pivots: Vec<PivotFit>,
     /// Every unknown plane touched, by number.
     pub planes: Vec<PlaneFlatness>,
+    /// Every datum cube touched, by number.
+    pub cubes: Vec<CubeFit>,
 }
 
 impl HeldOut {
@@ -86,6 +105,9 @@ impl HeldOut {
 pub fn held_out(model: &dyn Mechanism, measurements: &[Measurement], distances: &[SeatDistance]) -> Result<HeldOut, CalibError> {
     // Per seat or pivot: the model's tool points and the measured lengths.
     type Rows = Vec<(Vector3<f64>, f64)>;
+    super::touch::check(measurements)?;
+    // The datum cubes' rows: the model's tool pose, the flange's position, the touch.
+    let mut cubes: BTreeMap<usize, Vec<super::touch::TouchRow>> = BTreeMap::new();
     let mut groups: BTreeMap<(PointKind, usize), Rows> = BTreeMap::new();
     // Pivots whose rows are readings relative to an unknown zero: placed with their zero.
     let mut relative = std::collections::BTreeSet::new();
@@ -95,11 +117,14 @@ pub fn held_out(model: &dyn Mechanism, measurements: &[Measurement], distances: 
                 "pose {i}: not a seat or distance row; judge tracker data with the tracker's errors (validate without instrument rows)"
             )));
         };
-        let p = model
-            .forward(&m.q)
-            .map_err(|source| CalibError::Kinematics { pose: i, source })?
-            .translation
-            .vector;
+        let p = model.forward(&m.q).map_err(|source| CalibError::Kinematics { pose: i, source })?;
+        if key.0 == PointKind::Cube {
+            // The flange (toward which a face without its opposite is turned): the tool pose
+            // without the model's tool frame.
+            let flange = model.frames().map_or(p, |(_, tool)| p * tool.inverse()).translation.vector;
+            cubes.entry(key.1).or_default().push((0, p, flange, &m.obs));
+        }
+        let p = p.translation.vector;
         let length = match m.obs {
             Observation::Distance { length, relative: r, .. } => {
                 if r {
@@ -117,6 +142,7 @@ pub fn held_out(model: &dyn Mechanism, measurements: &[Measurement], distances: 
         distances: Vec::new(),
         pivots: Vec::new(),
         planes: Vec::new(),
+        cubes: Vec::new(),
     };
     for (&(kind, id), rows) in &groups {
         match kind {
@@ -146,10 +172,21 @@ pub fn held_out(model: &dyn Mechanism, measurements: &[Measurement], distances: 
                 });
             }
             PointKind::Cube => {
-                return Err(CalibError::InvalidOption(format!(
-                    "{} {id}: datum-cube touches are not judged here; judge them by identify's residuals (a validation set)",
-                    kind.name()
-                )))
+                let mut cube = [ArtifactPoint {
+                    kind,
+                    id,
+                    centre: Vector3::zeros(),
+                    zero: None,
+                    rotation: None,
+                }];
+                let e = super::touch::placed_residuals(&cubes[&id], &mut cube)?;
+                let (rms_mm, max_mm) = rms_and_max(e.as_slice());
+                out.cubes.push(CubeFit {
+                    cube: id,
+                    rows: rows.len(),
+                    rms_mm,
+                    max_mm,
+                });
             }
             PointKind::Pivot | PointKind::Sphere => {
                 let placed = if relative.contains(&id) {

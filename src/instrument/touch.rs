@@ -328,7 +328,7 @@ pub(super) fn offset_and_touched(rows: &[TouchRow], points: &mut [ArtifactPoint]
             first_error.get_or_insert(e);
             continue;
         }
-        let (t, cost) = fit_offset(rows, t0, &mut candidate);
+        let (t, cost) = fit_touches(rows, t0, &mut candidate, true);
         if planes_collapse(rows, &t, &candidate) {
             flat_offset.get_or_insert(t);
             continue;
@@ -388,19 +388,36 @@ fn touch_residuals(rows: &[TouchRow], t: &Vector3<f64>, points: &[ArtifactPoint]
     )
 }
 
-/// Levenberg–Marquardt from `t0` ([`offset_and_touched`]): the offset and the cost `Σ r²`.
-fn fit_offset(rows: &[TouchRow], t0: Vector3<f64>, points: &mut [ArtifactPoint]) -> (Vector3<f64>, f64) {
+/// The touched artifacts `points` placed on their touches `rows` for the tool points as they
+/// are (a model judged on held-out touches, [`super::held_out`]): started as identification
+/// starts them ([`place`]), then refined by Levenberg–Marquardt on the touches' residuals
+/// ([`fit_touches`] without the offset). Returns the residuals (mm, one per row).
+pub(super) fn placed_residuals(rows: &[TouchRow], points: &mut [ArtifactPoint]) -> Result<DVector<f64>, CalibError> {
+    place(rows, points)?;
+    fit_touches(rows, Vector3::zeros(), points, false);
+    Ok(touch_residuals(rows, &Vector3::zeros(), points))
+}
+
+/// Levenberg–Marquardt from `t0` ([`offset_and_touched`]) over the touched artifacts and, when
+/// `free_offset`, the tool-point offset (else it stays `t0`): the offset and the cost `Σ r²`.
+fn fit_touches(rows: &[TouchRow], t0: Vector3<f64>, points: &mut [ArtifactPoint], free_offset: bool) -> (Vector3<f64>, f64) {
     let touched: Vec<usize> = (0..points.len()).filter(|&k| points[k].kind > PointKind::Pivot).collect();
-    let n = 3 + touched.iter().map(|&k| points[k].kind.twist_rows().len()).sum::<usize>();
+    let first = if free_offset { 3 } else { 0 };
+    let n = first + touched.iter().map(|&k| points[k].kind.twist_rows().len()).sum::<usize>();
     let step = |t: &Vector3<f64>, pts: &[ArtifactPoint], x: &DVector<f64>| -> (Vector3<f64>, Vec<ArtifactPoint>) {
         let mut moved = pts.to_vec();
-        let mut at = 3;
+        let mut at = first;
         for &k in &touched {
             let m = moved[k].kind.twist_rows().len();
             retract_point(&mut moved[k], &x.rows(at, m));
             at += m;
         }
-        (t + Vector3::new(x[0], x[1], x[2]), moved)
+        let dt = if free_offset {
+            Vector3::new(x[0], x[1], x[2])
+        } else {
+            Vector3::zeros()
+        };
+        (t + dt, moved)
     };
     let (mut t, mut pts) = (t0, points.to_vec());
     let mut r = touch_residuals(rows, &t, &pts);

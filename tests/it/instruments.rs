@@ -732,8 +732,8 @@ fn a_datum_cube_from_the_command_line() {
 /// Touches on the IRB 120 from the command line (`artifact`: the artifact's options, `per_point`
 /// touches of each), 8 of each held out, the model identified from the others; then for each of
 /// `models` (`cal.toml`, or the nominal), `validate`'s figure after `after` on the lines
-/// `what k: 8 rows` of the first `n` artifacts.
-fn validated_touches(artifact: &[&str], per_point: &str, what: &str, after: &str, n: usize, models: &[&str]) -> Vec<Vec<f64>> {
+/// `what k: ROWS rows` of the first `n` artifacts (`rows` held-out rows each: 8, a cube's 6 × 8).
+fn validated_touches(artifact: &[&str], per_point: &str, what: &str, rows: usize, after: &str, n: usize, models: &[&str]) -> Vec<Vec<f64>> {
     use crate::cli::ok;
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
@@ -765,7 +765,7 @@ fn validated_touches(artifact: &[&str], per_point: &str, what: &str, after: &str
                 .map(|k| {
                     let line = out
                         .lines()
-                        .find(|l| l.starts_with(&format!("{what} {k}: 8 rows")))
+                        .find(|l| l.starts_with(&format!("{what} {k}: {rows} rows")))
                         .unwrap_or_else(|| panic!("{out}"));
                     line.split(after).nth(1).unwrap().split(' ').next().unwrap().parse().unwrap()
                 })
@@ -779,7 +779,7 @@ fn validated_touches(artifact: &[&str], per_point: &str, what: &str, after: &str
 #[test]
 fn sphere_touches_are_validated_as_spheres() {
     let spheres = ["--spheres", "300,0,300;350,-150,250", "--sphere-diameter-mm", "25.4"];
-    let [cal] = &validated_touches(&spheres, "30", "sphere", "length ", 2, &["cal.toml"])[..] else {
+    let [cal] = &validated_touches(&spheres, "30", "sphere", 8, "length ", 2, &["cal.toml"])[..] else {
         unreachable!()
     };
     assert!(cal.iter().all(|rms| *rms < 1e-6), "{cal:?}");
@@ -795,7 +795,7 @@ fn plane_touches_are_validated_by_their_flatness() {
         "--plane-normals",
         "1,0,0.3;0,1,0.3;0.3,-0.2,1",
     ];
-    let [cal, nominal] = &validated_touches(&planes, "40", "plane", "best plane ", 3, &["cal.toml", "irb120"])[..] else {
+    let [cal, nominal] = &validated_touches(&planes, "40", "plane", 8, "best plane ", 3, &["cal.toml", "irb120"])[..] else {
         unreachable!()
     };
     eprintln!("plane flatness (mm RMS), calibrated {cal:?}, nominal {nominal:?}");
@@ -868,4 +868,18 @@ fn planes_alone_name_the_scale_they_do_not_give() {
     assert_eq!(failed.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains(&format!("verdict: failed: {why}")), "{stderr}");
     assert!(!dir.join("noisy.toml").exists());
+}
+
+/// Datum-cube touches held out and judged by `validate`: the cube placed on them (its edge
+/// known), the calibrated model's probe centres lie on its faces, the nominal model's (which
+/// does not know the probe's 120 mm offset) do not.
+#[test]
+fn cube_touches_are_validated_by_the_placed_cube() {
+    let cube = ["--cube", "300,0,300", "--cube-edge-mm", "200", "--cube-rotation-deg", "5,10,15"];
+    let [cal, nominal] = &validated_touches(&cube, "20", "cube", 6 * 8, "faces ", 1, &["cal.toml", "irb120"])[..] else {
+        unreachable!()
+    };
+    eprintln!("cube touches from the placed cube's faces (mm RMS), calibrated {cal:?}, nominal {nominal:?}");
+    assert!(cal[0] < 1e-6, "{cal:?}");
+    assert!(nominal[0] > 1e-3, "{nominal:?}");
 }
