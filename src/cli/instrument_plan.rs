@@ -117,7 +117,7 @@ pub fn run(args: &PlanArgs, file: ModelFile) -> anyhow::Result<()> {
         plan.repairs,
         sel.indices,
         plan.column_names.join(" "),
-        file.name,
+        args.model.as_deref().unwrap_or(&file.name),
         args.output.display()
     );
     let ids: Vec<i64> = (0..plan.rows.len() as i64).collect();
@@ -150,7 +150,7 @@ pub fn run(args: &PlanArgs, file: ModelFile) -> anyhow::Result<()> {
     println!(
         "wrote {} (measure it: kinecal simulate {} --at {} {measure} …)",
         args.output.display(),
-        file.name,
+        args.model.as_deref().unwrap_or(&file.name),
         args.output.display()
     );
     Ok(())
@@ -193,7 +193,7 @@ fn touch_run(args: &PlanArgs, file: ModelFile) -> anyhow::Result<()> {
         plan.repairs,
         sel.indices,
         plan.column_names.join(" "),
-        file.name,
+        args.model.as_deref().unwrap_or(&file.name),
         args.output.display()
     );
     let ids: Vec<i64> = (0..plan.rows.len() as i64).collect();
@@ -226,7 +226,7 @@ fn touch_run(args: &PlanArgs, file: ModelFile) -> anyhow::Result<()> {
     println!(
         "wrote {} (measure it: kinecal simulate {} --at {} {measure} …)",
         args.output.display(),
-        file.name,
+        args.model.as_deref().unwrap_or(&file.name),
         args.output.display()
     );
     Ok(())

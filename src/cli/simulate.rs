@@ -554,6 +554,7 @@ fn touch_run(
     let inputs = file.inputs();
     let plain = |e: CalibError| match e {
         CalibError::Kinematics { source, .. } => anyhow::anyhow!("{source}"),
+        CalibError::InvalidOption(m) => anyhow::anyhow!("{m}"),
         e => anyhow::anyhow!("{e}"),
     };
     // A touch plan (`kinecal plan --spheres …`): its rows moved onto the real surfaces.
