@@ -26,7 +26,9 @@ use crate::se3::{self, Pose};
 use nalgebra::{DMatrix, Matrix3, Matrix6xX, Vector3, Vector6};
 use serde::{Deserialize, Serialize};
 
+pub mod artifacts;
 mod kind;
+pub use artifacts::{artifact_rows, ArtifactRows};
 pub use kind::{KindNoise, RowKind};
 pub mod touch;
 pub use touch::Touch;

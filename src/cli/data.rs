@@ -117,13 +117,21 @@ fn summary(d: &DataSet, json: bool) -> anyhow::Result<()> {
     } else {
         d.format.describe()
     };
+    // The rows per artifact (seat, pivot, sphere, plane, cube face).
+    let artifacts = kinecal::measure::artifact_rows(&d.measurements);
     if json {
         println!(
             "{}",
-            serde_json::to_string_pretty(&serde_json::json!({"path": d.path, "poses": d.measurements.len(), "format": format}))?
+            serde_json::to_string_pretty(
+                &serde_json::json!({"path": d.path, "poses": d.measurements.len(), "format": format, "artifacts": artifacts})
+            )?
         );
     } else {
         println!("{}: {} poses, measured: {format}", d.path.display(), d.measurements.len());
+        if !artifacts.is_empty() {
+            let each: Vec<String> = artifacts.iter().map(ToString::to_string).collect();
+            println!("{}", each.join(", "));
+        }
         if let Some(n) = d.measurements.first().map(|m| m.joints.len()).filter(|n| *n > 0) {
             println!("with the readings of {n} observed joints");
         }

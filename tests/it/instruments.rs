@@ -883,3 +883,41 @@ fn cube_touches_are_validated_by_the_placed_cube() {
     assert!(cal[0] < 1e-6, "{cal:?}");
     assert!(nominal[0] > 1e-3, "{nominal:?}");
 }
+
+/// `data check` of touch files lists the rows per artifact (a cube's per face), in text and
+/// JSON.
+#[test]
+fn data_check_counts_the_touches_per_artifact() {
+    use crate::cli::{json, ok};
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let common = [
+        "--probe-radius-mm",
+        "1.5",
+        "--tool-mm",
+        "15,-10,120",
+        "--truth",
+        "truth.toml",
+        "--force",
+    ];
+    let spheres = [
+        "--spheres",
+        "300,0,300;350,-150,250",
+        "--sphere-diameter-mm",
+        "25.4",
+        "--per-point",
+        "30",
+    ];
+    let cube = ["--cube", "300,0,300", "--cube-edge-mm", "200", "--per-point", "20"];
+    for (artifact, file, line) in [
+        (&spheres[..], "spheres.csv", "sphere 0: 30 touches, sphere 1: 30 touches"),
+        (&cube[..], "cube.csv", "cube 0: faces 0..5, 20 touches each"),
+    ] {
+        ok(dir, &[&["simulate", "irb120", "-o", file][..], artifact, &common].concat());
+        let out = ok(dir, &["data", "check", "irb120", file]);
+        assert!(out.lines().any(|l| l == line), "{out}");
+    }
+    let counted = json(dir, &["data", "check", "irb120", "cube.csv"]);
+    assert_eq!(counted["artifacts"][0]["rows"], 120, "{counted}");
+    assert_eq!(counted["artifacts"][0]["faces"], serde_json::json!([20, 20, 20, 20, 20, 20]));
+}
