@@ -453,8 +453,11 @@ fn instrument_contract_up_to(
         if e >= floor {
             failures.push(format!("{what}: {}: held-out {e:.3e} mm", k.name));
         }
-        // A good calibration is never failed.
-        if cal.report.verdict.status == kinecal::report::Status::Failed {
+        // A good calibration is never failed. Unknown planes on a machine whose inputs all turn
+        // give no length: the fit is right at most up to scale, and the verdict fails on that
+        // reason alone (the held-out figure above is up to a similarity).
+        let no_scale = scale && (cal.report.verdict.reasons.first()).is_some_and(|r| r.starts_with("nothing measured gives a length"));
+        if cal.report.verdict.status == kinecal::report::Status::Failed && !no_scale {
             failures.push(format!("{what}: {}: failed: {:?}", k.name, cal.report.verdict.reasons));
         }
     }
@@ -564,7 +567,7 @@ fn every_mechanism_that_turns_its_tool_is_calibrated_by_seats() {
 
 /// The largest distance between the tool points of `a` and `b` at `qs` after the similarity
 /// (rotation, translation, scale) that best takes `a`'s onto `b`'s.
-fn similar_gap(a: &dyn Mechanism, b: &dyn Mechanism, qs: &[Vec<f64>]) -> f64 {
+pub(crate) fn similar_gap(a: &dyn Mechanism, b: &dyn Mechanism, qs: &[Vec<f64>]) -> f64 {
     let points = |m: &dyn Mechanism| -> Vec<Vector3<f64>> { qs.iter().map(|q| m.forward(q).unwrap().translation.vector).collect() };
     let (pa, pb) = (points(a), points(b));
     let mean = |p: &[Vector3<f64>]| p.iter().sum::<Vector3<f64>>() / p.len() as f64;
