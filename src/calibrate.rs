@@ -7,6 +7,7 @@
 mod checks;
 mod mixed;
 mod robust;
+pub mod scale;
 mod starts;
 pub use starts::{start_agreement, StartAgreement, WORSE_MARGIN, WORSE_MINIMUM};
 pub mod tolerances;
@@ -477,20 +478,36 @@ fn nominal_mechanism(model: &ModelFile) -> Result<Nominal, IoError> {
 }
 
 /// Unknown planes (with seats at most) on a machine whose inputs all turn: nothing gives a
-/// length ([`crate::instrument::touch::no_length`]), so the fit cannot tell the machine's scale
-/// (the probe radius and the lengths the model file fixes hold it only weakly, and the fit
-/// drifts along it: noise-free IRB 120 planes ended 3.3e-11 mm from the truth after a
-/// similarity but 71 mm after a rigid motion). The verdict fails, this reason first: a result
-/// right only up to scale does not position the machine.
-fn judge_scale(model: &ModelFile, data: &DataSet, opts: &CalibrationOptions, report: &mut CalibrationReport) {
+/// length ([`crate::instrument::touch::no_length`]). [`instrument_start`] holds the scale at the
+/// drawing by keeping one length parameter as drawn ([`scale::scale_gauge`]): a warning naming
+/// it. Where none can be held, the fit drifts along the scale (noise-free IRB 120 planes ended
+/// 3.3e-11 mm from the truth after a similarity but 71 mm after a rigid motion) and the verdict
+/// fails, this reason first.
+fn judge_scale<M: Mechanism>(model: &ModelFile, data: &DataSet, opts: &CalibrationOptions, j: &Judged<M>, report: &mut CalibrationReport) {
     let turns_only = model.inputs().iter().all(|inp| inp.unit != crate::params::Unit::Length);
     if !turns_only || !crate::instrument::touch::no_length(&data.measurements, &opts.seat_distances) {
         return;
     }
-    report.fail(format!(
-        "nothing measured gives a length: unknown planes' offsets absorb any scale and '{}' has no length input, so the fit cannot tell the machine's scale (only the probe radius and the lengths its model file fixes hold it, weakly) and its result is right at most up to scale; touch something of known size as well: a datum cube (face, cube_edge_mm), spheres of known diameter, a ballbar, two seats at a known distance, or a few tracker points",
+    let why = format!(
+        "nothing measured gives a length: unknown planes' offsets absorb any scale and '{}' has no length input",
         model.name
-    ));
+    );
+    let known = "touch something of known size as well: a datum cube (face, cube_edge_mm), spheres of known diameter, a ballbar, two seats at a known distance, or a few tracker points";
+    // The parameter held: free in the model file, not in the fit.
+    let held = nominal_mechanism(model).ok().and_then(|(_, inner_free, _)| {
+        let params = j.start.params();
+        (inner_free.iter().map(|k| k + FRAME_PARAMS))
+            .find(|k| !j.free.contains(k))
+            .and_then(|k| params.get(k).map(|p| p.name.clone()))
+    });
+    match held {
+        Some(name) => report.warn(format!(
+            "{why}, so the fit holds the scale at the model's drawing: {name} is kept as drawn, and the calibrated machine is only as true to size as that; {known}"
+        )),
+        None => report.fail(format!(
+            "{why}, so the fit cannot tell the machine's scale (only the probe radius and the lengths its model file fixes hold it, weakly) and its result is right at most up to scale; {known}"
+        )),
+    }
 }
 
 /// The starting model for instrument data: the nominal mechanism with its tool-point offset
@@ -526,6 +543,19 @@ fn instrument_start(model: &ModelFile, i: &InstrumentData) -> Result<StartingMod
     let mut free: Vec<usize> = artifact.artifact_columns().collect();
     free.extend(crate::model::framed::TOOL_TRANSLATION);
     free.extend(inner_free.iter().map(|k| k + FRAME_PARAMS));
+    // Unknown planes on a machine whose inputs all turn: the scale held at the drawing.
+    if turns_only && i.pairs.is_empty() && crate::instrument::touch::no_length(&i.data.measurements, &[]) {
+        let n = artifact.inner.input_names().len();
+        let plain: Vec<Measurement> = (i.data.measurements.iter())
+            .map(|m| Measurement {
+                q: m.q[..n.min(m.q.len())].to_vec(),
+                ..m.clone()
+            })
+            .collect();
+        if let Some(k) = scale::scale_gauge(&artifact.inner, &plain, &free, artifact.inner.n_params()) {
+            free.remove(k);
+        }
+    }
     Ok((Box::new(artifact), free, None))
 }
 
@@ -580,7 +610,7 @@ fn judge<M: Mechanism + Clone>(
         &data.measurements,
         &opts.noise,
     ));
-    judge_scale(model, data, opts, &mut report);
+    judge_scale(model, data, opts, j, &mut report);
     let agreement = starts::start_agreement(j.outcomes, j.start_tolerance_mm);
     report.flags.extend(agreement.flags);
     if let Some(w) = agreement.warning {

@@ -756,10 +756,7 @@ fn validated_touches(artifact: &[&str], per_point: &str, what: &str, rows: usize
         "held.csv",
     ]);
     ok(dir, &args);
-    // Planes alone on the IRB 120 fail on the scale they do not give (right at most up to it):
-    // `--force` writes the model all the same, and flatness does not depend on the scale.
-    let out = crate::cli::kinecal(dir, &["identify", "irb120", "touches.csv", "--out", "cal.toml", "--force"]);
-    assert!(dir.join("cal.toml").exists(), "{}", String::from_utf8_lossy(&out.stderr));
+    ok(dir, &["identify", "irb120", "touches.csv", "--out", "cal.toml"]);
     models
         .iter()
         .map(|model| {
@@ -806,12 +803,12 @@ fn plane_touches_are_validated_by_their_flatness() {
     assert!(nominal.iter().all(|f| *f > 1e-3), "{nominal:?}");
 }
 
-/// Unknown planes alone on an arm whose joints all turn give no length: noise-free (fitted
-/// exactly, the scale drifted) and with 5 µm of probe noise (the machine shrunk) the verdict
-/// fails and names that cause first; nothing is written.
+/// Unknown planes alone on an arm whose joints all turn give no length: the fit holds the
+/// scale by keeping one link as drawn (it drifted along the scale before, noise-free too, and
+/// shrank the arm with noise) and the verdict names it, noise-free and with 5 µm of noise.
 #[test]
 fn planes_alone_name_the_scale_they_do_not_give() {
-    use crate::cli::{kinecal, ok};
+    use crate::cli::ok;
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
     let why = "nothing measured gives a length";
@@ -842,38 +839,14 @@ fn planes_alone_name_the_scale_they_do_not_give() {
             ],
         );
     }
-    // Noise-free the planes are fitted exactly, but the scale has drifted: failed all the same.
-    let exact = kinecal(
-        dir,
-        &[
-            "identify",
-            "irb120",
-            "planes.csv",
-            "--kind-noise",
-            "probe=0.005",
-            "--out",
-            "cal.toml",
-        ],
-    );
-    let stderr = String::from_utf8_lossy(&exact.stderr);
-    assert_eq!(exact.status.code(), Some(2), "{stderr}");
-    assert!(stderr.contains(&format!("verdict: failed: {why}")), "{stderr}");
-    let failed = kinecal(
-        dir,
-        &[
-            "identify",
-            "irb120",
-            "noisy.csv",
-            "--kind-noise",
-            "probe=0.005",
-            "--out",
-            "noisy.toml",
-        ],
-    );
-    let stderr = String::from_utf8_lossy(&failed.stderr);
-    assert_eq!(failed.status.code(), Some(2), "{stderr}");
-    assert!(stderr.contains(&format!("verdict: failed: {why}")), "{stderr}");
-    assert!(!dir.join("noisy.toml").exists());
+    // Noise-free and with 5 µm of noise: the scale held by one link kept as drawn, named.
+    for (data, out) in [("planes.csv", "cal.toml"), ("noisy.csv", "noisy.toml")] {
+        let text = ok(dir, &["identify", "irb120", data, "--kind-noise", "probe=0.005", "--out", out]);
+        assert!(
+            text.contains(&format!("verdict: usable with warnings: {why}")) && text.contains("2-3.vz is kept as drawn"),
+            "{text}"
+        );
+    }
 }
 
 /// Datum-cube touches held out and judged by `validate`: the cube placed on them (its edge
