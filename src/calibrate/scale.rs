@@ -53,3 +53,47 @@ pub fn scale_gauge(model: &dyn Mechanism, measurements: &[Measurement], free: &[
         .max_by(|x, y| x.1.total_cmp(&y.1))
         .map(|(k, _)| k)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::framed::{Framed, FRAME_PARAMS};
+    use crate::params::Unit;
+    use crate::se3::{pose_from_parts, Pose};
+    use nalgebra::Vector3;
+    use rand::SeedableRng;
+
+    /// On the IRB 120 with every length free the scale direction exists and a length is held;
+    /// with the lengths fixed (only angles and the tool offset free) nothing can scale the arm.
+    #[test]
+    fn a_length_holds_the_scale_only_when_the_free_parameters_can_scale() {
+        let arm = crate::model::builtin::irb120();
+        let inputs = crate::io::builtin::model_file("irb120").unwrap().inputs();
+        let model = Framed::new(
+            Box::new(arm) as Box<dyn Mechanism>,
+            Pose::identity(),
+            pose_from_parts(Vector3::new(15.0, -10.0, 120.0), Vector3::zeros()),
+        );
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let qs = crate::simulate::random_configurations(&model, &inputs, 40, &mut rng).unwrap();
+        let rows: Vec<Measurement> = qs
+            .into_iter()
+            .map(|q| Measurement {
+                q,
+                obs: Observation::Seat(0),
+                joints: Vec::new(),
+            })
+            .collect();
+        let params = model.params();
+        let mut free: Vec<usize> = TOOL_TRANSLATION.collect();
+        free.extend(FRAME_PARAMS..params.len());
+        let k = scale_gauge(&model, &rows, &free, params.len()).expect("every length free: the arm can scale");
+        assert_eq!(params[free[k]].unit, Unit::Length, "{}", params[free[k]].name);
+        let angles: Vec<usize> = free
+            .iter()
+            .copied()
+            .filter(|&c| TOOL_TRANSLATION.contains(&c) || params[c].unit != Unit::Length)
+            .collect();
+        assert_eq!(scale_gauge(&model, &rows, &angles, params.len()), None);
+    }
+}
