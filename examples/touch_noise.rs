@@ -19,12 +19,11 @@
 mod common;
 
 use common::{data_set, print_progress, print_table, prototype, run_with, tracker, tracker_rows, tracker_run, Outcome, Prototype};
-use kinecal::calibrate::CalibrationOptions;
 use kinecal::instrument::simulate::{touch_rows, Touched};
 use kinecal::io::builtin;
 use kinecal::io::data_file::MeasurementFormat;
 use kinecal::io::model_file::ModelFile;
-use kinecal::measure::{KindNoise, Measurement, Noise};
+use kinecal::measure::Measurement;
 use kinecal::model::framed::Framed;
 use kinecal::se3::{self};
 use kinecal::simulate::random_configurations;
@@ -54,18 +53,7 @@ fn main() {
     let nominal = file.build();
     let inputs = file.inputs();
     let ball = common::ball();
-    let noise = Noise {
-        position: TRACKER,
-        kinds: KindNoise {
-            probe: Some(PROBE),
-            ..KindNoise::default()
-        },
-        ..Noise::default()
-    };
-    let opts = || CalibrationOptions {
-        noise,
-        ..CalibrationOptions::default()
-    };
+    let opts = || common::probe_options(PROBE, TRACKER);
     let names = [
         "3 spheres × 40, 5 µm",
         "1 sphere × 120, 5 µm",

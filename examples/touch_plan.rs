@@ -18,13 +18,12 @@
 mod common;
 
 use common::{data_set, print_progress, print_table, prototype, run_with, Outcome, Prototype};
-use kinecal::calibrate::CalibrationOptions;
 use kinecal::design::{plan_touches, Criterion, InstrumentPlanOptions, SelectOptions, SelectionMethod, TouchLayout};
 use kinecal::instrument::simulate::{touch_planned, touch_rows, Placement, Touched};
 use kinecal::io::builtin;
 use kinecal::io::data_file::MeasurementFormat;
 use kinecal::io::model_file::ModelFile;
-use kinecal::measure::{KindNoise, Noise};
+use kinecal::measure::Noise;
 use kinecal::se3;
 use kinecal::simulate::random_configurations;
 use nalgebra::Vector3;
@@ -77,17 +76,7 @@ fn main() {
         plan.repairs,
         plan.selection.indices
     );
-    let noise = Noise {
-        kinds: KindNoise {
-            probe: Some(PROBE),
-            ..KindNoise::default()
-        },
-        ..Noise::default()
-    };
-    let opts = || CalibrationOptions {
-        noise,
-        ..CalibrationOptions::default()
-    };
+    let opts = || common::probe_options(PROBE, Noise::default().position);
     let names = [
         format!("{n} planned touches (3 spheres, cube), 5 µm"),
         format!("{} random touches per sphere and face, 5 µm", n / 9),

@@ -251,3 +251,19 @@ pub fn prototype(file: &ModelFile, seed: u64, seats: Option<&[Vector3<f64>]>) ->
         rng,
     }
 }
+
+/// Calibration options with the tracker's σ `tracker_mm` (per axis) and the touch probe's own
+/// `probe_mm` ([`kinecal::measure::KindNoise::probe`]), each kind weighted by its own.
+pub fn probe_options(probe_mm: f64, tracker_mm: f64) -> CalibrationOptions {
+    CalibrationOptions {
+        noise: kinecal::measure::Noise {
+            position: tracker_mm,
+            kinds: kinecal::measure::KindNoise {
+                probe: Some(probe_mm),
+                ..Default::default()
+            },
+            ..Default::default()
+        },
+        ..CalibrationOptions::default()
+    }
+}
