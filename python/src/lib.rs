@@ -1085,12 +1085,9 @@ fn plan_touches(
         },
     };
     let plan = kinecal::design::plan_touches(&model.file, &layout, &opts).map_err(err)?;
-    let mut counts = std::collections::BTreeMap::new();
-    for m in &plan.rows {
-        if let Some((k, id)) = m.obs.artifact_point() {
-            *counts.entry(format!("{} {id}", k.name())).or_insert(0usize) += 1;
-        }
-    }
+    let counts: std::collections::BTreeMap<String, usize> = (kinecal::measure::artifact_rows(&plan.rows).iter())
+        .map(|a| (a.name(), a.rows))
+        .collect();
     let summary = serde_json::json!({"rows": plan.rows.len(), "rows_per_artifact": counts, "candidates": plan.candidates.len(),
         "repairs": plan.repairs, "indices": plan.selection.indices, "columns": plan.column_names});
     Ok((

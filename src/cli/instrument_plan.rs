@@ -6,7 +6,7 @@
 //! `kinecal plan`'s.
 use super::plan::PlanArgs;
 use clap::Args;
-use kinecal::design::{plan_instrument, InstrumentLayout, InstrumentPlanOptions, SelectOptions};
+use kinecal::design::{plan_instrument, InstrumentLayout, InstrumentPlan, InstrumentPlanOptions, SelectOptions};
 use kinecal::instrument::simulate::{parse_points, Placement};
 use kinecal::io::data_file::data_text;
 use kinecal::io::{model_file::ModelFile, output::Outputs};
@@ -89,7 +89,7 @@ pub fn run(args: &PlanArgs, file: ModelFile) -> anyhow::Result<()> {
     };
     let reference = kinecal::instrument::simulate::reference_configuration(a.reference.as_deref(), &inputs).map_err(anyhow::Error::msg)?;
     let opts = plan_options(args, reference, a.tilt_deg.to_radians(), inputs.clone());
-    let mut outputs = plan_outputs(args)?;
+    let outputs = plan_outputs(args)?;
     let plan = plan_instrument(&file, &layout, &opts).map_err(|e| anyhow::anyhow!("{option}: {e}"))?;
     let kind = layout.kind().name();
     let sel = &plan.selection;
@@ -106,24 +106,8 @@ pub fn run(args: &PlanArgs, file: ModelFile) -> anyhow::Result<()> {
         Some(l) => format!("--pivots \"{}\" --ballbar-mm {l}", list(&points)),
         None => format!("--seats \"{}\"", list(&points)),
     };
-    let mut text = format!(
-        "# kinecal plan: {:?} on {}, {} rows for {} {kind}s ({:?} each) from {} candidates, {} repair moves\n# {}\n# identifiable columns: {}\n# measure on a virtual prototype: kinecal simulate {} --at {} {measure} --tool-mm X,Y,Z …\n",
-        sel.method,
-        sel.criterion,
-        plan.rows.len(),
-        points.len(),
-        per_point,
-        plan.candidates.len(),
-        plan.repairs,
-        sel.indices,
-        plan.column_names.join(" "),
-        args.model.as_deref().unwrap_or(&file.name),
-        args.output.display()
-    );
-    let ids: Vec<i64> = (0..plan.rows.len() as i64).collect();
-    text += &data_text(&args.output, &file.data_columns(), &ids, &plan.rows, None)?;
-    outputs.stage(&args.output, text.as_bytes())?;
-    outputs.commit()?;
+    let what = format!("{} rows for {} {kind}s ({per_point:?} each)", plan.rows.len(), points.len());
+    write_plan(args, &file, outputs, &plan, &what, &measure)?;
     if args.json {
         let v = serde_json::json!({"model": file.name, "instrument": kind, "points": points.len(), "rows": plan.rows.len(),
             "rows_per_point": per_point, "candidates": plan.candidates.len(), "repairs": plan.repairs,
@@ -171,35 +155,21 @@ fn touch_run(args: &PlanArgs, file: ModelFile) -> anyhow::Result<()> {
     anyhow::ensure!(a.candidates_per_point > 0, "--candidates-per-point: must be at least 1");
     let layout = TouchLayout { artifacts, ball };
     let opts = plan_options(args, Vec::new(), 0.0, file.inputs());
-    let mut outputs = plan_outputs(args)?;
+    let outputs = plan_outputs(args)?;
     let plan = plan_touches(&file, &layout, &opts)?;
     let sel = &plan.selection;
-    let mut counts = std::collections::BTreeMap::new();
-    for m in &plan.rows {
-        if let Some((k, id)) = m.obs.artifact_point() {
-            *counts.entry(format!("{} {id}", k.name())).or_insert(0usize) += 1;
-        }
-    }
+    let counts: std::collections::BTreeMap<String, usize> = (kinecal::measure::artifact_rows(&plan.rows).iter())
+        .map(|a| (a.name(), a.rows))
+        .collect();
     let per: Vec<String> = counts.iter().map(|(k, c)| format!("{k}: {c}")).collect();
     let measure = a.touch.command_line();
-    let mut text = format!(
-        "# kinecal plan: {:?} on {}, {} touches of {} {kind}s ({}) from {} candidates, {} repair moves\n# {}\n# identifiable columns: {}\n# measure on a virtual prototype: kinecal simulate {} --at {} {measure} --tool-mm X,Y,Z …\n",
-        sel.method,
-        sel.criterion,
+    let what = format!(
+        "{} touches of {} {kind}s ({})",
         plan.rows.len(),
         layout.artifacts.len(),
-        per.join(", "),
-        plan.candidates.len(),
-        plan.repairs,
-        sel.indices,
-        plan.column_names.join(" "),
-        args.model.as_deref().unwrap_or(&file.name),
-        args.output.display()
+        per.join(", ")
     );
-    let ids: Vec<i64> = (0..plan.rows.len() as i64).collect();
-    text += &data_text(&args.output, &file.data_columns(), &ids, &plan.rows, None)?;
-    outputs.stage(&args.output, text.as_bytes())?;
-    outputs.commit()?;
+    write_plan(args, &file, outputs, &plan, &what, &measure)?;
     if args.json {
         let v = serde_json::json!({"model": file.name, "instrument": kind, "artifacts": layout.artifacts.len(), "rows": plan.rows.len(),
             "rows_per_artifact": counts, "candidates": plan.candidates.len(), "repairs": plan.repairs, "probe_radius_mm": probe,
@@ -270,4 +240,34 @@ fn plan_outputs(args: &PlanArgs) -> anyhow::Result<Outputs> {
     }
     outputs.output(&args.output)?;
     Ok(outputs)
+}
+
+/// Write `plan` to `--output` whole (through `outputs`): a comment header (the method and
+/// criterion, `what` was planned, the indices, the identifiable columns, the `simulate` command
+/// that measures it with the instrument options `measure`), then the rows as a data file.
+fn write_plan(
+    args: &PlanArgs,
+    file: &ModelFile,
+    mut outputs: Outputs,
+    plan: &InstrumentPlan,
+    what: &str,
+    measure: &str,
+) -> anyhow::Result<()> {
+    let sel = &plan.selection;
+    let mut text = format!(
+        "# kinecal plan: {:?} on {}, {what} from {} candidates, {} repair moves\n# {}\n# identifiable columns: {}\n# measure on a virtual prototype: kinecal simulate {} --at {} {measure} --tool-mm X,Y,Z …\n",
+        sel.method,
+        sel.criterion,
+        plan.candidates.len(),
+        plan.repairs,
+        sel.indices,
+        plan.column_names.join(" "),
+        args.model.as_deref().unwrap_or(&file.name),
+        args.output.display()
+    );
+    let ids: Vec<i64> = (0..plan.rows.len() as i64).collect();
+    text += &data_text(&args.output, &file.data_columns(), &ids, &plan.rows, None)?;
+    outputs.stage(&args.output, text.as_bytes())?;
+    outputs.commit()?;
+    Ok(())
 }

@@ -20,23 +20,30 @@ pub struct ArtifactRows {
     pub faces: Vec<usize>,
 }
 
+impl ArtifactRows {
+    /// The artifact's name in messages and summaries: `sphere 0`, `cube 0`, `seat 3`.
+    pub fn name(&self) -> String {
+        format!("{} {}", self.kind.name(), self.id)
+    }
+}
+
 impl fmt::Display for ArtifactRows {
     /// `seat 3: 12 rows`, `pivot 1: 30 lengths`, `sphere 0: 40 touches`, `plane 0: 40 touches`,
     /// `cube 0: faces 0..5, 20 touches each` (or, unequal, `cube 0: 47 touches, faces 0..5: 8,
     /// 8, 7, 8, 8, 8`).
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let (kind, id, rows) = (self.kind.name(), self.id, self.rows);
+        let (name, rows) = (self.name(), self.rows);
         match self.kind {
-            PointKind::Seat => write!(f, "{kind} {id}: {rows} rows"),
-            PointKind::Pivot => write!(f, "{kind} {id}: {rows} lengths"),
-            PointKind::Sphere | PointKind::Plane => write!(f, "{kind} {id}: {rows} touches"),
+            PointKind::Seat => write!(f, "{name}: {rows} rows"),
+            PointKind::Pivot => write!(f, "{name}: {rows} lengths"),
+            PointKind::Sphere | PointKind::Plane => write!(f, "{name}: {rows} touches"),
             PointKind::Cube => match self.faces.first() {
                 Some(&n) if n > 0 && self.faces.iter().all(|&m| m == n) && n * self.faces.len() == rows => {
-                    write!(f, "{kind} {id}: faces 0..5, {n} touches each")
+                    write!(f, "{name}: faces 0..5, {n} touches each")
                 }
                 _ => {
                     let each: Vec<String> = self.faces.iter().map(usize::to_string).collect();
-                    write!(f, "{kind} {id}: {rows} touches, faces 0..5: {}", each.join(", "))
+                    write!(f, "{name}: {rows} touches, faces 0..5: {}", each.join(", "))
                 }
             },
         }
