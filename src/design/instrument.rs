@@ -169,7 +169,11 @@ pub fn instrument_model(file: &ModelFile, layout: &InstrumentLayout) -> Result<(
 /// row each (the bar length the nominal one). A point the nominal model cannot reach in enough
 /// orientations is an error naming it.
 pub fn instrument_candidates(file: &ModelFile, layout: &InstrumentLayout, draw: &Placement) -> Result<Vec<Measurement>, CalibError> {
-    let (model, _) = instrument_model(file, layout)?;
+    candidates_on(&instrument_model(file, layout)?.0, layout, draw)
+}
+
+/// [`instrument_candidates`] on the [`instrument_model`] `model`.
+fn candidates_on(model: &NominalArtifact, layout: &InstrumentLayout, draw: &Placement) -> Result<Vec<Measurement>, CalibError> {
     let exact = Placement {
         noise_mm: 0.0,
         ..draw.clone()
@@ -194,6 +198,18 @@ pub fn instrument_blocks(
     columns: Option<&[usize]>,
 ) -> Result<CandidateJacobians, CalibError> {
     let (model, free) = instrument_model(file, layout)?;
+    blocks_on(&model, &free, layout, rows, noise_mm, columns)
+}
+
+/// [`instrument_blocks`] on the [`instrument_model`] `model` and its free columns `free`.
+fn blocks_on(
+    model: &NominalArtifact,
+    free: &[usize],
+    layout: &InstrumentLayout,
+    rows: &[Measurement],
+    noise_mm: f64,
+    columns: Option<&[usize]>,
+) -> Result<CandidateJacobians, CalibError> {
     if rows.is_empty() {
         return Err(CalibError::InvalidOption("no seat or distance row to plan from".into()));
     }
@@ -204,7 +220,7 @@ pub fn instrument_blocks(
             layout.kind().name()
         )));
     }
-    artifact_blocks(&model, &free, rows, noise_mm, columns, |m| {
+    artifact_blocks(model, free, rows, noise_mm, columns, |m| {
         m.obs.artifact_point().expect("checked above").1
     })
 }
@@ -362,21 +378,22 @@ pub fn plan_instrument(file: &ModelFile, layout: &InstrumentLayout, opts: &Instr
             layout.kind().name()
         )));
     }
-    let candidates = instrument_candidates(file, layout, &opts.draw)?;
+    let (model, free) = instrument_model(file, layout)?;
+    let candidates = candidates_on(&model, layout, &opts.draw)?;
     if candidates.len() < n {
         return Err(CalibError::InvalidOption(format!(
             "only {} candidates, fewer than the {n} rows asked for (raise the candidates per point)",
             candidates.len()
         )));
     }
-    let blocks = instrument_blocks(file, layout, &candidates, opts.draw.noise_mm, None)?;
+    let blocks = blocks_on(&model, &free, layout, &candidates, opts.draw.noise_mm, None)?;
     let selection = select(&blocks, opts.method, &opts.select, &mut |_| {})?;
     let point_of: Vec<usize> = candidates
         .iter()
         .map(|m| m.obs.artifact_point().expect("an instrument row").1)
         .collect();
     let mins = vec![min; layout.points.len()];
-    let params = instrument_model(file, layout)?.0.params();
+    let params = model.params();
     Ok(repaired_plan(
         &blocks,
         candidates,

@@ -89,16 +89,19 @@ impl TouchLayout {
 /// The group a touch row's minimum is counted in: its artifact, and for the cube its face.
 fn group_of(m: &Measurement) -> Option<(PointKind, usize, usize)> {
     match m.obs {
-        Observation::Touch(t) => {
-            let (kind, id) = t.artifact();
-            let face = match t {
-                Touch::Face { face, .. } => face,
-                _ => 0,
-            };
-            Some((kind, id, face))
-        }
+        Observation::Touch(t) => Some(touch_group(t)),
         _ => None,
     }
+}
+
+/// A touch's group ([`group_of`]).
+fn touch_group(t: Touch) -> (PointKind, usize, usize) {
+    let (kind, id) = t.artifact();
+    let face = match t {
+        Touch::Face { face, .. } => face,
+        _ => 0,
+    };
+    (kind, id, face)
 }
 
 /// The nominal model of `file` with the probe of `layout` on its tool, wrapped with the layout's
@@ -126,7 +129,17 @@ pub fn touch_model(file: &ModelFile, layout: &TouchLayout) -> Result<(NominalArt
 /// configurations per artifact (seed `seed`). An artifact the nominal model does not reach
 /// often enough is an error naming it.
 pub fn touch_candidates(file: &ModelFile, layout: &TouchLayout, per_artifact: usize, seed: u64) -> Result<Vec<Measurement>, CalibError> {
-    let (model, _) = touch_model(file, layout)?;
+    candidates_on(&touch_model(file, layout)?.0, file, layout, per_artifact, seed)
+}
+
+/// [`touch_candidates`] on the [`touch_model`] `model`.
+fn candidates_on(
+    model: &NominalArtifact,
+    file: &ModelFile,
+    layout: &TouchLayout,
+    per_artifact: usize,
+    seed: u64,
+) -> Result<Vec<Measurement>, CalibError> {
     let inputs = file.inputs();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let drawn = crate::simulate::random_configurations(&model.inner, &inputs, 30 * per_artifact * layout.artifacts.len(), &mut rng)
@@ -147,6 +160,17 @@ pub fn touch_blocks(
     columns: Option<&[usize]>,
 ) -> Result<super::CandidateJacobians, CalibError> {
     let (model, free) = touch_model(file, layout)?;
+    blocks_on(&model, &free, rows, noise_mm, columns)
+}
+
+/// [`touch_blocks`] on the [`touch_model`] `model` and its free columns `free`.
+fn blocks_on(
+    model: &NominalArtifact,
+    free: &[usize],
+    rows: &[Measurement],
+    noise_mm: f64,
+    columns: Option<&[usize]>,
+) -> Result<super::CandidateJacobians, CalibError> {
     let index = |m: &Measurement| {
         let (kind, id) = m.obs.artifact_point()?;
         model.points.iter().position(|p| p.kind == kind && p.id == id)
@@ -159,7 +183,7 @@ pub fn touch_blocks(
             "row {i} is not a touch of one of the layout's artifacts"
         )));
     }
-    artifact_blocks(&model, &free, rows, noise_mm, columns, |m| index(m).expect("checked above"))
+    artifact_blocks(model, free, rows, noise_mm, columns, |m| index(m).expect("checked above"))
 }
 
 /// Plan `opts.select.n` touches for `layout` on the nominal model of `file` (module docs):
@@ -170,21 +194,8 @@ pub fn touch_blocks(
 /// minimum touches.
 pub fn plan_touches(file: &ModelFile, layout: &TouchLayout, opts: &InstrumentPlanOptions) -> Result<InstrumentPlan, CalibError> {
     layout.check()?;
-    let groups: Vec<(PointKind, usize, usize)> = {
-        let mut g: Vec<_> = layout
-            .artifacts
-            .iter()
-            .filter_map(|a| {
-                group_of(&Measurement {
-                    q: Vec::new(),
-                    joints: Vec::new(),
-                    obs: Observation::Touch(a.touch),
-                })
-            })
-            .collect();
-        g.dedup();
-        g
-    };
+    let mut groups: Vec<(PointKind, usize, usize)> = layout.artifacts.iter().map(|a| touch_group(a.touch)).collect();
+    groups.dedup();
     let min = |g: &(PointKind, usize, usize)| min_rows(g.0).max(opts.min_per_point);
     let need: usize = groups.iter().map(min).sum();
     let n = opts.select.n;
@@ -203,21 +214,22 @@ pub fn plan_touches(file: &ModelFile, layout: &TouchLayout, opts: &InstrumentPla
             min(g)
         )));
     }
-    let candidates = touch_candidates(file, layout, per, opts.draw.seed)?;
+    let (model, free) = touch_model(file, layout)?;
+    let candidates = candidates_on(&model, file, layout, per, opts.draw.seed)?;
     if candidates.len() < n {
         return Err(CalibError::InvalidOption(format!(
             "only {} candidates, fewer than the {n} touches asked for (raise the candidates per artifact)",
             candidates.len()
         )));
     }
-    let blocks = touch_blocks(file, layout, &candidates, opts.draw.noise_mm, None)?;
+    let blocks = blocks_on(&model, &free, &candidates, opts.draw.noise_mm, None)?;
     let selection = select(&blocks, opts.method, &opts.select, &mut |_| {})?;
     let group_index: Vec<usize> = candidates
         .iter()
         .map(|m| groups.iter().position(|g| Some(*g) == group_of(m)).expect("a group of the layout"))
         .collect();
     let mins: Vec<usize> = groups.iter().map(min).collect();
-    let params = touch_model(file, layout)?.0.params();
+    let params = model.params();
     Ok(repaired_plan(
         &blocks,
         candidates,

@@ -15,8 +15,7 @@ use crate::model::kind::InputSpec;
 use crate::model::Mechanism;
 use crate::se3::Pose;
 use nalgebra::Vector3;
-use rand::SeedableRng;
-use rand_distr::{Distribution, Normal};
+use rand_distr::Distribution;
 
 /// The rows of `planned` (seat or distance rows of a plan, inputs the planned configurations)
 /// measured on `truth` (the real machine with its tool), the points' true centres `points` (mm,
@@ -31,8 +30,7 @@ pub fn measure_planned(
     seed: u64,
     inputs: &[InputSpec],
 ) -> Result<Vec<Measurement>, CalibError> {
-    let noise = Normal::new(0.0, noise_mm.max(0.0)).map_err(|e| CalibError::InvalidOption(e.to_string()))?;
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let (mut rng, noise) = super::simulate::seeded_noise(noise_mm, seed)?;
     let unreachable = |i: usize, why: String| CalibError::Kinematics {
         pose: i,
         source: KinError::Unreachable(why),

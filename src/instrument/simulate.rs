@@ -11,6 +11,7 @@ use rand::{Rng, RngExt, SeedableRng};
 use rand_distr::{Distribution, Normal};
 
 mod touch;
+pub(crate) use touch::seeded_noise;
 pub use touch::{random_touches, touch_planned, touch_rows, TouchSpec, Touched};
 
 /// How instrument rows are drawn ([`seat_rows`], [`distance_rows`]).

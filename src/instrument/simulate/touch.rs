@@ -258,8 +258,9 @@ pub fn touch_planned(
         .collect()
 }
 
-/// The generator seeded `seed` and the normal noise of σ `noise_mm` (0 below 0) the touches draw.
-fn seeded_noise(noise_mm: f64, seed: u64) -> Result<(rand_chacha::ChaCha8Rng, Normal<f64>), CalibError> {
+/// The generator seeded `seed` and the normal noise of σ `noise_mm` (0 below 0) simulated
+/// instrument rows draw (touches here, planned rows in [`crate::instrument::measure_planned`]).
+pub(crate) fn seeded_noise(noise_mm: f64, seed: u64) -> Result<(rand_chacha::ChaCha8Rng, Normal<f64>), CalibError> {
     let noise = Normal::new(0.0, noise_mm.max(0.0)).map_err(|e| CalibError::InvalidOption(e.to_string()))?;
     Ok((rand_chacha::ChaCha8Rng::seed_from_u64(seed), noise))
 }
