@@ -19,18 +19,13 @@
 mod common;
 
 use common::{data_set, print_progress, print_table, prototype, run_with, tracker, tracker_rows, tracker_run, Outcome, Prototype};
-use kinecal::instrument::simulate::{touch_rows, Touched};
+use kinecal::instrument::simulate::{random_touches, Touched};
 use kinecal::io::builtin;
 use kinecal::io::data_file::MeasurementFormat;
 use kinecal::io::model_file::ModelFile;
-use kinecal::measure::Measurement;
 use kinecal::model::framed::Framed;
 use kinecal::se3::{self};
-use kinecal::simulate::random_configurations;
-use kinecal::Mechanism;
 use nalgebra::Vector3;
-use rand::RngExt;
-use rand_chacha::ChaCha8Rng;
 
 /// Touch rows per calibration.
 const ROWS: usize = 120;
@@ -39,13 +34,6 @@ const PROBE: f64 = 0.005;
 const TRACKER: f64 = 0.02;
 /// The probe ball's radius (mm).
 const RADIUS: f64 = 1.5;
-
-/// `per` touches of each of `artifacts` on `truth`, at the random configurations nearest each.
-fn touches(truth: &dyn Mechanism, file: &ModelFile, artifacts: &[Touched], per: usize, rng: &mut ChaCha8Rng) -> Vec<Measurement> {
-    let inputs = file.inputs();
-    let candidates = random_configurations(truth, &inputs, 30 * per * artifacts.len(), rng).unwrap();
-    touch_rows(truth, &candidates, artifacts, per, PROBE, rng.random(), &inputs).unwrap()
-}
 
 fn main() {
     let draws: u64 = std::env::args().nth(1).and_then(|a| a.parse().ok()).unwrap_or(5);
@@ -96,7 +84,7 @@ fn main() {
             (3, planes, ROWS / 3),
         ];
         for (k, artifacts, per) in sets {
-            let rows = touches(&truth, &file, &artifacts, per, &mut rng);
+            let rows = random_touches(&truth, &inputs, &artifacts, per, PROBE, &mut rng).unwrap();
             table[k].push(run_with(
                 &file,
                 data_set(rows, MeasurementFormat::Touch),
@@ -114,7 +102,7 @@ fn main() {
             .collect();
         let ten = tracker_rows(&tracked, &*nominal, &inputs, 10, TRACKER, &mut rng);
         let mut rows = ten.clone();
-        rows.extend(touches(&tracked, &file, &seen, ROWS / 3, &mut rng));
+        rows.extend(random_touches(&tracked, &inputs, &seen, ROWS / 3, PROBE, &mut rng).unwrap());
         table[5].push(run_with(
             &file,
             data_set(rows, MeasurementFormat::Mixed),

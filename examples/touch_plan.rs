@@ -19,15 +19,13 @@ mod common;
 
 use common::{data_set, print_progress, print_table, prototype, run_with, Outcome, Prototype};
 use kinecal::design::{plan_touches, Criterion, InstrumentPlanOptions, SelectOptions, SelectionMethod, TouchLayout};
-use kinecal::instrument::simulate::{touch_planned, touch_rows, Placement, Touched};
+use kinecal::instrument::simulate::{random_touches, touch_planned, Placement, Touched};
 use kinecal::io::builtin;
 use kinecal::io::data_file::MeasurementFormat;
 use kinecal::io::model_file::ModelFile;
 use kinecal::measure::Noise;
 use kinecal::se3;
-use kinecal::simulate::random_configurations;
 use nalgebra::Vector3;
-use rand::RngExt;
 
 const PROBE: f64 = 0.005;
 const RADIUS: f64 = 1.5;
@@ -91,8 +89,7 @@ fn main() {
             ..
         } = prototype(&file, seed, None);
         let planned = touch_planned(&truth, &plan.rows, &artifacts, PROBE, seed, &inputs).unwrap();
-        let candidates = random_configurations(&truth, &inputs, 30 * (n / 9) * artifacts.len(), &mut rng).unwrap();
-        let random = touch_rows(&truth, &candidates, &artifacts, n / 9, PROBE, rng.random(), &inputs).unwrap();
+        let random = random_touches(&truth, &inputs, &artifacts, n / 9, PROBE, &mut rng).unwrap();
         for (k, rows) in [planned, random].into_iter().enumerate() {
             table[k].push(run_with(
                 &file,
