@@ -484,8 +484,7 @@ fn nominal_mechanism(model: &ModelFile) -> Result<Nominal, IoError> {
 /// 3.3e-11 mm from the truth after a similarity but 71 mm after a rigid motion) and the verdict
 /// fails, this reason first.
 fn judge_scale<M: Mechanism>(model: &ModelFile, data: &DataSet, opts: &CalibrationOptions, j: &Judged<M>, report: &mut CalibrationReport) {
-    let turns_only = model.inputs().iter().all(|inp| inp.unit != crate::params::Unit::Length);
-    if !turns_only || !crate::instrument::touch::no_length(&data.measurements, &opts.seat_distances) {
+    if !turns_only(model) || !crate::instrument::touch::no_length(&data.measurements, &opts.seat_distances) {
         return;
     }
     let why = format!(
@@ -510,6 +509,11 @@ fn judge_scale<M: Mechanism>(model: &ModelFile, data: &DataSet, opts: &Calibrati
     }
 }
 
+/// Whether every input of `model` turns (no prismatic input, which would give a length).
+fn turns_only(model: &ModelFile) -> bool {
+    model.inputs().iter().all(|inp| inp.unit != crate::params::Unit::Length)
+}
+
 /// The starting model for instrument data: the nominal mechanism with its tool-point offset
 /// and the artifact points started from the data ([`crate::instrument::start_points`]); free,
 /// in priority order: the artifact points, the tool point's offset, the model's free parameters. The base is not
@@ -521,7 +525,7 @@ fn instrument_start(model: &ModelFile, i: &InstrumentData) -> Result<StartingMod
         return mixed::start(model, &i.data, &i.points, &i.pairs);
     }
     let only_seats = i.points.iter().all(|p| p.kind == crate::instrument::PointKind::Seat);
-    let turns_only = model.inputs().iter().all(|inp| inp.unit != crate::params::Unit::Length);
+    let turns_only = turns_only(model);
     if only_seats && i.pairs.is_empty() && turns_only {
         return Err(IoError::Invalid {
             path: i.data.path.clone(),
