@@ -167,11 +167,7 @@ pub fn fit_plane(points: &[Vector3<f64>]) -> Option<(Vector3<f64>, Vector3<f64>)
     if points.len() < 3 {
         return None;
     }
-    let mean = points.iter().sum::<Vector3<f64>>() / points.len() as f64;
-    let mut m = Matrix3::zeros();
-    for p in points {
-        m += (p - mean) * (p - mean).transpose();
-    }
+    let (mean, m) = scatter(points);
     let eig = m.symmetric_eigen();
     let mut order = [0, 1, 2];
     order.sort_by(|&a, &b| eig.eigenvalues[a].total_cmp(&eig.eigenvalues[b]));
@@ -181,6 +177,15 @@ pub fn fit_plane(points: &[Vector3<f64>]) -> Option<(Vector3<f64>, Vector3<f64>)
         return None;
     }
     Some((mean, eig.eigenvectors.column(order[0]).into_owned()))
+}
+
+/// The mean of `points` and their scatter matrix about it (`Σ (p − mean)(p − mean)ᵀ`).
+fn scatter(points: &[Vector3<f64>]) -> (Vector3<f64>, Matrix3<f64>) {
+    let mean = points.iter().sum::<Vector3<f64>>() / points.len() as f64;
+    (
+        mean,
+        points.iter().fold(Matrix3::zeros(), |a, p| a + (p - mean) * (p - mean).transpose()),
+    )
 }
 
 /// The rotation taking `z` onto `n` (a unit vector).
@@ -369,9 +374,7 @@ pub(super) fn planes_collapse(rows: &[TouchRow], t: &Vector3<f64>, points: &[Art
     if planes.len() < 2 {
         return false;
     }
-    let mean = tips.iter().sum::<Vector3<f64>>() / tips.len() as f64;
-    let scatter = tips.iter().fold(Matrix3::zeros(), |a, p| a + (p - mean) * (p - mean).transpose());
-    let eig = scatter.symmetric_eigen().eigenvalues;
+    let eig = scatter(&tips).1.symmetric_eigen().eigenvalues;
     let (lo, hi) = (eig.min(), eig.max());
     // Thicknesses (square roots): below a millionth of the spread is one plane to round-off.
     lo.max(0.0).sqrt() <= 1e-6 * hi.sqrt()
