@@ -194,7 +194,9 @@ pub struct CandidateFilter {
     /// FK∘IK agreement required of a workspace sample: position (mm) and rotation (rad).
     pub fk_tolerance: (f64, f64),
     /// Check FK∘IK on every sample of a closed-loop platform box
-    /// ([`super::candidates_in_platform_box`]). Off, the check moves to the chosen set:
+    /// ([`super::candidates_in_platform_box`]), or of a workspace box whose mechanism's inverse
+    /// gives its whole solution ([`Mechanism::inverse_solution`], a limbs machine's). Off, the
+    /// check moves to the chosen set:
     /// [`super::plan`] runs the forward kinematics identification uses on each chosen candidate
     /// and replaces any that reach another assembly mode (the same plan at a fraction of the
     /// cost: one forward solve per chosen candidate instead of one per sample).
@@ -382,8 +384,10 @@ pub fn candidates_in_workspace<M: Mechanism + ?Sized>(
         .with_min_len(256)
         .map(|c| {
             let target = workspace.pose(&[c[0], c[1], c[2], c[3], c[4], c[5]]);
-            let out = match mech.inverse(&target, ik_seed) {
-                Ok(q) => classify(mech, q, target, None, true, filter),
+            let out = match mech.inverse_solution(&target, ik_seed) {
+                // The inverse kinematics gave its whole solution: the forward check may wait.
+                Ok((q, Some((reached, rest)))) if !filter.check_forward => classify(mech, q, reached, Some(rest), false, filter),
+                Ok((q, _)) => classify(mech, q, target, None, true, filter),
                 Err(_) => Outcome::Unreachable,
             };
             if let Some(p) = progress {

@@ -374,6 +374,8 @@ fn tool_pose_candidates(
     let filter = CandidateFilter {
         input_limits: input_limits(file),
         max_condition: sampling.max_condition,
+        // Where the inverse kinematics gives its whole solution, FK∘IK is checked on the chosen set.
+        check_forward: false,
         ..Default::default()
     };
     let points = sampling_of(&sampling.points, None)?;

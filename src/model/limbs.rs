@@ -30,7 +30,7 @@
 //! in the platform pose and every joint value, solved by Gauss–Newton along a straight path from
 //! the home configuration to the target (continuation: the assembly mode of home is kept).
 use super::chain::{JointKind, SerialChain};
-use super::{check_inputs, ForwardAndObserved, Mechanism, Task};
+use super::{check_inputs, ForwardAndObserved, Mechanism, SolvedInverse, Task};
 use crate::error::KinError;
 use crate::params::{Param, Unit};
 use crate::se3::{self, Pose, Twist};
@@ -617,19 +617,13 @@ impl Mechanism for LimbMechanism {
 
     fn inverse(&self, target: &Pose, _seed: Option<&[f64]>) -> Result<Vec<f64>, KinError> {
         let (q, _, _) = self.inverse_full(target)?;
-        for (k, &(i, j)) in self.inputs.iter().enumerate() {
-            let joint = &self.limbs[i].chain.joints()[j];
-            if let Some((lo, hi)) = joint.limits {
-                if q[k] < lo - 1e-9 || q[k] > hi + 1e-9 {
-                    let unit = if joint.kind == JointKind::Revolute { "rad" } else { "mm" };
-                    return Err(KinError::OutOfWorkspace(format!(
-                        "{} = {:.4} {unit} outside its limits [{lo:.4}, {hi:.4}]",
-                        joint.name, q[k]
-                    )));
-                }
-            }
-        }
-        Ok(q)
+        self.within_limits(q)
+    }
+
+    /// The inputs, the pose reached and the passive joints' values the inverse solved.
+    fn inverse_solution(&self, target: &Pose, _seed: Option<&[f64]>) -> Result<SolvedInverse, KinError> {
+        let (q, passive, reached) = self.inverse_full(target)?;
+        Ok((self.within_limits(q)?, Some((reached, passive))))
     }
 
     fn box_clone(&self) -> Box<dyn Mechanism> {

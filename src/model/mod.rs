@@ -81,6 +81,10 @@ impl Task {
     }
 }
 
+/// What [`Mechanism::inverse_solution`] solved: the inputs, and where the mechanism gives them,
+/// the pose reached and the rest of the forward solution there.
+pub type SolvedInverse = (Vec<f64>, Option<(Pose, Vec<f64>)>);
+
 /// A calibratable mechanism.
 pub trait Mechanism: Send + Sync {
     /// A short name, e.g. `"irb120"`.
@@ -123,6 +127,16 @@ pub trait Mechanism: Send + Sync {
     /// Inputs that bring the tool to `target` (inverse kinematics); `seed` is a starting guess for
     /// mechanisms that solve numerically.
     fn inverse(&self, target: &Pose, seed: Option<&[f64]>) -> Result<Vec<f64>, KinError>;
+    /// [`Mechanism::inverse`] with what it solved besides the inputs, where the mechanism can
+    /// give it: the pose reached (the target's commanded part, the rest following from the
+    /// constraints) and the rest of the forward solution there (as
+    /// [`Mechanism::forward_solution`] gives it). `None` (the default): only the inputs are known,
+    /// and a caller that needs the pose reached solves the forward kinematics. A solution given
+    /// here is that of the inverse kinematics' own path, which may be another assembly mode than
+    /// the forward kinematics from home reaches: planning checks that on the chosen candidates.
+    fn inverse_solution(&self, target: &Pose, seed: Option<&[f64]>) -> Result<SolvedInverse, KinError> {
+        Ok((self.inverse(target, seed)?, None))
+    }
     /// A boxed copy (lets command-line code hold any mechanism).
     fn box_clone(&self) -> Box<dyn Mechanism>;
     /// Whether [`Mechanism::inverse`] ignores its `seed` (a closed-form or self-started inverse):
@@ -239,6 +253,9 @@ impl Mechanism for Box<dyn Mechanism> {
     }
     fn inverse(&self, target: &Pose, seed: Option<&[f64]>) -> Result<Vec<f64>, KinError> {
         (**self).inverse(target, seed)
+    }
+    fn inverse_solution(&self, target: &Pose, seed: Option<&[f64]>) -> Result<SolvedInverse, KinError> {
+        (**self).inverse_solution(target, seed)
     }
     fn box_clone(&self) -> Box<dyn Mechanism> {
         (**self).box_clone()

@@ -663,11 +663,11 @@ fn plan_sampled_takes_the_model_s_own_box_and_needs_a_box_otherwise() {
     assert!(design::plan_sampled(&head, &poses(PoseRanges::default()), &bad, None).is_err());
 }
 
-/// A candidate keeps the rest of its forward solution (a limbs machine's passive joints): its
-/// Jacobian block computed there is the block solved again, bit for bit, so a plan does not
-/// depend on whether the candidate check's solution was kept.
+/// A candidate keeps the rest of the solution its inverse kinematics found (a limbs machine's
+/// passive joints): its Jacobian block computed there is the block of the forward kinematics
+/// solved again from home, to round-off, so a plan does not depend on which solve gave it.
 #[test]
-fn blocks_at_a_kept_forward_solution_are_the_blocks_solved_again() {
+fn blocks_at_a_kept_inverse_solution_are_the_blocks_solved_again() {
     use kinecal::design::{sample_candidates, CandidateSampling, Points, PoseRanges, Region};
     let hexapod = kinecal::io::builtin::model_file("hexapod-6rus").unwrap();
     let sampling = CandidateSampling {
@@ -692,5 +692,10 @@ fn blocks_at_a_kept_forward_solution_are_the_blocks_solved_again() {
     let columns = design::identifiable_columns(&*mech, &kept, ObservationKind::Pose, &noise, None, 100, tolerance).unwrap();
     let a = CandidateJacobians::build(&*mech, &kept, ObservationKind::Pose, &noise, &columns, None).unwrap();
     let b = CandidateJacobians::build(&*mech, &again, ObservationKind::Pose, &noise, &columns, None).unwrap();
-    assert_eq!(a.data(), b.data());
+    let scale = b.data().iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let worst = a.data().iter().zip(b.data()).fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+    assert!(
+        scale > 0.0 && worst <= 1e-9 * scale,
+        "blocks differ by {worst:e} (largest entry {scale:e})"
+    );
 }

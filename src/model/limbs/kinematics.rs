@@ -7,6 +7,24 @@ use super::*;
 const MAX_STAGES: usize = 64;
 
 impl LimbMechanism {
+    /// `q` when every input is within its joint limits (1e-9 of slack), else the error naming
+    /// the first that is not.
+    pub(crate) fn within_limits(&self, q: Vec<f64>) -> Result<Vec<f64>, KinError> {
+        for (k, &(i, j)) in self.inputs.iter().enumerate() {
+            let joint = &self.limbs[i].chain.joints()[j];
+            if let Some((lo, hi)) = joint.limits {
+                if q[k] < lo - 1e-9 || q[k] > hi + 1e-9 {
+                    let unit = if joint.kind == JointKind::Revolute { "rad" } else { "mm" };
+                    return Err(KinError::OutOfWorkspace(format!(
+                        "{} = {:.4} {unit} outside its limits [{lo:.4}, {hi:.4}]",
+                        joint.name, q[k]
+                    )));
+                }
+            }
+        }
+        Ok(q)
+    }
+
     /// Joint values of every limb: the inputs placed, passive joints from `passive`.
     pub(super) fn joints_of(&self, q: &[f64], passive: &[f64]) -> Joints {
         let mut j: Joints = self.limbs.iter().map(|l| l.home.clone()).collect();
