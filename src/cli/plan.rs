@@ -66,7 +66,7 @@ pub struct PlanArgs {
     #[arg(long, default_value_t = 32)]
     pub shortlist: usize,
     /// Output CSV (inputs in degrees, target poses in mm and degrees).
-    #[arg(short, long, default_value = "plan.csv")]
+    #[arg(short, long, visible_alias = "out", default_value = "plan.csv")]
     pub output: PathBuf,
     /// Write an HTML report of the plan here: the candidates and the chosen configurations in 3-D,
     /// the criterion as they are added, the parameters identified and not.

@@ -193,7 +193,7 @@ fn plan_iso9283_places_the_test_poses_and_writes_what_simulate_and_assess_read()
         let ap = a[0]["iso9283"]["poses"][k]["ap_p"].as_f64().unwrap();
         assert!(ap < 0.005, "P{}: AP_P {ap}", k + 1);
     }
-    let irb = json(d, &["plan", "--iso9283", "--model", "irb120", "--output", "irb.csv"]);
+    let irb = json(d, &["plan", "--iso9283", "--model", "irb120", "--out", "irb.csv"]);
     assert!(irb["side_mm"].as_f64().unwrap() > 200.0, "{irb}");
     let file = kinecal::io::builtin::model_file("irb120").unwrap();
     let model = file.build();
