@@ -34,6 +34,7 @@ use serde::Serialize;
 mod joints;
 mod recursive;
 mod reduced;
+mod refit;
 mod solve;
 pub use recursive::rls_solve;
 use reduced::{Form, System};
@@ -373,7 +374,7 @@ pub fn identify<M: Mechanism + Clone>(initial: &M, data: &[Measurement], opts: &
         return Err(CalibError::InvalidOption("noise standard deviations must be positive".into()));
     }
     match opts.method {
-        Method::GaussNewton => gauss_newton(initial, data, opts, &free),
+        Method::GaussNewton => refit::refit_where_more_is_seen(gauss_newton(initial, data, opts, &free)?, data, opts, &free),
         Method::Linear | Method::Recursive => one_step(initial, data, opts, &free),
     }
 }

@@ -210,6 +210,24 @@ pub fn ad(xi: &Twist) -> Matrix6<f64> {
     m
 }
 
+/// The right Jacobian of the exponential, `exp(ξ + δ) ≈ exp(ξ)·exp(J_r(ξ)·δ)` to first order in
+/// `δ`: the series `Σ_k (−ad_ξ)^k / (k + 1)!`, summed until its terms no longer change the sum
+/// (at most 40 terms; for the rotations of a calibration, `|ω| ≪ π`, a few dozen at most).
+pub fn right_jacobian(xi: &Twist) -> Matrix6<f64> {
+    let m = -ad(xi);
+    let mut sum = Matrix6::identity();
+    let mut term = Matrix6::identity();
+    for k in 1..40 {
+        term = term * m / (k as f64 + 1.0);
+        let size = term.abs().max();
+        sum += term;
+        if size <= 1e-18 * sum.abs().max() {
+            break;
+        }
+    }
+    sum
+}
+
 /// Pose error `(p_a − p_b, log(R_a·R_bᵀ))` of `a` relative to `b`, both expressed in the common
 /// parent frame: position difference (length unit of the poses) and rotation vector (rad).
 pub fn pose_error(a: &Pose, b: &Pose) -> Vector6<f64> {
@@ -353,6 +371,29 @@ mod tests {
                 let a = rpy(&q);
                 let back = UnitQuaternion::from_euler_angles(a[0], a[1], a[2]);
                 assert!(so3_log(&(back.inverse() * q)).norm() < 1e-14, "{roll} {pitch} {yaw}: {a:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn right_jacobian_is_the_derivative_of_exp_near_0_and_near_pi() {
+        // exp(ξ + h·e_i) = exp(ξ)·exp(h·J_r(ξ)·e_i) to first order: central differences of
+        // log(exp(ξ)⁻¹·exp(ξ ± h·e_i)).
+        for xi in [
+            Twist::new(0.3, -0.2, 0.1, 1e-4, -2e-4, 3e-4),
+            Twist::new(80.0, -20.0, 5.0, 0.02, -0.01, 0.03),
+            Twist::new(10.0, 5.0, -7.0, 1.7, -1.9, 1.2),
+        ] {
+            let jr = right_jacobian(&xi);
+            let inv = exp(&xi).inverse();
+            let h = 1e-6;
+            for i in 0..6 {
+                let mut e = Twist::zeros();
+                e[i] = h;
+                let d = (log(&(inv * exp(&(xi + e)))) - log(&(inv * exp(&(xi - e))))) / (2.0 * h);
+                let col = jr.column(i);
+                let err = (d - col).amax();
+                assert!(err < 1e-6 * (1.0 + xi.amax()), "ξ = {xi:?}, column {i}: {err:e}");
             }
         }
     }

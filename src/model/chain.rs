@@ -81,6 +81,12 @@ pub struct SerialChain {
     joints: Vec<ChainJoint>,
     /// `n + 1` initial poses: `T_{0,1}(0) … T_{n-1,n}(0)`, then the tool `T_{n,T}(0)`.
     initial: Vec<Pose>,
+    /// The poses the errors are counted from: `initial[k] = reference[k]·exp(offset[k])`.
+    reference: Vec<Pose>,
+    /// The sum of the increments each dyad was retracted by (its six error coordinates).
+    offset: Vec<Twist>,
+    /// `J_r(offset[k])` where the offset is not zero: the error coordinates' Jacobian columns.
+    right: Vec<Option<nalgebra::Matrix6<f64>>>,
     /// Names of the `n + 1` dyads, used as parameter-name prefixes.
     dyad_names: Vec<String>,
 }
@@ -98,10 +104,14 @@ impl SerialChain {
         dyad_names.push(format!("{n}-T"));
         let mut initial = joint_initial;
         initial.push(tool);
+        let m = initial.len();
         SerialChain {
             name: name.into(),
             joints,
+            reference: initial.clone(),
             initial,
+            offset: vec![Twist::zeros(); m],
+            right: vec![None; m],
             dyad_names,
         }
     }
@@ -129,7 +139,7 @@ impl SerialChain {
         for (k, chunk) in values.chunks(12).enumerate() {
             let t = nalgebra::Vector3::new(chunk[0], chunk[1], chunk[2]);
             let r = nalgebra::Matrix3::from_column_slice(&chunk[3..12]);
-            out.initial[k] = crate::se3::pose_from_matrix(&r, &t);
+            out.set_initial_pose(k, crate::se3::pose_from_matrix(&r, &t));
         }
         Ok(out)
     }
@@ -150,8 +160,12 @@ impl SerialChain {
     }
 
     /// Replace the initial pose of dyad `k` (`k = n` is the tool).
+    /// Its error coordinates count from there again.
     pub fn set_initial_pose(&mut self, k: usize, pose: Pose) {
         self.initial[k] = pose;
+        self.reference[k] = pose;
+        self.offset[k] = Twist::zeros();
+        self.right[k] = None;
     }
 
     /// The base dyad's initial pose `T_{0,1}(0)`.
@@ -205,6 +219,15 @@ impl SerialChain {
             g = a * se3::exp_joint(&joint.twist(), q[j]);
         }
         Ok((g * self.tool(), jq))
+    }
+
+    /// The spatial Jacobian columns of dyad `k`'s six error coordinates, `a` the frame its
+    /// initial pose reaches: `Ad_a`, times `J_r` of its offset once it was retracted.
+    fn error_columns(&self, k: usize, a: &Pose) -> nalgebra::Matrix6<f64> {
+        match &self.right[k] {
+            Some(jr) => se3::adjoint(a) * jr,
+            None => se3::adjoint(a),
+        }
     }
 }
 
@@ -265,21 +288,27 @@ impl Mechanism for SerialChain {
         let mut g = Pose::identity();
         for (j, joint) in self.joints.iter().enumerate() {
             let a = g * self.initial[j];
-            jac.fixed_view_mut::<6, 6>(0, 6 * j).copy_from(&se3::adjoint(&a));
+            jac.fixed_view_mut::<6, 6>(0, 6 * j).copy_from(&self.error_columns(j, &a));
             g = a * se3::exp_joint(&joint.twist(), q[j]);
         }
         let a = g * self.tool();
-        jac.fixed_view_mut::<6, 6>(0, 6 * n).copy_from(&se3::adjoint(&a));
+        jac.fixed_view_mut::<6, 6>(0, 6 * n).copy_from(&self.error_columns(n, &a));
         Ok((a, jac))
     }
 
     fn retract(&mut self, delta: &DVector<f64>) {
         assert_eq!(delta.len(), 6 * self.initial.len(), "one 6-vector per dyad");
-        for (k, t0) in self.initial.iter_mut().enumerate() {
+        // The increments add up in the error coordinates, `T = T_ref·exp(Σδ)`, so that where a
+        // dyad's fixed coordinates stay zero the pose reached does not depend on the path: a
+        // product `T·exp(δ₁)·exp(δ₂)` of steps in some coordinates only (`vz wy wz`) moves the
+        // others by their brackets (`[wy, wz] = wx`), which no later step can undo.
+        for k in 0..self.initial.len() {
             let d = Twist::from_iterator(delta.rows(6 * k, 6).iter().copied());
-            // A zero increment leaves the pose bit for bit (exp(0)·T rounds).
+            // A zero increment leaves the pose bit for bit.
             if d.iter().any(|v| *v != 0.0) {
-                *t0 *= se3::exp(&d);
+                self.offset[k] += d;
+                self.initial[k] = self.reference[k] * se3::exp(&self.offset[k]);
+                self.right[k] = Some(se3::right_jacobian(&self.offset[k]));
             }
         }
     }
