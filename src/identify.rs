@@ -23,6 +23,13 @@
 //! from a Householder factor of the same rows, computed once (on an evenly spread subset of
 //! [`ANALYSIS_POSES`] poses for larger sets). Memory grows with p², not with the poses; a million
 //! IRB 120 poses identify in about 11 s in-process.
+//!
+//! # A start that sees less than the machine
+//! The rank is decided at the start. Where the start is a special geometry (a platform that only
+//! translates, axes exactly parallel) and the converged fit is not exact, the rank is analysed
+//! again where the fit converged, and the fit continued on the larger set when that explains the
+//! data a thousand times better (`identify/refit.rs`; issue 28 point 5 in
+//! docs/parallel-machines.md).
 use crate::error::{CalibError, KinError};
 use crate::identifiability::{self, Identifiability};
 use crate::measure::{self, Measurement, Noise};
