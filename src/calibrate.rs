@@ -179,9 +179,9 @@ pub struct StartOutcome {
 }
 
 /// Calibrate `model` from `data` (and judge it on `validation`): the stages below, in order —
-/// plausibility checks ([`checks`]), the starting model with its frames ([`starting_model`]),
-/// the robust identification ([`robust`]), the other starts ([`starts`]), the report with its
-/// verdict ([`judge`]).
+/// plausibility checks (`checks`), the starting model with its frames (`starting_model`),
+/// the robust identification (`robust`), the other starts (`starts`), the report with its
+/// verdict (`judge`).
 pub fn calibrate(
     model: &ModelFile,
     data: &DataSet,
