@@ -197,7 +197,7 @@ pub struct CandidateFilter {
     /// ([`super::candidates_in_platform_box`]), or of a workspace box whose mechanism's inverse
     /// gives its whole solution ([`Mechanism::inverse_solution`], a limbs machine's). Off, the
     /// check moves to the chosen set:
-    /// [`super::plan`] runs the forward kinematics identification uses on each chosen candidate
+    /// [`super::plan()`] runs the forward kinematics identification uses on each chosen candidate
     /// and replaces any that reach another assembly mode (the same plan at a fraction of the
     /// cost: one forward solve per chosen candidate instead of one per sample).
     pub check_forward: bool,

@@ -15,7 +15,7 @@
 //! 4. **FK∘IK**: the forward kinematics from the home pose (what identification uses) must
 //!    return the same tool pose, within [`CandidateFilter::fk_tolerance`] — else *unreachable*
 //!    (another assembly mode). With [`CandidateFilter::check_forward`] off this check is left to
-//!    [`super::plan`], which makes it on the chosen candidates only;
+//!    [`super::plan()`], which makes it on the chosen candidates only;
 //! 5. **distance from singularity**: [`actuator_condition`] at most
 //!    [`CandidateFilter::max_condition`] — else *near singular*;
 //! 6. the custom predicate, if any.

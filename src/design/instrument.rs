@@ -11,7 +11,7 @@
 //!    every seat's or pivot's centre free, on the identifiable columns. The rank test removes what
 //!    no such instrument sees (where the machine stands; with seats alone on a machine of revolute
 //!    joints, the scale, which a known seat distance gives).
-//! 3. **Selection** ([`plan_instrument`]): the selection of [`super::select`] on those blocks,
+//! 3. **Selection** ([`plan_instrument`]): the selection of [`super::select()`] on those blocks,
 //!    then a repair that gives every point its minimum rows ([`MIN_SEAT_ROWS`], [`MIN_PIVOT_ROWS`]
 //!    or more, [`InstrumentPlanOptions::min_per_point`]).
 //!

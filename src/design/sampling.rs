@@ -1,6 +1,6 @@
 //! Planning from a description of where to sample, for any mechanism a model file describes:
 //! [`sample_candidates`] makes the candidates ([`CandidateSampling`]: a box of poses or of inputs,
-//! Halton points or a grid) and [`plan_sampled`] runs [`super::plan`] on them. `kinecal plan` and
+//! Halton points or a grid) and [`plan_sampled`] runs [`super::plan()`] on them. `kinecal plan` and
 //! Python's `plan_sampled` are this one call.
 //!
 //! What a box of poses means depends on the mechanism, and is decided here, not by the callers:

@@ -9,7 +9,7 @@
 //! 2. **Blocks**: each candidate's weighted residual Jacobian of the [`Artifact`]-wrapped
 //!    nominal with the tool-point offset, the model's free parameters and every artifact's
 //!    unknowns free (as [`crate::calibrate`] fits touches), on the identifiable columns.
-//! 3. **Selection** ([`plan_touches`]): [`super::select`] on those blocks, then the repair that
+//! 3. **Selection** ([`plan_touches`]): [`super::select()`] on those blocks, then the repair that
 //!    gives every sphere, plane and cube face its minimum touches ([`min_rows`]).
 //!
 //! The D-criterion on the full information matrix is the criterion on the geometry once the

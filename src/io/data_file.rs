@@ -55,7 +55,7 @@ pub enum MeasurementFormat {
     Seat,
     /// `pivot, length`: a ballbar's or draw-wire sensor's length ([`Observation::Distance`]).
     Distance,
-    /// Rows of several kinds, each filling one kind's cells ([`mixed`]).
+    /// Rows of several kinds, each filling one kind's cells (`mixed`).
     Mixed,
     /// A touch probe's touches on spheres, planes or a datum cube ([`Observation::Touch`]).
     Touch,

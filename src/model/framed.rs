@@ -118,7 +118,7 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Framed<M> {
         self.inner.retract(&rest);
     }
     /// The whole pose commanded: the inner mechanism at `X⁻¹·T·Y⁻¹`. Part of it commanded:
-    /// Newton on that part of `X·M(q)·Y` ([`commanded::inverse`]), the rest following from the
+    /// Newton on that part of `X·M(q)·Y` (`commanded::inverse`), the rest following from the
     /// constraints through the tool offset.
     fn inverse(&self, target: &Pose, seed: Option<&[f64]>) -> Result<Vec<f64>, KinError> {
         if self.inner.task() == Task::Full {
