@@ -486,12 +486,7 @@ fn gauss_newton<M: Mechanism + Clone>(
         };
         (identifiability::analyze(r, free, opts.rank_tolerance), system)
     } else {
-        let sample: Vec<Measurement> = data.iter().step_by(stride).cloned().collect();
-        let ev_sample = reduced::evaluate(&model, &sample, &noise, opts.loss)?;
-        let ident = match reduced::factor(&model, &sample, &noise, &ev_sample, Form::Triangular)? {
-            System::Triangular { r, .. } => identifiability::analyze(&r, free, opts.rank_tolerance),
-            System::Gram { .. } => unreachable!("a triangular factor was asked for"),
-        };
+        let ident = sampled_analysis(&model, data, &noise, opts, free)?;
         (ident, reduced::factor(&model, data, &noise, &ev, Form::Gram)?)
     };
     let rows = ev.residual.len();
@@ -642,6 +637,30 @@ fn gauss_newton<M: Mechanism + Clone>(
 pub fn information<M: Mechanism + ?Sized>(model: &M, data: &[Measurement], noise: &Noise) -> Result<DMatrix<f64>, CalibError> {
     let ev = reduced::evaluate(model, data, noise, Loss::Squares)?;
     Ok(reduced::factor(model, data, noise, &ev, Form::Gram)?.gram())
+}
+
+/// The identifiability analysis of `model` on `data` (an orthogonal factor of the weighted
+/// Jacobian), on an evenly spread subset of [`ANALYSIS_POSES`] poses when there are more.
+fn sampled_analysis<M: Mechanism + ?Sized>(
+    model: &M,
+    data: &[Measurement],
+    noise: &Noise,
+    opts: &Options,
+    free: &[usize],
+) -> Result<Identifiability, CalibError> {
+    let stride = data.len().div_ceil(ANALYSIS_POSES).max(1);
+    let sample: Vec<Measurement>;
+    let rows = if stride == 1 {
+        data
+    } else {
+        sample = data.iter().step_by(stride).cloned().collect();
+        &sample
+    };
+    let ev = reduced::evaluate(model, rows, noise, opts.loss)?;
+    match reduced::factor(model, rows, noise, &ev, Form::Triangular)? {
+        System::Triangular { r, .. } => Ok(identifiability::analyze(&r, free, opts.rank_tolerance)),
+        System::Gram { .. } => unreachable!("a triangular factor was asked for"),
+    }
 }
 
 /// Identifiability of a mechanism's parameters from full-pose measurements at `inputs`: the

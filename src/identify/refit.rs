@@ -10,10 +10,8 @@
 //! valley along which the tool offset and the turns trade), then with the stated weights. The
 //! continuation replaces the first fit only when it explains the data [`DECISIVE`] times
 //! better: a fit the first could not reach, never noise fitted into weakly seen directions.
-use super::reduced::{self, Form, System};
-use super::{gauss_newton, Identification, Options, ANALYSIS_POSES};
+use super::{gauss_newton, sampled_analysis, Identification, Options};
 use crate::error::CalibError;
-use crate::identifiability;
 use crate::measure::Measurement;
 use crate::model::Mechanism;
 
@@ -26,18 +24,6 @@ const ORIENTATION_WEIGHT: f64 = 100.0;
 /// Iterations of each stage of the continuation, at most (a fit it can make exact takes a few
 /// dozen; one that creeps would not become decisive in hundreds either).
 const STAGE_ITERATIONS: usize = 100;
-
-/// The numerical rank of the identification Jacobian of `model` (on an evenly spread subset of
-/// [`ANALYSIS_POSES`] poses when there are more).
-fn rank_at<M: Mechanism + Clone>(model: &M, data: &[Measurement], opts: &Options, free: &[usize]) -> Result<usize, CalibError> {
-    let stride = data.len().div_ceil(ANALYSIS_POSES).max(1);
-    let sample: Vec<Measurement> = data.iter().step_by(stride).cloned().collect();
-    let ev = reduced::evaluate(model, &sample, &opts.noise, opts.loss)?;
-    match reduced::factor(model, &sample, &opts.noise, &ev, Form::Triangular)? {
-        System::Triangular { r, .. } => Ok(identifiability::analyze(&r, free, opts.rank_tolerance).rank),
-        System::Gram { .. } => unreachable!("a triangular factor was asked for"),
-    }
-}
 
 /// `first`, or its continuation on the larger identifiable set of its own geometry when that
 /// fits decisively better (see the [module docs](self)). Extra starts (`opts.agree_with`) and
@@ -53,8 +39,8 @@ pub(super) fn refit_where_more_is_seen<M: Mechanism + Clone>(
     }
     // A geometry where nothing new is seen, or one the model no longer evaluates at every pose
     // (then the first fit stands), ends here.
-    match rank_at(&first.model, data, opts, free) {
-        Ok(rank) if rank > first.identifiability.rank => {}
+    match sampled_analysis(&first.model, data, &opts.noise, opts, free) {
+        Ok(seen) if seen.rank > first.identifiability.rank => {}
         _ => return Ok(first),
     }
     let mut stage = opts.clone();
