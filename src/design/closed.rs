@@ -108,10 +108,11 @@ fn classify<C: ConstraintSystem>(mech: &ClosedLoop<C>, x: &[f64; 6], filter: &Ca
     if cond.is_nan() || filter.max_condition.is_some_and(|max| cond > max) {
         return Outcome::NearSingular;
     }
+    // The platform coordinates solved: the Jacobian block starts there, without a forward solve.
     let cand = Candidate {
         q,
         target: reached,
-        solution: None,
+        solution: Some(xs.to_vec()),
     };
     if let Some(f) = &filter.custom {
         if !f(&cand) {

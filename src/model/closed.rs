@@ -169,6 +169,8 @@ pub struct ClosedLoop<C: ConstraintSystem> {
     base: [f64; 6],
     frame_errors: bool,
     solver: SolverOptions,
+    /// The equations each geometric parameter enters, for the grouped `F_θ` passes.
+    theta_groups: derivatives::ThetaGroups,
 }
 
 /// Names of the tool-offset parameters.
@@ -221,7 +223,9 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
     /// (`frame_errors`) or without (frames then fixed: identity base, `tool` offset).
     pub fn new(system: C, tool: [f64; 3], frame_errors: bool) -> Self {
         let geometry = system.nominal_geometry();
+        let theta_groups = derivatives::ThetaGroups::detect(&system, &geometry);
         ClosedLoop {
+            theta_groups,
             system,
             geometry,
             tool,
@@ -410,6 +414,18 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
             iterations: self.solver.max_iterations,
             residual: norm,
         })
+    }
+
+    /// [`ClosedLoop::solve_platform`] when `x` already solves the constraints at `q` (residual
+    /// within the tolerance): the same checks (inputs, strokes, conditioning), no Newton step.
+    /// `Ok(None)` when `x` is not a solution.
+    fn solved_at(&self, q: &[f64], x: [f64; 6]) -> Result<Option<([f64; 6], Factors)>, KinError> {
+        check_inputs(q, self.system.input_names().len())?;
+        self.check_strokes(q)?;
+        if max_abs(&self.residual_raw(&x, q)) <= self.solver.tolerance {
+            return self.well_conditioned(x, q).map(Some);
+        }
+        Ok(None)
     }
 
     /// `x` if the constraint Jacobian `F_X` there is within the solver's condition limit (the
@@ -630,7 +646,12 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
     /// Platform coordinates and their sensitivity `dX/dθ` (6 × all parameters; zero columns for
     /// the frame parameters) by the implicit function theorem `dX = −F_X⁻¹·F_θ·dθ`.
     pub fn pose_sensitivity(&self, q: &[f64], seed: Option<&[f64; 6]>) -> Result<([f64; 6], DMatrix<f64>), KinError> {
-        let (x, lu) = self.solve_platform(q, seed)?;
+        let solved = self.solve_platform(q, seed)?;
+        self.sensitivity_at(q, solved)
+    }
+
+    /// [`ClosedLoop::pose_sensitivity`] at a forward solution `(X, LU of F_X)` of `q`.
+    fn sensitivity_at(&self, q: &[f64], (x, lu): ([f64; 6], Factors)) -> Result<([f64; 6], DMatrix<f64>), KinError> {
         let ft = self.jacobian_theta_raw(&x, q);
         let sol = lu.solve(&(-ft)).ok_or_else(|| KinError::Singular {
             what: "identification Jacobian (F_X)".into(),

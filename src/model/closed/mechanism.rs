@@ -66,6 +66,22 @@ impl<C: ConstraintSystem> Mechanism for ClosedLoop<C> {
             self.tool_pose_jacobian(q, None)
         }
     }
+    /// The platform coordinates `X` (6 values).
+    fn forward_solution(&self, q: &[f64]) -> Result<(Pose, Vec<f64>), KinError> {
+        let x = self.platform_pose(q, None)?;
+        Ok((self.tool_pose_of(&x), x.to_vec()))
+    }
+    /// At platform coordinates `rest = X` that satisfy the constraints at `q` (residual within the
+    /// solver's tolerance): no Newton step, the conditioning checked as after a solve. Otherwise
+    /// Newton from `pose` ([`Mechanism::forward_with_jacobian_near`]).
+    fn forward_with_jacobian_at(&self, q: &[f64], pose: &Pose, rest: &[f64]) -> Result<(Pose, Matrix6xX<f64>), KinError> {
+        if let Ok(x) = <[f64; 6]>::try_from(rest) {
+            if let Some(solved) = self.solved_at(q, x)? {
+                return self.tool_pose_jacobian_at(q, solved);
+            }
+        }
+        self.forward_with_jacobian_near(q, pose)
+    }
     fn retract(&mut self, delta: &DVector<f64>) {
         let ng = self.geometry.len();
         for i in 0..ng.min(delta.len()) {
@@ -102,7 +118,13 @@ impl<C: ConstraintSystem> Mechanism for ClosedLoop<C> {
 impl<C: ConstraintSystem> ClosedLoop<C> {
     /// Tool pose and its identification Jacobian at `q`, forward kinematics from `seed`.
     fn tool_pose_jacobian(&self, q: &[f64], seed: Option<&[f64; 6]>) -> Result<(Pose, Matrix6xX<f64>), KinError> {
-        let (x, dx) = self.pose_sensitivity(q, seed)?;
+        let solved = self.solve_platform(q, seed)?;
+        self.tool_pose_jacobian_at(q, solved)
+    }
+
+    /// Tool pose and its identification Jacobian at a forward solution `(X, LU of F_X)` of `q`.
+    fn tool_pose_jacobian_at(&self, q: &[f64], solved: ([f64; 6], Factors)) -> Result<(Pose, Matrix6xX<f64>), KinError> {
+        let (x, dx) = self.sensitivity_at(q, solved)?;
         let pose = self.tool_pose_of(&x);
         let p = pose.translation.vector;
         let r = se3::rotation_matrix(&pose);
