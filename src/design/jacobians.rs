@@ -19,8 +19,9 @@ use crate::error::CalibError;
 use crate::identifiability;
 use crate::measure::{self, Noise, Observation};
 use crate::model::Mechanism;
+use crate::se3;
 use crate::simulate::ObservationKind;
-use nalgebra::DMatrix;
+use nalgebra::{DMatrix, Vector6};
 use rayon::prelude::*;
 
 /// Blocks per partial sum of the column norms in [`CandidateJacobians::from_raw`]: a fixed
@@ -139,11 +140,18 @@ impl CandidateJacobians {
                     ObservationKind::Pose => Observation::Pose(pose),
                     ObservationKind::Position => Observation::Position(pose.translation.vector),
                 };
-                let a = measure::residual_jacobian(&obs, &pose, &jac);
-                let w = measure::row_weights(&obs, noise);
-                for r in 0..rows {
-                    for (j, &c) in columns.iter().enumerate() {
-                        block[r * k + j] = a[(r, c)] * w[r];
+                // The rows of measure::residual_jacobian (the pose-error map times each column,
+                // the same products), for the chosen columns only.
+                let map = se3::spatial_to_pose_error(&pose.translation.vector);
+                let mut w = [0.0; 6];
+                for (r, v) in w.iter_mut().enumerate().take(rows) {
+                    *v = measure::row_weight(&obs, r, noise);
+                }
+                for (j, &c) in columns.iter().enumerate() {
+                    let col: Vector6<f64> = jac.column(c).into_owned();
+                    let a = map * col;
+                    for r in 0..rows {
+                        block[r * k + j] = a[r] * w[r];
                     }
                 }
                 if let Some(f) = progress {

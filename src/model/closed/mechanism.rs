@@ -134,12 +134,12 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
         // chain rule: a geometric column is the X columns times dX/dθ.
         let per_x: [[f64; 6]; 6] = self.tool_twists(&x, 0, &p, &r);
         let mut jac = Matrix6xX::zeros(np);
-        for j in 0..ng {
-            for (i, t) in per_x.iter().enumerate() {
-                let d = dx[(i, j)];
+        // Column-major 6-row columns of `jac` and `dx`, summed in the order i = 0..6.
+        for (col, d) in jac.as_mut_slice().chunks_exact_mut(6).zip(dx.as_slice().chunks_exact(6)).take(ng) {
+            for (t, &d) in per_x.iter().zip(d) {
                 if d != 0.0 {
-                    for k in 0..6 {
-                        jac[(k, j)] += t[k] * d;
+                    for (c, tk) in col.iter_mut().zip(t) {
+                        *c += tk * d;
                     }
                 }
             }
