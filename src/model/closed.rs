@@ -26,7 +26,8 @@
 //!   `ω = vee(dR·Rᵀ)`, `v = dp − ω × p`.
 //!
 //! All partial derivatives `F_X`, `F_q`, `F_θ` and those of the tool pose come from forward-mode
-//! automatic differentiation (one dual pass per variable): exact to round-off.
+//! automatic differentiation (vector dual numbers, many variables per pass; `F_θ` in passes
+//! grouped by its sparsity, see `derivatives`): exact to round-off.
 //!
 //! # Frames (§2.3 of the 5-DOF paper)
 //! With frame errors enabled the parameter vector is `[θ_geometry, t (3), base (6)]`: the tool
