@@ -11,7 +11,8 @@
 //!   ([`Points::PaperGrid`]);
 //! * every other mechanism samples **tool poses** ([`super::candidates_in_workspace`]): positions in
 //!   a box, roll/pitch/yaw about the world axes applied to the tool orientation at the start inputs
-//!   (zero, or a limbs machine's home, whose own workspace box is the default); the model's input
+//!   (zero, or a limbs machine's home); a limbs machine's own workspace box is the default, as is
+//!   a Stewart platform's (its Euler-angle ranges as roll/pitch/yaw offsets); the model's input
 //!   limits applied.
 //!
 //! A box of inputs ([`Region::Inputs`]) is sampled directly by the forward kinematics
@@ -24,6 +25,7 @@ use crate::io::model_file::ModelFile;
 use crate::model::closed::Workspace as PlatformBox;
 use crate::model::closed::{ClosedLoop, ConstraintSystem};
 use crate::model::kind::MechanismSpec;
+use crate::model::limbs::PoseBox;
 use crate::model::presets::pm5::{Pm5, CANDIDATE_GRID};
 use crate::model::Mechanism;
 use crate::params::Unit;
@@ -320,6 +322,23 @@ fn platform_candidates(
     })
 }
 
+/// A closed-loop machine's workspace as a box of tool poses, where its tool frame is its platform
+/// frame (no tool offset, base at the origin): the platform positions, and its X-Y-Z Euler-angle
+/// ranges as the roll, pitch and yaw offsets about the home orientation (the same rotations to
+/// first order: the boxes of a workspace are a few degrees wide).
+fn closed_loop_box<C: ConstraintSystem>(m: &ClosedLoop<C>) -> Option<PoseBox> {
+    if m.tool() != [0.0; 3] || m.base() != [0.0; 6] {
+        return None;
+    }
+    let ws = m.system().workspace();
+    Some(PoseBox {
+        position_min: Vector3::new(ws.min[0], ws.min[1], ws.min[2]),
+        position_max: Vector3::new(ws.max[0], ws.max[1], ws.max[2]),
+        rpy_min: [ws.min[3], ws.min[4], ws.min[5]],
+        rpy_max: [ws.max[3], ws.max[4], ws.max[5]],
+    })
+}
+
 /// The input limits of a model file, if any input has some.
 fn input_limits(file: &ModelFile) -> Option<Vec<(f64, f64)>> {
     let inputs = file.inputs();
@@ -342,6 +361,7 @@ fn tool_pose_candidates(
     // A limbs mechanism starts at its home inputs and defaults to its own workspace box.
     let (start, own) = match &file.mechanism {
         MechanismSpec::Limbs(m) => (m.home_inputs(), m.workspace().cloned()),
+        MechanismSpec::Stewart(m) => (vec![0.0; file.inputs().len()], closed_loop_box(m)),
         _ => (vec![0.0; file.inputs().len()], None),
     };
     let home = mech.forward(&start).map_err(|e| {

@@ -652,6 +652,20 @@ fn plan_sampled_takes_the_model_s_own_box_and_needs_a_box_otherwise() {
     let sp = design::plan_sampled(&head, &poses(PoseRanges::default()), &opts, None).unwrap();
     let z: Vec<f64> = sp.candidates.candidates.iter().map(|c| c.target.translation.vector.z).collect();
     assert!(z.iter().all(|&z| (81.4 - 1e-6..=161.4 + 1e-6).contains(&z)), "{z:?}");
+    // So does a Stewart platform (its tool frame is its platform frame): positions in its
+    // workspace box (z 260–340 mm), its Euler-angle ranges as roll, pitch and yaw offsets.
+    let stewart = kinecal::io::builtin::model_file("stewart").unwrap();
+    let sp = design::plan_sampled(&stewart, &poses(PoseRanges::default()), &opts, None).unwrap();
+    assert_eq!(sp.plan.selection.selected.len(), 8);
+    assert!(sp.candidates.candidates.len() > 250, "{}", sp.candidates.report);
+    for c in &sp.candidates.candidates {
+        let p = c.target.translation.vector;
+        assert!(
+            p.x.abs() <= 40.0 + 1e-6 && p.y.abs() <= 40.0 + 1e-6 && (260.0 - 1e-6..=340.0 + 1e-6).contains(&p.z),
+            "{p}"
+        );
+        assert!(c.target.rotation.angle() <= 15f64.to_radians(), "{}", c.target.rotation.angle());
+    }
     // Non-positive noise is refused before any sampling.
     let bad = design::PlanOptions {
         noise: kinecal::measure::Noise {
