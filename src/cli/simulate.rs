@@ -216,7 +216,7 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
         return instrument_run(&a, &file, &*truth, &mut rng, outputs);
     }
     if let (Some(cycles), Some(at)) = (a.cycles, &a.at) {
-        return test_run(&a, &*truth, &inputs, at, cycles, &noise, &mut rng, outputs);
+        return test_run(&a, &file.name, &*truth, &inputs, at, cycles, &noise, &mut rng, outputs);
     }
     let planned: Option<Vec<Vec<f64>>> = match &a.at {
         Some(p) => {
@@ -303,10 +303,12 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// `--cycles N`: an ISO 9283 test run of `truth` at the commands of `at`, written to `--out`.
+/// `--cycles N`: an ISO 9283 test run of `truth` (the prototype of the model file `model`) at the
+/// commands of `at`, written to `--out`.
 #[allow(clippy::too_many_arguments)]
 fn test_run(
     a: &SimulateArgs,
+    model: &str,
     truth: &dyn kinecal::Mechanism,
     inputs: &[kinecal::model::kind::InputSpec],
     at: &Path,
@@ -336,8 +338,21 @@ fn test_run(
     })?;
     outputs.stage(&a.out, kinecal::io::test_poses::attained_text(&attained).as_bytes())?;
     outputs.commit()?;
+    // Say which robot ran: the model as it is, or a prototype with random errors (the default
+    // errors apply here too, and a test run of a calibrated model's truth file wants none).
+    let robot = if a.error_mm == 0.0 && a.error_deg == 0.0 {
+        format!("{model} as it is")
+    } else {
+        format!(
+            "a virtual prototype of {model} (±{} mm / ±{} deg errors, seed {} → {}; --error-mm 0 --error-deg 0 runs the model as it is)",
+            a.error_mm,
+            a.error_deg,
+            a.seed,
+            a.truth.display()
+        )
+    };
     println!(
-        "ISO 9283 test run: {} test poses × {cycles} cycles, repeatability {} mm / {} deg, noise {} mm / {} deg → {}",
+        "ISO 9283 test run on {robot}: {} test poses × {cycles} cycles, repeatability {} mm / {} deg, noise {} mm / {} deg → {}",
         commands.len(),
         a.repeatability_mm,
         a.repeatability_deg,

@@ -117,8 +117,20 @@ fn a_test_run_before_and_after_calibration_through_the_commands() {
             "t2.toml",
             "--force",
         ];
-        ok(d, &args);
+        let said = ok(d, &args);
+        assert!(said.contains("test run on pm5 as it is"), "{said}");
     }
+    // Without --error-mm 0 the run is on a new prototype with random errors, and it says so.
+    let said = ok(
+        d,
+        &[
+            "simulate", "t.toml", "--at", "nom.csv", "--cycles", "2", "--out", "y.csv", "--truth", "y.toml",
+        ],
+    );
+    assert!(
+        said.contains("virtual prototype of pm5 (±") && said.contains("--error-mm 0 --error-deg 0"),
+        "{said}"
+    );
     let v = json(d, &["assess", "--commanded", "targets.csv", "before.csv", "after.csv"]);
     let rp_expected = 0.005 * (2.0 * (2.0 / std::f64::consts::PI).sqrt() + 3.0 * (3.0 - 8.0 / std::f64::consts::PI).sqrt());
     for k in 0..5 {
