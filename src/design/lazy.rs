@@ -39,6 +39,9 @@ pub struct LazyGains<'a> {
     /// Whether the next [`Self::top`] brings every candidate up to date in one sequential pass
     /// (the last one evaluated most of them).
     full_pass_next: bool,
+    /// Whether the bounds are gains of a rank-deficient design (set by every addition before
+    /// full rank, cleared by the full pass that follows the first one at full rank).
+    bounds_before_full_rank: bool,
     /// Whether `order` waits to be sorted again (every bound changed in a full pass).
     order_stale: bool,
     /// Blocks older than this many additions are recomputed exactly: set when the design
@@ -129,6 +132,7 @@ impl<'a> LazyGains<'a> {
             excluded: vec![false; n],
             order,
             full_pass_next: false,
+            bounds_before_full_rank: true,
             order_stale: false,
             exact_since: 0,
             evaluations: 0,
@@ -268,7 +272,10 @@ impl<'a> LazyGains<'a> {
         // not settle.
         let last = best.last().map_or(f64::NEG_INFINITY, |b| b.1);
         let walked = stale.iter().filter(|&&b| !settles(last, b)).count();
-        self.full_pass_next = FULL_PASS * walked > idx.len();
+        // Bounds from before full rank (of order 1/ε) settle nothing, and say nothing of how far
+        // the next walk goes: after the first pass at full rank every bound is a fresh gain.
+        self.full_pass_next = FULL_PASS * walked > idx.len() && !self.bounds_before_full_rank;
+        self.bounds_before_full_rank = self.rank_deficient();
         // Every bound changed: the order is sorted again when a walk next needs it (before full
         // rank every step is a full pass, and sorting after each was wasted).
         self.order_stale = true;
