@@ -194,15 +194,29 @@ impl Problem {
                     }
                 }
             }
-            let Some(step) = h.cholesky().map(|c| -c.solve(&g)) else { break };
+            // Minimum-norm step: where the data do not separate the frame from the flange points
+            // (position data at one tool orientation: a flange point and the frame's translation
+            // move the measured points alike) the normal matrix is singular, and a Cholesky
+            // solve, if it passed, would throw both to metres in opposite directions.
+            let svd = h.svd(true, true);
+            let tiny = 1e-10 * svd.singular_values.amax();
+            let Ok(step) = svd.solve(&g, tiny).map(|d| -d) else { break };
             if !step.iter().all(|v| v.is_finite()) {
                 break;
             }
             let dx = crate::se3::Twist::from_iterator(step.rows(0, 6).iter().copied());
-            x = crate::se3::exp(&dx) * x;
-            for (k, sk) in s.iter_mut().enumerate() {
-                *sk += Vector3::new(step[6 + 3 * k], step[7 + 3 * k], step[8 + 3 * k]);
+            let x_new = crate::se3::exp(&dx) * x;
+            let s_new: Vec<Vector3<f64>> = s
+                .iter()
+                .enumerate()
+                .map(|(k, sk)| sk + Vector3::new(step[6 + 3 * k], step[7 + 3 * k], step[8 + 3 * k]))
+                .collect();
+            // Newton from the alternation's estimate only ever improves the fit; a step that
+            // does not is round-off at the minimum.
+            if self.rms(&x_new, &s_new) > self.rms(&x, &s) * (1.0 + 1e-12) + 1e-12 {
+                break;
             }
+            (x, s) = (x_new, s_new);
             let moved = crate::se3::lin(&dx).norm() + 1e3 * crate::se3::ang(&dx).norm() + step.rows(6, n - 6).amax();
             if moved < 1e-9 {
                 break;

@@ -587,3 +587,61 @@ fn a_machine_at_its_tolerances_is_not_failed_for_a_split_of_the_parameters() {
         assert!(out.contains("verdict: calibrated"), "seed {seed}, noise {noise}: {out}");
     }
 }
+
+/// Position data planned at one tool orientation cannot show the tool offset (it moves every
+/// point alike): the fit is exact on them, and held-out poses at other orientations keep the
+/// offset's error. The verdict says so (a warning, exit 0), instead of "calibrated".
+#[test]
+fn held_out_poses_far_worse_than_the_fit_are_a_warning() {
+    use crate::cli::ok;
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    ok(d, &["model", "export", "irb120", "--out", "irb.toml"]);
+    ok(
+        d,
+        &[
+            "plan",
+            "--model",
+            "irb.toml",
+            "-n",
+            "25",
+            "--candidates",
+            "2000",
+            "--x-mm",
+            "300,500",
+            "--y-mm",
+            "-150,150",
+            "--z-mm",
+            "300,550",
+            "-o",
+            "plan.csv",
+        ],
+    );
+    ok(
+        d,
+        &[
+            "simulate",
+            "irb.toml",
+            "--at",
+            "plan.csv",
+            "--measure",
+            "position",
+            "--seed",
+            "2",
+            "--noise-mm",
+            "0",
+            "--noise-deg",
+            "0",
+            "--validation-poses",
+            "30",
+            "--out",
+            "s.csv",
+            "--truth",
+            "t.toml",
+            "--validation-out",
+            "v.csv",
+        ],
+    );
+    let said = ok(d, &["identify", "irb.toml", "s.csv", "--validation", "v.csv", "--out", "c.toml"]);
+    assert!(said.contains("verdict: usable with warnings: the held-out poses keep"), "{said}");
+}
