@@ -168,6 +168,7 @@ impl Problem {
     /// stops when a step moves nothing by more than 1e-9 mm.
     fn refine(&self, mut x: Pose, mut s: Vec<Vector3<f64>>) -> (Pose, Vec<Vector3<f64>>) {
         let n = 6 + 3 * self.classes;
+        let mut rms = self.rms(&x, &s);
         for _ in 0..30 {
             let mut h = DMatrix::<f64>::zeros(n, n);
             let mut g = DVector::<f64>::zeros(n);
@@ -213,10 +214,11 @@ impl Problem {
                 .collect();
             // Newton from the alternation's estimate only ever improves the fit; a step that
             // does not is round-off at the minimum.
-            if self.rms(&x_new, &s_new) > self.rms(&x, &s) * (1.0 + 1e-12) + 1e-12 {
+            let rms_new = self.rms(&x_new, &s_new);
+            if rms_new > rms * (1.0 + 1e-12) + 1e-12 {
                 break;
             }
-            (x, s) = (x_new, s_new);
+            (x, s, rms) = (x_new, s_new, rms_new);
             let moved = crate::se3::lin(&dx).norm() + 1e3 * crate::se3::ang(&dx).norm() + step.rows(6, n - 6).amax();
             if moved < 1e-9 {
                 break;

@@ -39,8 +39,8 @@ pub struct LazyGains<'a> {
     /// Whether the next [`Self::top`] brings every candidate up to date in one sequential pass
     /// (the last one evaluated most of them).
     full_pass_next: bool,
-    /// Whether the bounds are gains of a rank-deficient design (set by every addition before
-    /// full rank, cleared by the full pass that follows the first one at full rank).
+    /// Whether the bounds are gains of a rank-deficient design: true until a full pass is made
+    /// at full rank (each full pass records whether its design was deficient).
     bounds_before_full_rank: bool,
     /// Whether `order` waits to be sorted again (every bound changed in a full pass).
     order_stale: bool,

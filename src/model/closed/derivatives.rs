@@ -199,13 +199,6 @@ impl<C: ConstraintSystem> ClosedLoop<C> {
         m
     }
 
-    /// `F_θ` one pass per [`LANES`] parameters, without grouping (what the grouped passes are
-    /// checked against).
-    #[cfg(test)]
-    pub(super) fn jacobian_theta_ungrouped(&self, x: &[f64; 6], q: &[f64]) -> DMatrix<f64> {
-        self.constraint_partials(x, q, 6 + q.len(), self.geometry.len())
-    }
-
     /// Jacobian of the inverse-kinematics system (the constraints, then the task equations) with
     /// respect to `z = (X, q)`.
     pub(super) fn ik_jacobian(&self, z: &[f64], target: &Pose) -> DMatrix<f64> {
@@ -256,7 +249,8 @@ mod tests {
                 x[4] -= 0.002;
             }
             let a = m.jacobian_theta_raw(&x, q);
-            let b = m.jacobian_theta_ungrouped(&x, q);
+            // One pass per LANES parameters, without grouping.
+            let b = m.constraint_partials(&x, q, 6 + q.len(), m.geometry.len());
             // Equal as numbers (an ungrouped pass may leave −0 where a parameter does not enter).
             assert!(a.iter().zip(b.iter()).all(|(u, v)| u == v), "{a}\n{b}");
             assert!(b.iter().any(|v| *v != 0.0));
