@@ -58,6 +58,14 @@ enum Command {
 
 /// Run one parsed command.
 fn dispatch(command: Command) -> anyhow::Result<()> {
+    let command = match command {
+        // `plan MODEL` is `plan --model MODEL` (what the runs read).
+        Command::Plan(mut a) => {
+            a.model = a.model.take().or(a.model_arg.take());
+            Command::Plan(a)
+        }
+        other => other,
+    };
     match command {
         Command::Quickstart(a) => cli::quickstart::run(a, run_line),
         Command::Irb120(a) => cli::irb120::run(a),

@@ -237,8 +237,9 @@ def test_plan_sampled_writes_the_command_line_s_plan(tmp_path):
             args += [f"--{k.replace('_', '-')}", f"{a},{b}"]
         subprocess.run(args, check=True, capture_output=True)
         assert (tmp_path / "cli.csv").read_bytes() == (tmp_path / "py.csv").read_bytes()
-    with pytest.raises(kinecal.KinecalError, match="range of x is required"):
-        kinecal.plan_sampled(m, 10, candidates=100)
+    # No range at all: the arm's inputs within their limits.
+    j = kinecal.plan_sampled(m, 10, candidates=100)
+    assert len(j.chosen) == 10 and j.generation["sampled"] == 100
     with pytest.raises(kinecal.KinecalError, match="paper's grid"):
         kinecal.plan_sampled(m, 10, grid="paper", **box)
 

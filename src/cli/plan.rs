@@ -6,7 +6,7 @@
 use crate::cli::{progress, sampling::SamplingArgs};
 use anyhow::Context;
 use clap::Args;
-use kinecal::design::{self, Criterion, PlanEvent, PlanOptions, SampledSpace, SelectOptions, SelectionMethod};
+use kinecal::design::{self, Criterion, PlanEvent, PlanOptions, SelectOptions, SelectionMethod};
 use kinecal::io::{builtin, model_file::ModelFile, output::Outputs};
 use kinecal::measure::Noise;
 use kinecal::model::Mechanism;
@@ -26,6 +26,9 @@ pub struct PlanArgs {
     /// Built-in model name or model file (as for `kinecal identify`).
     #[arg(long)]
     pub model: Option<String>,
+    /// The model as the first argument, as for the other commands (`kinecal plan robot.toml`).
+    #[arg(value_name = "MODEL", conflicts_with_all = ["preset", "model"])]
+    pub model_arg: Option<String>,
     /// Where and how candidates are sampled.
     #[command(flatten)]
     pub sampling: SamplingArgs,
@@ -133,13 +136,8 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
             samples,
             max_condition,
         } => {
-            if let SampledSpace::Platform { .. } = space {
-                let max = max_condition.unwrap_or(f64::INFINITY);
-                say(format!(
-                    "{} workspace: {space}, {samples} samples, actuator-Jacobian condition ≤ {max}",
-                    file.name
-                ));
-            }
+            let cond = max_condition.map_or(String::new(), |m| format!(", actuator-Jacobian condition ≤ {m}"));
+            say(format!("{} workspace: {space}, {samples} samples{cond}", file.name));
             stages.start(samples, "candidates");
         }
         PlanEvent::Done(k) => stages.inc(k),
@@ -164,12 +162,8 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
     say(format!(
         "identification Jacobian blocks: {n} × {rows}×{cols} ({cols} identifiable of {params} parameters) in {secs:.2} s"
     ));
-    if !p.set_aside.is_empty() {
-        let k = p.set_aside.len();
-        say(format!(
-            "{k} chosen candidates set aside and replaced: the forward kinematics from the home pose reaches another assembly mode there"
-        ));
-    }
+    let aside = p.set_aside.len();
+    (aside > 0).then(|| say(format!("{aside} chosen candidates set aside and replaced: the forward kinematics from the home pose reaches another assembly mode there")));
     let (chosen, moves, warm, secs) = (sel.selected.len(), sel.history.len(), sel.warm_up, p.selection_seconds);
     say(format!(
         "{:?} on {}: {chosen} configurations in {secs:.2} s ({moves} moves, {warm} chosen D-optimally before full rank)",

@@ -13,7 +13,9 @@
 //!   a box, roll/pitch/yaw about the world axes applied to the tool orientation at the start inputs
 //!   (zero, or a limbs machine's home); a limbs machine's own workspace box is the default, as is
 //!   a Stewart platform's (its Euler-angle ranges as roll/pitch/yaw offsets); the model's input
-//!   limits applied.
+//!   limits applied. A mechanism without a box of its own, given no range at all, samples its
+//!   inputs within their limits instead (a box of inputs, below), as `simulate` draws poses; it
+//!   needs a range of x, y and z when an input has no limits.
 //!
 //! A box of inputs ([`Region::Inputs`]) is sampled directly by the forward kinematics
 //! ([`super::candidates_in_input_box`]) for any mechanism.
@@ -238,7 +240,7 @@ fn sampling_of(points: &Points, paper: Option<&[usize]>) -> Result<Sampling, Cal
 fn pick(given: Option<(f64, f64)>, own: Option<(f64, f64)>, what: &str, model: &str) -> Result<(f64, f64), CalibError> {
     given.or(own).ok_or_else(|| {
         invalid(format!(
-            "a range of {what} is required: model '{model}' has no workspace of its own (MIN,MAX or VALUE)"
+            "a range of {what} is required: model '{model}' has no workspace of its own (MIN,MAX or VALUE; given no range at all, a model whose inputs all have limits is sampled within them)"
         ))
     })
 }
@@ -364,6 +366,14 @@ fn tool_pose_candidates(
         MechanismSpec::Stewart(m) => (vec![0.0; file.inputs().len()], closed_loop_box(m)),
         _ => (vec![0.0; file.inputs().len()], None),
     };
+    // Nothing to say where the tool goes: the inputs within their limits, as `simulate` draws them.
+    let unbounded = ranges.position.iter().chain(&ranges.angles).all(Option::is_none);
+    if let (None, true, Some(limits)) = (&own, unbounded, input_limits(file)) {
+        if limits.iter().all(|(a, b)| a.is_finite() && b.is_finite()) {
+            let (lower, upper): (Vec<f64>, Vec<f64>) = limits.into_iter().unzip();
+            return input_candidates(file, mech, &lower, &upper, sampling, progress);
+        }
+    }
     let home = mech.forward(&start).map_err(|e| {
         invalid(format!(
             "{}: forward kinematics at its start inputs (zero, or a limbs mechanism's home): {e}",
@@ -514,7 +524,10 @@ impl std::fmt::Display for SampledSpace {
                 six(f, &lo, &hi, ["roll", "pitch", "yaw"])?;
                 write!(f, " about the world axes from the home orientation")
             }
-            SampledSpace::Inputs { lower, upper } => write!(f, "inputs from {lower:?} to {upper:?} (rad / mm)"),
+            SampledSpace::Inputs { lower, upper } => {
+                let list = |v: &[f64]| v.iter().map(|x| format!("{x:.4}")).collect::<Vec<_>>().join(", ");
+                write!(f, "inputs from [{}] to [{}] (rad / mm)", list(lower), list(upper))
+            }
         }
     }
 }

@@ -628,9 +628,28 @@ fn plan_sampled_takes_the_model_s_own_box_and_needs_a_box_otherwise() {
         },
         ..Default::default()
     };
-    // A serial arm has no box of its own; its paper grid does not exist.
+    // A serial arm has no box of its own: given no range, its inputs are sampled within their
+    // limits (as `simulate` draws them); its paper grid does not exist.
     let irb = kinecal::io::builtin::model_file("irb120").unwrap();
-    let err = design::plan_sampled(&irb, &poses(PoseRanges::default()), &opts, None)
+    let sp = design::plan_sampled(&irb, &poses(PoseRanges::default()), &opts, None).unwrap();
+    assert!(matches!(sp.candidates.space, design::SampledSpace::Inputs { .. }));
+    assert_eq!(sp.candidates.candidates.len(), 300);
+    let limits: Vec<(f64, f64)> = irb.inputs().iter().map(|i| i.limits.unwrap()).collect();
+    for c in &sp.candidates.candidates {
+        assert!(c.q.iter().zip(&limits).all(|(q, (a, b))| (a..=b).contains(&q)), "{:?}", c.q);
+    }
+    // Without limits on every input it needs a box.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("open.toml");
+    std::fs::write(
+        &path,
+        "name = \"open\"\n[units]\nlength = \"mm\"\nangle = \"deg\"\n[mechanism]\nkind = \"serial\"\n\
+         [[mechanism.dh]]\nname = \"j1\"\ntype = \"revolute\"\na = 100.0\nalpha = 90.0\nd = 0.0\ntheta = 0.0\n\
+         [[mechanism.dh]]\nname = \"j2\"\ntype = \"revolute\"\na = 100.0\nalpha = 0.0\nd = 0.0\ntheta = 0.0\nlimits = [-90.0, 90.0]\n",
+    )
+    .unwrap();
+    let open = kinecal::io::model_file::ModelFile::load(&path).unwrap();
+    let err = design::plan_sampled(&open, &poses(PoseRanges::default()), &opts, None)
         .unwrap_err()
         .to_string();
     assert!(err.contains("range of x is required"), "{err}");
@@ -712,4 +731,42 @@ fn blocks_at_a_kept_inverse_solution_are_the_blocks_solved_again() {
         scale > 0.0 && worst <= 1e-9 * scale,
         "blocks differ by {worst:e} (largest entry {scale:e})"
     );
+}
+
+/// `kinecal plan robot.toml` takes the model first, as `identify` and `simulate` do: the same
+/// plan as `--model robot.toml`; with both it says they conflict.
+#[test]
+fn plan_takes_the_model_file_as_its_first_argument() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |args: &[&str]| {
+        assert_cmd::Command::cargo_bin("kinecal")
+            .unwrap()
+            .current_dir(dir.path())
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    assert!(run(&["model", "export", "irb120", "-o", "irb.toml"]).status.success());
+    let common = [
+        "-n",
+        "8",
+        "--candidates",
+        "800",
+        "--x-mm",
+        "250,450",
+        "--y-mm",
+        "-200,200",
+        "--z-mm",
+        "300,600",
+    ];
+    let a = run(&[&["plan", "irb.toml", "-o", "a.csv"][..], &common[..]].concat());
+    assert!(a.status.success(), "{}", String::from_utf8_lossy(&a.stderr));
+    let b = run(&[&["plan", "--model", "irb.toml", "-o", "b.csv"][..], &common[..]].concat());
+    assert!(b.status.success(), "{}", String::from_utf8_lossy(&b.stderr));
+    let read = |f: &str| std::fs::read_to_string(dir.path().join(f)).unwrap();
+    assert_eq!(read("a.csv"), read("b.csv"));
+    let both = run(&["plan", "irb.toml", "--model", "irb120", "-o", "c.csv"]);
+    assert!(!both.status.success());
+    assert!(String::from_utf8_lossy(&both.stderr).contains("cannot be used with"));
+    assert!(!dir.path().join("c.csv").exists());
 }
