@@ -68,9 +68,10 @@ pub struct SimulateArgs {
     /// Data file to write (CSV).
     #[arg(long, short)]
     pub out: PathBuf,
-    /// Where to write the true (perturbed) model (TOML).
+    /// Where to write the true (perturbed) model (TOML). Needed unless `--error-mm 0
+    /// --error-deg 0`, which measures the model as it is (e.g. a calibrated model's truth file).
     #[arg(long)]
-    pub truth: PathBuf,
+    pub truth: Option<PathBuf>,
     /// An ISO 9283 test run instead of a data file: the robot goes `N` times through the
     /// configurations of `--at` (the commands `kinecal compensate` writes: their `id` is the test
     /// pose), and `--out` gets the attained poses (`pose,cycle,x_mm,…,yaw_deg`) for `kinecal
@@ -166,7 +167,16 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
     if let Some(p) = &a.at {
         outputs.input(p);
     }
-    outputs.output(&a.out)?.output(&a.truth)?.output_opt(a.validation_out.as_deref())?;
+    anyhow::ensure!(
+        a.truth.is_some() || (a.error_mm == 0.0 && a.error_deg == 0.0),
+        "--truth FILE: where to keep the virtual prototype with its ±{} mm / ±{} deg errors (--error-mm 0 --error-deg 0 measures the model as it is, without one)",
+        a.error_mm,
+        a.error_deg
+    );
+    outputs
+        .output(&a.out)?
+        .output_opt(a.truth.as_deref())?
+        .output_opt(a.validation_out.as_deref())?;
     let file = ModelFile::load_or_builtin(&a.model)?;
     let nominal = file.build();
     let inputs = file.inputs();
@@ -206,8 +216,10 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
         a.error_deg,
         free.len()
     ));
-    let truth_text = truth_file.to_toml().map_err(|e| anyhow::anyhow!("{}: {e}", a.truth.display()))?;
-    outputs.stage(&a.truth, truth_text.as_bytes())?;
+    if let Some(path) = &a.truth {
+        let truth_text = truth_file.to_toml().map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        outputs.stage(path, truth_text.as_bytes())?;
+    }
 
     if touches {
         return touch_run(&a, &file, &*truth, &mut rng, outputs);
@@ -279,6 +291,8 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
                 "truth": a.truth, "data": files,
             }))?
         );
+    } else if a.error_mm == 0.0 && a.error_deg == 0.0 {
+        println!("{} measured as it is (no errors added; truth → {})", file.name, truth_shown(&a));
     } else {
         println!(
             "virtual prototype of {}: ±{} mm / ±{} deg errors on {} free parameters (seed {}) → {}",
@@ -287,7 +301,7 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
             a.error_deg,
             free.len(),
             a.seed,
-            a.truth.display()
+            truth_shown(&a)
         );
         for w in &written {
             println!(
@@ -348,7 +362,7 @@ fn test_run(
             a.error_mm,
             a.error_deg,
             a.seed,
-            a.truth.display()
+            truth_shown(a)
         )
     };
     println!(
@@ -494,7 +508,7 @@ fn instrument_run(
         a.error_mm,
         a.error_deg,
         a.seed,
-        a.truth.display()
+        truth_shown(a)
     );
     for w in &written {
         println!(
@@ -601,7 +615,7 @@ fn touch_run(
         a.error_mm,
         a.error_deg,
         a.seed,
-        a.truth.display()
+        truth_shown(a)
     );
     match &plan {
         Some((at, rows)) => println!(
@@ -629,4 +643,11 @@ fn touch_run(
         );
     }
     Ok(())
+}
+
+/// Where the truth went, for the messages.
+fn truth_shown(a: &SimulateArgs) -> String {
+    a.truth
+        .as_ref()
+        .map_or("not written (no --truth)".into(), |p| p.display().to_string())
 }

@@ -113,13 +113,17 @@ fn a_test_run_before_and_after_calibration_through_the_commands() {
             "0.005",
             "--out",
             out,
-            "--truth",
-            "t2.toml",
             "--force",
         ];
+        // The model as it is needs no --truth file.
         let said = ok(d, &args);
         assert!(said.contains("test run on pm5 as it is"), "{said}");
     }
+    // A prototype with errors does: said in one line, nothing written.
+    let e = fails(d, &["simulate", "t.toml", "--at", "nom.csv", "--cycles", "2", "--out", "z.csv"]);
+    assert!(e.contains("--truth FILE") && e.contains("--error-mm 0 --error-deg 0"), "{e}");
+    assert_eq!(e.trim_end().lines().count(), 1, "{e}");
+    assert!(!d.join("z.csv").exists());
     // Without --error-mm 0 the run is on a new prototype with random errors, and it says so.
     let said = ok(
         d,
