@@ -339,7 +339,8 @@ class SampledPlan:
 def plan_sampled(model: Model, n: int = 30, **options: Any) -> SampledPlan:
     """Sample candidates of ``model`` and choose ``n`` of them: ``kinecal plan`` in one call (the
     same library function). Options as the command line's: ``x_mm``, ``y_mm``, ``z_mm``,
-    ``alpha_deg``, ``beta_deg``, ``gamma_deg`` (a value or a pair; omitted: the model's own box),
+    ``alpha_deg``, ``beta_deg``, ``gamma_deg`` (a value or a pair; omitted: the model's own box,
+    or, for a model without one given no range at all, its inputs within their limits),
     ``joint_range_deg`` (sample every input in ±range instead), ``grid`` (six counts or
     ``"paper"``), ``candidates``, ``seed``, ``max_condition``, ``criterion``, ``method``,
     ``observe``, ``noise_mm``, ``noise_deg``, ``pool``, ``shortlist``."""
