@@ -70,6 +70,9 @@ fn condition_of(fx: DMatrix<f64>, fq: &DMatrix<f64>, rows: usize, length_scale: 
         }
         _ => crate::identifiability::singular_values(&m),
     };
+    if sv.is_empty() {
+        return None;
+    }
     let hi = sv.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     let lo = sv.iter().copied().fold(f64::INFINITY, f64::min);
     Some(if lo > 0.0 { hi / lo } else { f64::INFINITY })
