@@ -14,6 +14,10 @@
 //!    bisection, up to one grid step each way and within the region, as long as its 27 corner,
 //!    edge, face and centre points and P2–P5 are all reachable.
 //!
+//! A machine that commands its height and tool axis only ([`crate::model::Task::HeightAndAxis`],
+//! a tilting head: x and y follow from its constraints) has no cube of commanded positions; it is
+//! refused with what to do instead (test poses written by hand as a targets file).
+//!
 //! The commands are the model's inverse kinematics at P1–P5. For a calibrated model those are
 //! compensated commands; with the nominal model, `kinecal compensate` on the written test poses
 //! gives them (its input columns seed the calibrated inverse on the same branch).
@@ -213,6 +217,13 @@ pub fn iso9283_commands(model: &dyn Mechanism, inputs: &[InputSpec], request: &C
             "the grid needs at least 3 points per edge (got {}) and at least one sampled configuration (got {})",
             request.grid, request.samples
         )));
+    }
+    if model.task() == crate::model::Task::HeightAndAxis {
+        return Err(PlacementError::Invalid(
+            "the machine commands its height and tool axis only (x and y follow from its constraints), so its positions fill no cube: \
+             write the test poses as a targets file (id,x_mm,y_mm,z_mm,roll_deg,pitch_deg,yaw_deg), then `kinecal compensate` and `kinecal assess --commanded` take it"
+                .into(),
+        ));
     }
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(request.seed);
     let qs = crate::simulate::random_configurations(model, inputs, request.samples, &mut rng)

@@ -97,24 +97,22 @@ pub fn run(a: CompensateArgs) -> anyhow::Result<()> {
     outputs.commit()?;
     // A 5-DOF machine matches position and tool axis; the rotation about the axis follows from its
     // constraints. Say how far it is from the targets' (the whole rotation error, the axis being met).
-    let parasitic_deg = match model.task() {
-        Task::Full | Task::Position | Task::HeightAndAxis | Task::PositionAndYaw => None,
-        Task::PositionAndAxis => {
-            let mut worst: f64 = 0.0;
-            for (q, t) in commands.iter().zip(&targets) {
-                let reached = model.forward(q)?;
-                worst = worst.max(se3::ang(&se3::pose_error(t, &reached)).norm().to_degrees());
-            }
-            Some(worst)
-        }
-    };
+    // What the commands cannot reach: the worst position and rotation left between each target
+    // and the pose its command reaches on the model (zero but for round-off on a 6-DOF machine).
+    let (mut left_mm, mut left_deg) = (0.0f64, 0.0f64);
+    for (q, t) in commands.iter().zip(&targets) {
+        let e = se3::pose_error(t, &model.forward(q)?);
+        left_mm = left_mm.max(se3::lin(&e).norm());
+        left_deg = left_deg.max(se3::ang(&e).norm().to_degrees());
+    }
+    let parasitic_deg = (model.task() == Task::PositionAndAxis).then_some(left_deg);
     if a.json {
         println!(
             "{}",
             serde_json::to_string_pretty(&serde_json::json!({"model": file.name, "targets": a.targets,
                 "commands": a.out, "count": commands.len(), "columns": header,
                 "commanded": match model.task() { Task::Full => "pose", Task::PositionAndAxis => "position and tool axis", Task::Position => "position", Task::HeightAndAxis => "height and tool axis", Task::PositionAndYaw => "position and yaw" },
-                "rotation_about_tool_axis_max_deg": parasitic_deg}))?
+                "rotation_about_tool_axis_max_deg": parasitic_deg, "parasitic_max_mm": left_mm, "parasitic_max_deg": left_deg}))?
         );
     } else {
         println!(
@@ -124,11 +122,22 @@ pub fn run(a: CompensateArgs) -> anyhow::Result<()> {
             file.name,
             a.out.display()
         );
-        if let Some(w) = parasitic_deg {
-            println!(
-                "{} is a 5-DOF machine: the commands reach each target's position and tool axis (< 1e-6 mm, < 1e-8 rad); the rotation about the tool axis is a parasitic motion it cannot command (up to {w:.4} deg from the targets')",
-                file.name
-            );
+        let name = &file.name;
+        let left = format!("up to {left_mm:.4} mm and {left_deg:.4} deg from the targets'");
+        match model.task() {
+            Task::Full => {}
+            Task::PositionAndAxis => println!(
+                "{name} is a 5-DOF machine: the commands reach each target's position and tool axis (< 1e-6 mm, < 1e-8 rad); the rotation about the tool axis is a parasitic motion it cannot command (up to {left_deg:.4} deg from the targets')"
+            ),
+            Task::HeightAndAxis => println!(
+                "{name} commands its height and tool axis: the commands reach each target's z and tool axis; x, y and the rotation about the axis are parasitic motions it cannot command ({left}): judge its test poses by AP_z and the axis, not by AP_P"
+            ),
+            Task::Position => println!(
+                "{name} commands the tool position: the commands reach each target's position; the orientation follows from its constraints ({left})"
+            ),
+            Task::PositionAndYaw => println!(
+                "{name} commands the tool position and yaw: the commands reach each target's position and yaw; the tilts follow from its constraints ({left})"
+            ),
         }
     }
     Ok(())

@@ -369,3 +369,35 @@ fn a_circular_test_before_and_after_calibration_through_the_commands() {
         "after: offset {o1}, F range {f1}, G {g1} (before {g0})"
     );
 }
+
+/// A tilting head commands no x and y: ISO 9283's cube of test poses does not exist there, and
+/// `plan --iso9283` says so (and what to do) in one line instead of "no two grid points
+/// neighbours".
+#[test]
+fn iso_test_poses_on_a_head_that_commands_no_x_and_y_are_refused_with_the_way_out() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let e = fails(d, &["plan", "--iso9283", "--model", "head-3prs", "--output", "iso.csv"]);
+    assert!(
+        e.contains("commands its height and tool axis only") && e.contains("targets file") && e.contains("kinecal assess --commanded"),
+        "{e}"
+    );
+    assert_eq!(e.trim_end().lines().count(), 1, "{e}");
+    assert!(!d.join("iso.csv").exists());
+    // Test poses written by hand instead: compensate says what the commands cannot reach.
+    std::fs::write(
+        d.join("t.csv"),
+        "id,x_mm,y_mm,z_mm,roll_deg,pitch_deg,yaw_deg\n1,0,0,121.3943,0,0,0\n2,0,0,130,6,0,0\n3,0,0,110,0,-6,0\n",
+    )
+    .unwrap();
+    let said = ok(d, &["compensate", "head-3prs", "t.csv", "--out", "c.csv"]);
+    assert!(
+        said.contains("commands its height and tool axis") && said.contains("x, y and the rotation about the axis are parasitic"),
+        "{said}"
+    );
+    let v = json(d, &["compensate", "head-3prs", "t.csv", "--out", "c2.csv"]);
+    let (mm, deg) = (v["parasitic_max_mm"].as_f64().unwrap(), v["parasitic_max_deg"].as_f64().unwrap());
+    // The tilted targets' parasitic x or y is not commanded: left over, but small on this head.
+    assert!(mm > 1e-6 && mm < 5.0, "{mm}");
+    assert!(deg.is_finite(), "{deg}");
+}
