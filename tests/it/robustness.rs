@@ -656,26 +656,7 @@ fn blunders_that_pull_the_fit_together_are_found_by_a_trimmed_fit() {
     let d = tmp.path();
     let ok = |args: &[&str]| crate::cli::ok(d, args);
     ok(&["model", "export", "irb120", "--out", "m.toml"]);
-    ok(&[
-        "simulate",
-        "m.toml",
-        "--poses",
-        "30",
-        "--seed",
-        "5",
-        "--measure",
-        "reflectors",
-        "--noise-mm",
-        "0.02",
-        "--out",
-        "d.csv",
-        "--truth",
-        "t.toml",
-        "--validation-poses",
-        "20",
-        "--validation-out",
-        "v.csv",
-    ]);
+    crate::cli::simulate(d, "m.toml", 30, 20, 5, 0.02, &["--measure", "reflectors"]);
     let text = std::fs::read_to_string(d.join("d.csv")).unwrap();
     let mut lines: Vec<String> = text.lines().filter(|l| !l.starts_with('#')).map(String::from).collect();
     let ix = lines[0].split(',').position(|c| c == "m1x_mm").unwrap();
