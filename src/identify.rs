@@ -39,10 +39,13 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 mod joints;
+mod loss;
 mod recursive;
 mod reduced;
 mod refit;
 mod solve;
+pub use loss::{apply_loss, Loss};
+pub(crate) use loss::{huber_threshold, loss_weights, pose_rms};
 pub use recursive::rls_solve;
 use reduced::{Form, System};
 use solve::{covariance, solve_subset};
@@ -108,77 +111,6 @@ pub struct Agreement {
     /// reused for the rank and the redundant parameters (the start skips its own orthogonal
     /// factor; the rank is structural, the same at both geometries).
     pub identifiability: Option<Identifiability>,
-}
-
-/// The loss applied to each pose's weighted residual.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Default)]
-pub enum Loss {
-    /// Plain (weighted) least squares: the maximum-likelihood estimate under Gaussian noise.
-    #[default]
-    Squares,
-    /// Huber's loss on the per-pose RMS residual `s_i` (in units of the stated noise): quadratic
-    /// up to `k` robust standard deviations of the set (1.4826 × the median of `s_i`, re-estimated
-    /// at every linearisation, and never below the stated noise: a pose within `k` stated
-    /// standard deviations is no blunder, however exactly the others fit), linear beyond. A
-    /// blunder of millimetres then pulls on the fit like a residual of `k` standard deviations,
-    /// not like its square.
-    Huber {
-        /// Threshold in robust standard deviations (5 keeps Gaussian data untouched).
-        k: f64,
-    },
-}
-
-/// Scale rows of `lin` by the square root of each pose's Huber weight and return the robust cost
-/// `Σ ρ(s_i)·rows_i` (equal to `½|r|²` for [`Loss::Squares`]). The weights of the poses are
-/// returned too (1 = full weight).
-pub fn apply_loss(lin: &mut Linearization, loss: Loss) -> (f64, Vec<f64>) {
-    let (cost, weights) = loss_weights(&lin.residual, &lin.offsets, loss);
-    let rows = lin.residual.len();
-    for (i, &w) in weights.iter().enumerate() {
-        if w < 1.0 {
-            let (a, b) = (lin.offsets[i], lin.offsets.get(i + 1).copied().unwrap_or(rows));
-            let r = w.sqrt();
-            lin.residual.rows_mut(a, b - a).scale_mut(r);
-            lin.jacobian.rows_mut(a, b - a).scale_mut(r);
-        }
-    }
-    (cost, weights)
-}
-
-/// The robust cost and the weight of each pose (rows `offsets[i]..offsets[i + 1]` of the
-/// weighted `residual`) under `loss`, without changing anything (see [`apply_loss`]).
-pub(crate) fn loss_weights(residual: &DVector<f64>, offsets: &[usize], loss: Loss) -> (f64, Vec<f64>) {
-    let n = offsets.len();
-    let rows = residual.len();
-    let end = |i: usize| if i + 1 < n { offsets[i + 1] } else { rows };
-    let Loss::Huber { k } = loss else {
-        return (0.5 * residual.norm_squared(), vec![1.0; n]);
-    };
-    let s: Vec<f64> = (0..n)
-        .map(|i| {
-            let (a, b) = (offsets[i], end(i));
-            (residual.rows(a, b - a).norm_squared() / (b - a).max(1) as f64).sqrt()
-        })
-        .collect();
-    let mut sorted = s.clone();
-    sorted.sort_by(f64::total_cmp);
-    let median = if sorted.is_empty() { 0.0 } else { sorted[sorted.len() / 2] };
-    // The rows are noise-weighted: 1 is the stated noise. Without that floor, a noise-free fit
-    // (a robust scale of round-off) would treat its least exact poses as blunders.
-    let threshold = k * (1.4826 * median).max(1.0);
-    let mut cost = 0.0;
-    let mut weights = Vec::with_capacity(n);
-    for (i, &si) in s.iter().enumerate() {
-        let m = (end(i) - offsets[i]) as f64;
-        let w = if threshold > 0.0 && si > threshold { threshold / si } else { 1.0 };
-        cost += if w < 1.0 {
-            m * (threshold * si - 0.5 * threshold * threshold)
-        } else {
-            0.5 * m * si * si
-        };
-        weights.push(w);
-    }
-    (cost, weights)
 }
 
 impl Default for Options {

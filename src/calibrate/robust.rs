@@ -3,7 +3,7 @@
 //! aside, a trimmed fit checks that none hides behind it.
 use super::{BLUNDER_WEIGHT, MAX_REJECTION_ROUNDS};
 use crate::error::CalibError;
-use crate::identify::{identify, linearize, Identification, Loss, Options};
+use crate::identify::{huber_threshold, identify, linearize, pose_rms, Identification, Loss, Options};
 use crate::io::data_file::DataSet;
 use crate::io::IoError;
 use crate::measure::{Measurement, Noise};
@@ -82,19 +82,11 @@ pub fn fit_setting_blunders_aside(
     Ok(RobustFit { identification, kept })
 }
 
-/// Each pose's RMS weighted residual (1 = the stated noise) of `measurements` at `model`, as the
-/// Huber loss measures it; `None` if a pose cannot be predicted.
-fn pose_rms(model: &dyn Mechanism, measurements: &[Measurement], noise: &Noise) -> Option<Vec<f64>> {
+/// Each pose's RMS weighted residual of `measurements` at `model` ([`pose_rms`]); `None` if a
+/// pose cannot be predicted.
+fn residual_per_pose(model: &dyn Mechanism, measurements: &[Measurement], noise: &Noise) -> Option<Vec<f64>> {
     let lin = linearize(model, measurements, noise).ok()?;
-    let rows = lin.residual.len();
-    Some(
-        (0..lin.offsets.len())
-            .map(|i| {
-                let (a, b) = (lin.offsets[i], lin.offsets.get(i + 1).copied().unwrap_or(rows));
-                (lin.residual.rows(a, b - a).norm_squared() / (b - a).max(1) as f64).sqrt()
-            })
-            .collect(),
-    )
+    Some(pose_rms(&lin.residual, &lin.offsets))
 }
 
 /// The poses of `kept` (indices into `measurements`) that a trimmed fit shows to be blunders
@@ -115,7 +107,7 @@ fn hidden_blunders<M: Mechanism + Clone>(
     }
     let all: Vec<Measurement> = kept.iter().map(|&i| measurements[i].clone()).collect();
     let h = ((kept.len() as f64) * TRIM_KEEP).ceil() as usize;
-    let Some(mut s) = pose_rms(&fit.model, &all, &fit.noise) else {
+    let Some(mut s) = residual_per_pose(&fit.model, &all, &fit.noise) else {
         return Vec::new();
     };
     let mut trimmed: Vec<usize> = Vec::new();
@@ -132,16 +124,14 @@ fn hidden_blunders<M: Mechanism + Clone>(
         let Ok(t) = identify(start, &subset, opts) else {
             return Vec::new();
         };
-        match pose_rms(&t.model, &all, &t.noise) {
+        match residual_per_pose(&t.model, &all, &t.noise) {
             Some(v) => s = v,
             None => return Vec::new(),
         }
     }
-    let mut sorted = s.clone();
-    sorted.sort_by(f64::total_cmp);
-    // The Huber threshold of the trimmed fit's robust scale (never below the stated noise), and
-    // a blunder beyond twice it, as the Huber fit's own rule (weight below BLUNDER_WEIGHT).
-    let threshold = k * (1.4826 * sorted[sorted.len() / 2]).max(1.0);
+    // The Huber threshold of the trimmed fit's robust scale, and a blunder beyond twice it, as
+    // the Huber fit's own rule (weight below BLUNDER_WEIGHT).
+    let threshold = huber_threshold(k, &s);
     (0..kept.len())
         .filter(|&j| s[j] * BLUNDER_WEIGHT > threshold)
         .map(|j| kept[j])
