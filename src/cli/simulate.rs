@@ -168,7 +168,7 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
         outputs.input(p);
     }
     anyhow::ensure!(
-        a.truth.is_some() || (a.error_mm == 0.0 && a.error_deg == 0.0),
+        a.truth.is_some() || as_it_is(&a),
         "--truth FILE: where to keep the virtual prototype with its ±{} mm / ±{} deg errors (--error-mm 0 --error-deg 0 measures the model as it is, without one)",
         a.error_mm,
         a.error_deg
@@ -291,7 +291,7 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
                 "truth": a.truth, "data": files,
             }))?
         );
-    } else if a.error_mm == 0.0 && a.error_deg == 0.0 {
+    } else if as_it_is(&a) {
         println!("{} measured as it is (no errors added; truth → {})", file.name, truth_shown(&a));
     } else {
         println!(
@@ -354,7 +354,7 @@ fn test_run(
     outputs.commit()?;
     // Say which robot ran: the model as it is, or a prototype with random errors (the default
     // errors apply here too, and a test run of a calibrated model's truth file wants none).
-    let robot = if a.error_mm == 0.0 && a.error_deg == 0.0 {
+    let robot = if as_it_is(a) {
         format!("{model} as it is")
     } else {
         format!(
@@ -650,4 +650,9 @@ fn truth_shown(a: &SimulateArgs) -> String {
     a.truth
         .as_ref()
         .map_or("not written (no --truth)".into(), |p| p.display().to_string())
+}
+
+/// Whether no errors are added: the model file is measured as it is (a truth file, say).
+fn as_it_is(a: &SimulateArgs) -> bool {
+    a.error_mm == 0.0 && a.error_deg == 0.0
 }
