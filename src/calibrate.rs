@@ -16,7 +16,7 @@ mod variants;
 use crate::error::CalibError;
 use crate::identify::{Identification, Loss, Method, Options};
 use crate::io::data_file::DataSet;
-use crate::io::model_file::{select_params, MechanismSpec, ModelFile};
+use crate::io::model_file::{free_params, MechanismSpec, ModelFile};
 use crate::io::IoError;
 use crate::measure::{Measurement, Noise};
 use crate::model::framed::{Framed, FRAME_PARAMS};
@@ -470,7 +470,7 @@ pub fn instrument_model(
 /// file gives (the identity without one): what frames found from the data start from.
 fn nominal_mechanism(model: &ModelFile) -> Result<Nominal, IoError> {
     let inner = model.mechanism.build();
-    let inner_free = select_params(&inner.params(), &model.free, &model.fixed).map_err(|pat| IoError::Invalid {
+    let inner_free = free_params(&*inner, &model.free, &model.fixed).map_err(|pat| IoError::Invalid {
         path: format!("model '{}'", model.name).into(),
         message: format!("calibration pattern '{pat}' matches no parameter"),
     })?;

@@ -162,6 +162,10 @@ pub struct Identification<M> {
     pub iterations: Vec<Iteration>,
     /// Whether the convergence test was met.
     pub converged: bool,
+    /// Why the fit never left its start, when every step it tried (down to the shortest) put a
+    /// pose where the model cannot be evaluated: that pose's kinematic error. The fit then
+    /// counts as not converged.
+    pub stalled: Option<String>,
     /// A-posteriori standard deviation of unit weight `σ̂₀` (1 when the noise model is right).
     pub sigma0: f64,
     /// Noise model used for the final weights (after re-estimation when asked).
@@ -296,13 +300,21 @@ fn reestimate_noise(residual: &DVector<f64>, angular_rows: &[bool], joint_rows: 
     }
 }
 
-/// Identify the free parameters of `initial` from `data`.
+/// Identify the free parameters of `initial` from `data`. Those an overconstrained mechanism
+/// cannot take alone ([`Mechanism::assembly_breaking`]) stay at their drawn values.
 ///
 /// Errors: kinematics failing at a pose, fewer residual rows than identifiable parameters,
 /// nothing free or identifiable, a numerical failure.
 pub fn identify<M: Mechanism + Clone>(initial: &M, data: &[Measurement], opts: &Options) -> Result<Identification<M>, CalibError> {
     let p = initial.n_params();
-    let free: Vec<usize> = opts.free.clone().unwrap_or_else(|| (0..p).collect());
+    let held = initial.assembly_breaking();
+    let free: Vec<usize> = opts
+        .free
+        .clone()
+        .unwrap_or_else(|| (0..p).collect())
+        .into_iter()
+        .filter(|c| !held.contains(c))
+        .collect();
     if free.is_empty() {
         return Err(CalibError::NothingToIdentify("no free parameters".into()));
     }
@@ -382,6 +394,7 @@ fn one_step<M: Mechanism + Clone>(
         covariance,
         iterations,
         converged: true,
+        stalled: None,
         sigma0,
         noise,
         pose_weights,
@@ -427,6 +440,9 @@ fn gauss_newton<M: Mechanism + Clone>(
     let mut delta_total = DVector::zeros(p);
     let mut iterations = Vec::new();
     let mut converged = false;
+    // The first kinematic failure of a trial step, and whether any step was taken.
+    let mut trial_failure: Option<String> = None;
+    let mut moved = false;
     let mut damping = 0.0;
     let mut growth = 2.0;
     let mut stalls = 0;
@@ -446,7 +462,10 @@ fn gauss_newton<M: Mechanism + Clone>(
         // long: rejected like one that raises the cost.
         let trial_ev = match reduced::evaluate(&trial, data, &noise, opts.loss) {
             Ok(e) => Some(e),
-            Err(CalibError::Kinematics { .. }) => None,
+            Err(e @ CalibError::Kinematics { .. }) => {
+                trial_failure.get_or_insert_with(|| e.to_string());
+                None
+            }
             Err(e) => return Err(e),
         };
         let mut trial_cost = trial_ev.as_ref().map_or(f64::INFINITY, |e| e.cost);
@@ -510,6 +529,7 @@ fn gauss_newton<M: Mechanism + Clone>(
             };
             model = trial;
             ev = accepted;
+            moved = true;
             // A fit that ends with this step keeps the Jacobian it moved along for the
             // covariance (it differs from the new one by the step, at round-off).
             if !ends {
@@ -543,6 +563,12 @@ fn gauss_newton<M: Mechanism + Clone>(
         ev = reduced::evaluate(&model, data, &noise, opts.loss)?;
         system = reduced::factor(&model, data, &noise, &ev, Form::Gram)?;
     }
+    // Stuck at the start: every step tried failed to evaluate (not a start already at the
+    // minimum, whose first step is below the tolerance and is never tried).
+    let stalled = trial_failure.filter(|_| !moved && iterations.first().is_some_and(|it| it.step > opts.step_tolerance));
+    if stalled.is_some() {
+        converged = false;
+    }
     let sigma0 = (ev.residual.norm_squared() / (rows - cols.len()) as f64).sqrt();
     // The covariance of the minimum-norm solution over the parameters with an effect.
     let covariance = system.covariance(&effective, Some(ident.rank)) * (sigma0 * sigma0);
@@ -556,6 +582,7 @@ fn gauss_newton<M: Mechanism + Clone>(
         covariance,
         iterations,
         converged,
+        stalled,
         sigma0,
         noise,
         pose_weights: ev.pose_weights,

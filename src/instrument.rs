@@ -590,6 +590,9 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Artifact<M> {
     fn n_params(&self) -> usize {
         self.artifact_columns().end
     }
+    fn assembly_breaking(&self) -> Vec<usize> {
+        self.inner.assembly_breaking()
+    }
     fn forward(&self, q: &[f64]) -> Result<Pose, KinError> {
         if let Some(qi) = self.tracker_inputs(q) {
             return self.inner.forward(qi);

@@ -87,6 +87,7 @@ pub fn run(a: IdentifiabilityArgs) -> anyhow::Result<()> {
                 "model": file.name, "poses": data.len(), "free": free.len(), "rank": id.rank,
                 "identifiable": names(&id.identifiable), "redundant": names(&id.redundant),
                 "no_effect": names(&id.no_effect), "pivoted": names(&id.pivoted),
+                "held_by_assembly": file.held_by_assembly(),
                 "condition": id.condition, "singular_values": id.singular_values,
             }))?
         );
@@ -104,6 +105,15 @@ pub fn run(a: IdentifiabilityArgs) -> anyhow::Result<()> {
             println!("no effect ({}): {}", id.no_effect.len(), names(&id.no_effect).join(" "));
         }
         println!("identifiable ({}): {}", id.identifiable.len(), names(&id.identifiable).join(" "));
+        let held = file.held_by_assembly();
+        if !held.is_empty() {
+            println!(
+                "held as drawn ({}, not free: {} is overconstrained and would not assemble with any one of them changed): {}",
+                held.len(),
+                file.name,
+                held.join(" ")
+            );
+        }
         if instrument {
             println!(
                 "instrument data: the machine's base is not placed (the seats and pivots are somewhere unknown: moving the base and them together changes nothing measured), so that rigid motion is redundant and shows above on the last of those parameters in priority order; the tool point's offset (tx ty tz) and every seat and pivot (seatN.x …) are estimated"

@@ -159,6 +159,7 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
     }
     outputs.output(&a.out)?.output_opt(a.report.as_deref())?;
     let file = ModelFile::load_or_builtin(&a.model)?;
+    super::note_held(&file, a.json);
     let inputs = file.data_columns();
     let data = read_data(&a.data, &inputs, InputColumns::Required)?;
     let validation = match &a.validation {

@@ -36,6 +36,31 @@ pub const EXIT_ERROR: u8 = 1;
 /// Exit code of a command that computed a result which failed its checks ([`FailedChecks`]).
 pub const EXIT_FAILED_CHECKS: u8 = 2;
 
+/// One line when the model's mechanism is overconstrained: the error parameters it cannot take
+/// alone ([`ModelFile::held_by_assembly`]), held at their drawn values whatever its
+/// `[calibration]` says. Nothing for every other model. On stderr when stdout carries JSON.
+pub fn note_held(file: &kinecal::io::model_file::ModelFile, json: bool) {
+    let held = file.held_by_assembly();
+    if held.is_empty() {
+        return;
+    }
+    let shown = if held.len() > 6 {
+        format!("{} … (kinecal identifiability lists all)", held[..6].join(" "))
+    } else {
+        held.join(" ")
+    };
+    let line = format!(
+        "{} is overconstrained (its limbs repeat constraints, as a planar machine's do): {} error parameters would keep it from assembling and stay as drawn: {shown}",
+        file.name,
+        held.len()
+    );
+    if json {
+        eprintln!("{line}");
+    } else {
+        println!("{line}");
+    }
+}
+
 /// The current UTC date and time as ISO 8601 (`2026-11-24T13:05:00Z`), for provenance records.
 pub fn utc_now() -> String {
     let secs = std::time::SystemTime::now()

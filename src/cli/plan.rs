@@ -91,7 +91,9 @@ pub(crate) fn model(args: &PlanArgs) -> anyhow::Result<(ModelFile, bool)> {
         return Ok((builtin::model_file(p).ok_or_else(unknown)?, false));
     }
     if let Some(m) = &args.model {
-        return Ok((ModelFile::load_or_builtin(m)?, false));
+        let file = ModelFile::load_or_builtin(m)?;
+        super::note_held(&file, false);
+        return Ok((file, false));
     }
     let joints = args.joints;
     anyhow::ensure!((1..=16).contains(&joints), "--joints must be between 1 and 16, got {joints}");

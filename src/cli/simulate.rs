@@ -178,6 +178,7 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
         .output_opt(a.truth.as_deref())?
         .output_opt(a.validation_out.as_deref())?;
     let file = ModelFile::load_or_builtin(&a.model)?;
+    super::note_held(&file, a.json);
     let nominal = file.build();
     let inputs = file.inputs();
     let free = file.free_indices()?;

@@ -36,7 +36,7 @@ use crate::error::CalibError;
 use crate::identifiability::{analyze, DEFAULT_RANK_TOLERANCE};
 use crate::instrument::simulate::{distance_rows, seat_rows, Placement};
 use crate::instrument::{Artifact, ArtifactPoint, PointKind, MIN_PIVOT_ROWS, MIN_SEAT_ROWS};
-use crate::io::model_file::{select_params, ModelFile};
+use crate::io::model_file::{free_params, ModelFile};
 use crate::measure::{self, Measurement, Noise, Observation};
 use crate::model::framed::{Framed, FRAME_PARAMS, TOOL_TRANSLATION};
 use crate::model::Mechanism;
@@ -133,7 +133,7 @@ pub type NominalArtifact = Artifact<Framed<Box<dyn Mechanism>>>;
 pub fn instrument_model(file: &ModelFile, layout: &InstrumentLayout) -> Result<(NominalArtifact, Vec<usize>), CalibError> {
     layout.check()?;
     let inner = file.mechanism.build();
-    let inner_free = select_params(&inner.params(), &file.free, &file.fixed)
+    let inner_free = free_params(&*inner, &file.free, &file.fixed)
         .map_err(|pat| CalibError::InvalidOption(format!("model '{}': calibration pattern '{pat}' matches no parameter", file.name)))?;
     let tool = file.frames.map_or(Pose::identity(), |f| f.tool) * Translation3::from(layout.ball);
     let framed = Framed::new(inner, Pose::identity(), tool);

@@ -268,7 +268,8 @@ pub(crate) fn add_gram(m: &mut DMatrix<f64>, block: &[f64], rows: usize, sign: f
 
 /// The identifiable parameters of `mech` for measurements of `kind` over the candidate set:
 /// [`identifiability::analyze`] (priority order = `priority`, default model order) on the stacked
-/// weighted Jacobian of `sample` candidates evenly spaced through the set.
+/// weighted Jacobian of `sample` candidates evenly spaced through the set, without the parameters
+/// the mechanism cannot take alone ([`Mechanism::assembly_breaking`]).
 pub fn identifiable_columns<M: Mechanism + ?Sized>(
     mech: &M,
     candidates: &[Candidate],
@@ -297,9 +298,11 @@ pub fn identifiable_columns<M: Mechanism + ?Sized>(
         })
         .collect();
     let lin = crate::identify::linearize(mech, &data, noise)?;
+    // Parameters an overconstrained mechanism cannot take alone are not planned for.
+    let held = mech.assembly_breaking();
     let all: Vec<usize> = (0..p).collect();
-    let order = priority.unwrap_or(&all);
-    let id = identifiability::analyze(&lin.jacobian, order, tolerance);
+    let order: Vec<usize> = priority.unwrap_or(&all).iter().copied().filter(|c| !held.contains(c)).collect();
+    let id = identifiability::analyze(&lin.jacobian, &order, tolerance);
     let mut cols = id.identifiable;
     cols.sort_unstable();
     Ok(cols)

@@ -22,7 +22,7 @@ use crate::error::CalibError;
 use crate::instrument::simulate::{touch_rows, Touched};
 use crate::instrument::touch::min_rows;
 use crate::instrument::{Artifact, ArtifactPoint, PointKind};
-use crate::io::model_file::{select_params, ModelFile};
+use crate::io::model_file::{free_params, ModelFile};
 use crate::measure::{Measurement, Observation, Touch};
 use crate::model::framed::{Framed, FRAME_PARAMS, TOOL_TRANSLATION};
 use crate::model::Mechanism;
@@ -110,7 +110,7 @@ fn touch_group(t: Touch) -> (PointKind, usize, usize) {
 pub fn touch_model(file: &ModelFile, layout: &TouchLayout) -> Result<(NominalArtifact, Vec<usize>), CalibError> {
     layout.check()?;
     let inner = file.mechanism.build();
-    let inner_free = select_params(&inner.params(), &file.free, &file.fixed)
+    let inner_free = free_params(&*inner, &file.free, &file.fixed)
         .map_err(|pat| CalibError::InvalidOption(format!("model '{}': calibration pattern '{pat}' matches no parameter", file.name)))?;
     let tool = file.frames.map_or(Pose::identity(), |f| f.tool) * Translation3::from(layout.ball);
     let model = Artifact {

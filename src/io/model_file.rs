@@ -94,9 +94,11 @@
 mod limbs;
 mod parallel;
 mod parse;
+mod select;
 mod write;
 
 use parse::RawJointTerms;
+pub use select::{free_params, glob_match, greek_pattern, param_match, select_params};
 use write::{fmt3, num, quote, write_dh, write_mechanism, write_pose};
 
 use super::IoError;
@@ -106,7 +108,7 @@ use crate::model::dh::{DhConvention, DhError, DhJoint, DhOptions, DhTable};
 use crate::model::framed::Framed;
 use crate::model::joint_terms::{JointTerms, WithJointTerms};
 use crate::model::Mechanism;
-use crate::params::{Param, Unit};
+use crate::params::Unit;
 use crate::se3::Pose;
 use nalgebra::{Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
@@ -304,65 +306,6 @@ pub struct Provenance {
     pub data: Vec<String>,
 }
 
-/// True when `name` matches the glob `pattern` (`*`: any run of characters, `?`: one character).
-pub fn glob_match(pattern: &str, name: &str) -> bool {
-    let (p, n): (Vec<char>, Vec<char>) = (pattern.chars().collect(), name.chars().collect());
-    let (mut pi, mut ni, mut star, mut mark) = (0, 0, None, 0);
-    while ni < n.len() {
-        if pi < p.len() && (p[pi] == '?' || p[pi] == n[ni]) {
-            pi += 1;
-            ni += 1;
-        } else if pi < p.len() && p[pi] == '*' {
-            star = Some(pi);
-            mark = ni;
-            pi += 1;
-        } else if let Some(s) = star {
-            pi = s + 1;
-            mark += 1;
-            ni = mark;
-        } else {
-            return false;
-        }
-    }
-    p[pi..].iter().all(|&c| c == '*')
-}
-
-/// A pattern with ASCII spellings of the Greek letters in parameter names replaced
-/// (`phi` → `φ`, `alpha` → `α`, `beta` → `β`, `gamma` → `γ`: `dphi1` means `dφ1`).
-pub fn greek_pattern(pattern: &str) -> String {
-    pattern
-        .replace("alpha", "α")
-        .replace("beta", "β")
-        .replace("gamma", "γ")
-        .replace("phi", "φ")
-}
-
-/// True when `name` matches `pattern` as a glob ([`glob_match`]), or with the pattern's ASCII
-/// Greek letters spelt out ([`greek_pattern`]).
-pub fn param_match(pattern: &str, name: &str) -> bool {
-    glob_match(pattern, name) || glob_match(&greek_pattern(pattern), name)
-}
-
-/// Indices of the parameters selected by `free` patterns minus those matching `fixed`, in the
-/// order of the patterns (priority order), each parameter once; patterns match as [`param_match`]. Returns the first pattern that
-/// matches no parameter as an error.
-pub fn select_params(params: &[Param], free: &[String], fixed: &[String]) -> Result<Vec<usize>, String> {
-    for pat in free.iter().chain(fixed) {
-        if !params.iter().any(|p| param_match(pat, &p.name)) {
-            return Err(pat.clone());
-        }
-    }
-    let mut out = Vec::new();
-    for pat in free {
-        for (i, p) in params.iter().enumerate() {
-            if param_match(pat, &p.name) && !fixed.iter().any(|f| param_match(f, &p.name)) && !out.contains(&i) {
-                out.push(i);
-            }
-        }
-    }
-    Ok(out)
-}
-
 impl ModelFile {
     /// A model file for `mechanism` with every parameter free, in mm and degrees.
     pub fn new(name: impl Into<String>, mechanism: MechanismSpec) -> Self {
@@ -399,12 +342,22 @@ impl ModelFile {
         self.mechanism.data_columns()
     }
 
-    /// Indices of the free parameters in priority order.
+    /// Indices of the free parameters in priority order, without those the mechanism cannot
+    /// take alone ([`Mechanism::assembly_breaking`], [`ModelFile::held_by_assembly`]).
     pub fn free_indices(&self) -> Result<Vec<usize>, IoError> {
-        select_params(&self.build().params(), &self.free, &self.fixed).map_err(|pat| IoError::Invalid {
+        free_params(&*self.build(), &self.free, &self.fixed).map_err(|pat| IoError::Invalid {
             path: PathBuf::from(format!("model '{}'", self.name)),
             message: format!("calibration pattern '{pat}' matches no parameter"),
         })
+    }
+
+    /// Names of the error parameters the model's mechanism is too constrained to take alone
+    /// ([`Mechanism::assembly_breaking`]): held at their drawn values whatever `[calibration]`
+    /// says. Empty for every mechanism that is not overconstrained.
+    pub fn held_by_assembly(&self) -> Vec<String> {
+        let mech = self.build();
+        let params = mech.params();
+        mech.assembly_breaking().into_iter().map(|i| params[i].name.clone()).collect()
     }
 
     /// A copy with the geometry of `model` (a calibrated mechanism of the same kind, or such a

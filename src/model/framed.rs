@@ -98,6 +98,9 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Framed<M> {
     fn n_params(&self) -> usize {
         FRAME_PARAMS + self.inner.n_params()
     }
+    fn assembly_breaking(&self) -> Vec<usize> {
+        self.inner.assembly_breaking().into_iter().map(|i| i + FRAME_PARAMS).collect()
+    }
     fn forward(&self, q: &[f64]) -> Result<Pose, KinError> {
         Ok(self.measurement * self.inner.forward(q)? * self.tool)
     }

@@ -41,6 +41,7 @@ mod closure;
 mod elimination;
 mod kinematics;
 mod observed;
+mod overconstraint;
 mod reach;
 mod skeleton;
 
@@ -574,6 +575,9 @@ impl Mechanism for LimbMechanism {
 
     fn n_params(&self) -> usize {
         self.limbs.iter().map(Limb::n_params).sum()
+    }
+    fn assembly_breaking(&self) -> Vec<usize> {
+        LimbMechanism::assembly_breaking(self)
     }
 
     fn skeleton(&self) -> Vec<Vec<Vector3<f64>>> {

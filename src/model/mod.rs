@@ -156,6 +156,14 @@ pub trait Mechanism: Send + Sync {
     fn frames(&self) -> Option<(Pose, Pose)> {
         None
     }
+    /// The error parameters an **overconstrained** mechanism cannot take alone: with any one of
+    /// them changed the drawn mechanism no longer assembles (a planar machine's joint axes tilted
+    /// out of its plane; see [`limbs::LimbMechanism::assembly_breaking`]). Identification,
+    /// simulation and planning hold them at their drawn values. Empty (default) for a mechanism
+    /// whose closure equations are independent.
+    fn assembly_breaking(&self) -> Vec<usize> {
+        Vec::new()
+    }
     /// Which part of the tool pose the inputs command: [`Task::Full`] (default) or, for a 5-DOF
     /// machine, [`Task::PositionAndAxis`] (the rotation about the tool axis is then a parasitic
     /// motion that inverse kinematics does not match).
@@ -268,6 +276,9 @@ impl Mechanism for Box<dyn Mechanism> {
     }
     fn frames(&self) -> Option<(Pose, Pose)> {
         (**self).frames()
+    }
+    fn assembly_breaking(&self) -> Vec<usize> {
+        (**self).assembly_breaking()
     }
     fn task(&self) -> Task {
         (**self).task()

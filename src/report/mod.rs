@@ -152,6 +152,10 @@ pub struct CalibrationReport {
     pub converged: bool,
     /// Solver iterations.
     pub iterations: usize,
+    /// Why the solver never left its start (every step it tried put a pose where the model
+    /// cannot be evaluated), when that happened ([`crate::identify::Identification::stalled`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stalled: Option<String>,
     /// A-posteriori standard deviation of unit weight.
     pub sigma0: f64,
     /// Noise used as weights: position (mm), orientation (deg).
@@ -303,6 +307,7 @@ impl CalibrationReport {
             method: method.to_string(),
             converged: result.converged,
             iterations: result.iterations.len(),
+            stalled: result.stalled.clone(),
             sigma0: result.sigma0,
             noise_mm_deg: (position, orientation.to_degrees()),
             free: free.len(),

@@ -150,7 +150,11 @@ impl CalibrationReport {
         let improves = improvement <= FAIL_IMPROVEMENT || orientation_ratio <= FAIL_IMPROVEMENT;
         let left_mm = self.identification.after_stats.position_rms_mm;
         self.tolerance_verdict(tolerances, excess, &mut failed, &mut warnings);
-        if !self.converged {
+        if let Some(why) = &self.stalled {
+            failed.push(format!(
+                "the identification never left the nominal model: every step it tried, down to the shortest, made the model fail ({why}); a model that cannot take the errors it is asked to identify (fix them in [calibration], kinecal identifiability), or a nominal model far from the machine measured"
+            ));
+        } else if !self.converged {
             failed.push(format!(
                 "the identification did not converge after {} iterations (too few or badly spread poses, or a model that does not fit the data)",
                 self.iterations

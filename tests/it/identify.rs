@@ -259,3 +259,78 @@ fn a_start_that_reaches_a_known_solution_stops_there_and_one_that_does_not_runs_
     assert_eq!(own.iterations.len(), full.iterations.len());
     assert!((own.sigma0 - full.sigma0).abs() < 1e-9 * full.sigma0);
 }
+
+/// A serial chain that cannot be evaluated once its first parameter has moved, as a closed loop
+/// pushed out of its assembly: every step of a fit that moves that parameter fails.
+#[derive(Clone)]
+struct Brittle {
+    chain: kinecal::model::chain::SerialChain,
+    moved: bool,
+}
+
+impl Brittle {
+    fn check(&self) -> Result<(), kinecal::KinError> {
+        if self.moved {
+            return Err(kinecal::KinError::NoConvergence {
+                what: "brittle forward kinematics".into(),
+                iterations: 1,
+                residual: 1.0,
+            });
+        }
+        Ok(())
+    }
+}
+
+impl Mechanism for Brittle {
+    fn name(&self) -> &str {
+        "brittle"
+    }
+    fn input_names(&self) -> Vec<String> {
+        self.chain.input_names()
+    }
+    fn params(&self) -> Vec<kinecal::params::Param> {
+        self.chain.params()
+    }
+    fn forward(&self, q: &[f64]) -> Result<kinecal::se3::Pose, kinecal::KinError> {
+        self.check()?;
+        self.chain.forward(q)
+    }
+    fn forward_with_jacobian(&self, q: &[f64]) -> Result<(kinecal::se3::Pose, nalgebra::Matrix6xX<f64>), kinecal::KinError> {
+        self.check()?;
+        self.chain.forward_with_jacobian(q)
+    }
+    fn retract(&mut self, delta: &nalgebra::DVector<f64>) {
+        self.moved |= delta[0] != 0.0;
+        self.chain.retract(delta);
+    }
+    fn inverse(&self, target: &kinecal::se3::Pose, seed: Option<&[f64]>) -> Result<Vec<f64>, kinecal::KinError> {
+        self.chain.inverse(target, seed)
+    }
+    fn box_clone(&self) -> Box<dyn Mechanism> {
+        Box::new(self.clone())
+    }
+}
+
+/// A fit whose every step makes the model fail never leaves its start: it is not converged and
+/// says why (the pose and the kinematic error), instead of "converged" at the nominal model.
+#[test]
+fn a_fit_that_cannot_take_a_step_is_not_converged_and_names_the_failure() {
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let nominal = random_serial_chain(&mut rng, 6, 0);
+    let delta = simulate::random_errors(&nominal, &mut rng, 0.5, 0.01, None);
+    let truth = simulate::perturbed(&nominal, &delta);
+    let q: Vec<Vec<f64>> = (0..30).map(|_| random_joint_values(&nominal, &mut rng, 2.5, 200.0)).collect();
+    let data = simulate::measure(&truth, &q, ObservationKind::Pose, None, &mut rng).unwrap();
+    let brittle = Brittle {
+        chain: nominal.clone(),
+        moved: false,
+    };
+    let res = identify(&brittle, &data, &Options::default()).unwrap();
+    assert!(!res.converged);
+    let why = res.stalled.expect("the reason it never moved");
+    assert!(why.contains("pose 0") && why.contains("brittle forward kinematics"), "{why}");
+    assert!(res.delta.iter().all(|d| *d == 0.0));
+    // The same chain without the failure converges (the stall is the failure, not the data).
+    let res = identify(&nominal, &data, &Options::default()).unwrap();
+    assert!(res.converged && res.stalled.is_none());
+}

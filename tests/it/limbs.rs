@@ -179,6 +179,45 @@ fn a_linear_delta_from_its_model_file_through_the_whole_workflow() {
     whole_workflow(DELTA, 30, "model");
 }
 
+const PLANAR: &str = include_str!("../../examples/models/planar-3rrr.toml");
+
+/// A planar 3-RRR is overconstrained: every leg holds the platform in the plane. Its 36
+/// out-of-plane errors (joint axes tilted, joints lifted) would keep it from assembling; they are
+/// found from the closure at home and held as drawn, so that the whole workflow runs on the
+/// in-plane geometry. Before, `simulate` failed ("does not assemble at its home inputs") and
+/// `identify` never left the nominal model yet said "converged … usable with warnings".
+#[test]
+fn a_planar_3rrr_holds_its_out_of_plane_errors_and_runs_the_whole_workflow() {
+    let file = load(PLANAR).unwrap();
+    let held = file.held_by_assembly();
+    assert_eq!(held.len(), 36, "{held:?}");
+    for name in ["leg1.0-1.wx", "leg1.0-1.wy", "leg1.0-1.vz", "leg3.3-T.wx"] {
+        assert!(held.iter().any(|h| h == name), "{name} should be held: {held:?}");
+    }
+    for name in ["leg1.0-1.vx", "leg1.0-1.wz", "leg2.1-2.vx"] {
+        assert!(!held.iter().any(|h| h == name), "{name} is in-plane: {held:?}");
+    }
+    let free = file.free_indices().unwrap();
+    let params = file.build().params();
+    assert!(free.iter().all(|&i| !held.contains(&params[i].name)));
+    // Every machine that is not overconstrained holds nothing (sensed joints included: the 3T1R).
+    for text in [
+        HEAD,
+        HEXAPOD,
+        DELTA,
+        include_str!("../../examples/models/t3r1.toml"),
+        include_str!("../../examples/models/pm5-limbs.toml"),
+    ] {
+        let f = load(text).unwrap();
+        assert!(f.held_by_assembly().is_empty(), "{}: {:?}", f.name, f.held_by_assembly());
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    std::fs::write(tmp.path().join("m.toml"), PLANAR).unwrap();
+    let out = ok(tmp.path(), &["identifiability", "m.toml"]);
+    assert!(out.contains("held as drawn (36, not free: planar-3rrr is overconstrained"), "{out}");
+    whole_workflow(PLANAR, 26, "estimate");
+}
+
 fn load(text: &str) -> Result<ModelFile, String> {
     ModelFile::load_str(Path::new("m.toml"), text).map_err(|e| e.to_string())
 }
