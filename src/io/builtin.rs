@@ -6,7 +6,7 @@ use std::path::Path;
 
 /// Parallel machines that exist only as model files (`kind = "limbs"`, `examples/models/`):
 /// name, description, text.
-const FILES: [(&str, &str, &str); 7] = [
+const FILES: [(&str, &str, &str); 8] = [
     (
         "hexapod-6rus",
         "6-RUS rotary hexapod as limbs (cranks 60 mm, rods 250 mm; 126 error parameters, rank 66)",
@@ -41,6 +41,11 @@ const FILES: [(&str, &str, &str); 7] = [
         "t3r1",
         "3T1R machine of the 3T1R paper, four sliders and five observed encoders, as limbs (its minimal-constraint equivalent; 117 error parameters, rank 43 with the encoders read, 38 from poses alone)",
         include_str!("../../examples/models/t3r1.toml"),
+    ),
+    (
+        "planar-3rrr",
+        "planar 3-RRR as limbs (x, y and yaw; overconstrained: 36 of its 72 error parameters held as drawn, rank 21)",
+        include_str!("../../examples/models/planar-3rrr.toml"),
     ),
 ];
 
