@@ -17,14 +17,16 @@ pub struct SamplingArgs {
     /// Workspace range of z (mm).
     #[arg(long, allow_hyphen_values = true, value_parser = range)]
     pub z_mm: Option<(f64, f64)>,
-    /// Range of α (pm5: platform X-Y-Z Euler angle α; model: roll about world x) (degrees).
-    #[arg(long, allow_hyphen_values = true, value_parser = range)]
+    /// Range of α (pm5: platform X-Y-Z Euler angle α; model: roll about world x) (degrees;
+    /// also --roll-deg, the name the printed workspace uses).
+    #[arg(long, visible_alias = "roll-deg", allow_hyphen_values = true, value_parser = range)]
     pub alpha_deg: Option<(f64, f64)>,
-    /// Range of β (pm5: Euler angle β; model: pitch about world y) (degrees).
-    #[arg(long, allow_hyphen_values = true, value_parser = range)]
+    /// Range of β (pm5: Euler angle β; model: pitch about world y) (degrees; also --pitch-deg).
+    #[arg(long, visible_alias = "pitch-deg", allow_hyphen_values = true, value_parser = range)]
     pub beta_deg: Option<(f64, f64)>,
-    /// Range of γ (model: yaw about world z; pm5: parasitic, must be a fixed value) (degrees).
-    #[arg(long, allow_hyphen_values = true, value_parser = range)]
+    /// Range of γ (model: yaw about world z; pm5: parasitic, must be a fixed value) (degrees;
+    /// also --yaw-deg).
+    #[arg(long, visible_alias = "yaw-deg", allow_hyphen_values = true, value_parser = range)]
     pub gamma_deg: Option<(f64, f64)>,
     /// Sample the workspace on a full grid "N1,N2,…" (one count per coordinate x, y, z, α, β, γ;
     /// pm5 default grid with --grid paper: 11,11,21,12,10,1 = 304,920 points) instead of Halton

@@ -770,3 +770,26 @@ fn plan_takes_the_model_file_as_its_first_argument() {
     assert!(String::from_utf8_lossy(&both.stderr).contains("cannot be used with"));
     assert!(!dir.path().join("c.csv").exists());
 }
+
+/// The rotation ranges go by the names the printed workspace uses (roll, pitch, yaw) as well as
+/// α, β, γ: a new user planning a planar 3-RRR typed `--yaw-deg` and got "unexpected argument".
+#[test]
+fn plan_takes_roll_pitch_yaw_ranges_by_those_names() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |args: &[&str]| {
+        assert_cmd::Command::cargo_bin("kinecal")
+            .unwrap()
+            .current_dir(dir.path())
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let common = ["plan", "planar-3rrr", "-n", "8", "--candidates", "600"];
+    let a = run(&[&common[..], &["--yaw-deg", "-10,10", "-o", "a.csv"][..]].concat());
+    assert!(a.status.success(), "{}", String::from_utf8_lossy(&a.stderr));
+    assert!(String::from_utf8_lossy(&a.stdout).contains("yaw (-10.0, 10.0)°"));
+    let b = run(&[&common[..], &["--gamma-deg", "-10,10", "-o", "b.csv"][..]].concat());
+    assert!(b.status.success(), "{}", String::from_utf8_lossy(&b.stderr));
+    let read = |f: &str| std::fs::read_to_string(dir.path().join(f)).unwrap();
+    assert_eq!(read("a.csv"), read("b.csv"));
+}
