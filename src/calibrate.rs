@@ -470,9 +470,9 @@ pub fn instrument_model(
 /// file gives (the identity without one): what frames found from the data start from.
 fn nominal_mechanism(model: &ModelFile) -> Result<Nominal, IoError> {
     let inner = model.mechanism.build();
-    let inner_free = free_params(&*inner, &model.free, &model.fixed).map_err(|pat| IoError::Invalid {
+    let inner_free = free_params(&*inner, &model.free, &model.fixed).map_err(|message| IoError::Invalid {
         path: format!("model '{}'", model.name).into(),
-        message: format!("calibration pattern '{pat}' matches no parameter"),
+        message,
     })?;
     Ok((inner, inner_free, model.frames.map_or(Pose::identity(), |f| f.tool)))
 }

@@ -111,7 +111,7 @@ pub fn touch_model(file: &ModelFile, layout: &TouchLayout) -> Result<(NominalArt
     layout.check()?;
     let inner = file.mechanism.build();
     let inner_free = free_params(&*inner, &file.free, &file.fixed)
-        .map_err(|pat| CalibError::InvalidOption(format!("model '{}': calibration pattern '{pat}' matches no parameter", file.name)))?;
+        .map_err(|message| CalibError::InvalidOption(format!("model '{}': {message}", file.name)))?;
     let tool = file.frames.map_or(Pose::identity(), |f| f.tool) * Translation3::from(layout.ball);
     let model = Artifact {
         inner: Framed::new(inner, Pose::identity(), tool),

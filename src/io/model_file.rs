@@ -345,9 +345,9 @@ impl ModelFile {
     /// Indices of the free parameters in priority order, without those the mechanism cannot
     /// take alone ([`Mechanism::assembly_breaking`], [`ModelFile::held_by_assembly`]).
     pub fn free_indices(&self) -> Result<Vec<usize>, IoError> {
-        free_params(&*self.build(), &self.free, &self.fixed).map_err(|pat| IoError::Invalid {
+        free_params(&*self.build(), &self.free, &self.fixed).map_err(|message| IoError::Invalid {
             path: PathBuf::from(format!("model '{}'", self.name)),
-            message: format!("calibration pattern '{pat}' matches no parameter"),
+            message,
         })
     }
 

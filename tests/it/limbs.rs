@@ -215,6 +215,19 @@ fn a_planar_3rrr_holds_its_out_of_plane_errors_and_runs_the_whole_workflow() {
     std::fs::write(tmp.path().join("m.toml"), PLANAR).unwrap();
     let out = ok(tmp.path(), &["identifiability", "m.toml"]);
     assert!(out.contains("held as drawn (36, not free: planar-3rrr is overconstrained"), "{out}");
+    // A [calibration] that frees only held parameters is a mistake, said in one line (a virtual
+    // prototype "with errors on 0 free parameters" was written before).
+    let only_tilts = format!("{PLANAR}\n[calibration]\nfree = [\"leg*.*.wx\"]\n");
+    std::fs::write(tmp.path().join("tilts.toml"), only_tilts).unwrap();
+    let e = fails(
+        tmp.path(),
+        &["simulate", "tilts.toml", "--error-mm", "0.1", "--out", "x.csv", "--truth", "t.toml"],
+    );
+    assert!(
+        e.contains("calibration pattern 'leg*.*.wx' frees only parameters planar-3rrr cannot take alone"),
+        "{e}"
+    );
+    assert!(!tmp.path().join("x.csv").exists() && !tmp.path().join("t.toml").exists());
     whole_workflow(PLANAR, 26, "estimate");
 }
 

@@ -64,9 +64,23 @@ pub fn select_params(params: &[Param], free: &[String], fixed: &[String]) -> Res
 
 /// [`select_params`] over `mech`'s parameters, without those it cannot take alone
 /// ([`Mechanism::assembly_breaking`]: an overconstrained mechanism's): the parameters a fit,
-/// a virtual prototype or a plan moves.
+/// a virtual prototype or a plan moves. Errors (the message): a pattern that matches no
+/// parameter, or a `free` pattern that matches only parameters held that way.
 pub fn free_params(mech: &dyn Mechanism, free: &[String], fixed: &[String]) -> Result<Vec<usize>, String> {
+    let params = mech.params();
     let held = mech.assembly_breaking();
-    let out = select_params(&mech.params(), free, fixed)?;
+    let out = select_params(&params, free, fixed).map_err(|pat| format!("calibration pattern '{pat}' matches no parameter"))?;
+    let only_held = |pat: &String| {
+        params
+            .iter()
+            .enumerate()
+            .all(|(i, p)| held.contains(&i) || !param_match(pat, &p.name))
+    };
+    if let Some(pat) = free.iter().find(|p| only_held(p)) {
+        return Err(format!(
+            "calibration pattern '{pat}' frees only parameters {} cannot take alone: it is overconstrained and would not assemble with one of them changed, so they stay as drawn (kinecal identifiability lists them); free the others",
+            mech.name()
+        ));
+    }
     Ok(out.into_iter().filter(|i| !held.contains(i)).collect())
 }
