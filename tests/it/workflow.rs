@@ -404,6 +404,6 @@ fn model_file_typo_names_file_line_and_key() {
     let e = fails(&d, &["validate", "nosuch", "ident.csv"]);
     assert_eq!(
         e,
-        "nosuch: no such file, and not a built-in model (built-in: irb120, pm5, stewart, hexapod-6rus, head-3prs, linear-delta, stewart-limbs, pm5-limbs, t3r1-chain, t3r1)"
+        "nosuch: no such file, and not a built-in model (built-in: irb120, pm5, stewart, hexapod-6rus, head-3prs, linear-delta, stewart-limbs, pm5-limbs, t3r1-chain, t3r1, planar-3rrr)"
     );
 }
