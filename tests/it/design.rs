@@ -738,14 +738,7 @@ fn blocks_at_a_kept_inverse_solution_are_the_blocks_solved_again() {
 #[test]
 fn plan_takes_the_model_file_as_its_first_argument() {
     let dir = tempfile::tempdir().unwrap();
-    let run = |args: &[&str]| {
-        assert_cmd::Command::cargo_bin("kinecal")
-            .unwrap()
-            .current_dir(dir.path())
-            .args(args)
-            .output()
-            .unwrap()
-    };
+    let run = |args: &[&str]| crate::cli::kinecal(dir.path(), args);
     assert!(run(&["model", "export", "irb120", "-o", "irb.toml"]).status.success());
     let common = [
         "-n",
@@ -776,14 +769,7 @@ fn plan_takes_the_model_file_as_its_first_argument() {
 #[test]
 fn plan_takes_roll_pitch_yaw_ranges_by_those_names() {
     let dir = tempfile::tempdir().unwrap();
-    let run = |args: &[&str]| {
-        assert_cmd::Command::cargo_bin("kinecal")
-            .unwrap()
-            .current_dir(dir.path())
-            .args(args)
-            .output()
-            .unwrap()
-    };
+    let run = |args: &[&str]| crate::cli::kinecal(dir.path(), args);
     let common = ["plan", "planar-3rrr", "-n", "8", "--candidates", "600"];
     let a = run(&[&common[..], &["--yaw-deg", "-10,10", "-o", "a.csv"][..]].concat());
     assert!(a.status.success(), "{}", String::from_utf8_lossy(&a.stderr));
