@@ -25,9 +25,10 @@ const TOLERANCE: f64 = 1e-8;
 const RANK_TOLERANCE: f64 = 1e-10;
 
 impl LimbMechanism {
-    /// The error parameters that an overconstrained mechanism cannot take alone (see the
-    /// [module docs](self)), in parameter order; empty for a mechanism whose closure equations are
-    /// independent (every mechanism that is not overconstrained, whatever its kind).
+    /// The error parameters that an overconstrained mechanism cannot take alone, in parameter
+    /// order: those whose closure column at home has a part outside the range of the closure
+    /// Jacobian (with every joint that is not actuated among its unknowns). Empty for a mechanism
+    /// whose closure equations are independent (every mechanism that is not overconstrained).
     pub fn assembly_breaking(&self) -> Vec<usize> {
         let q = self.home_inputs();
         let passive = self.home_passive();
@@ -44,8 +45,11 @@ impl LimbMechanism {
             .filter(|&c| c < 6 || c - 6 >= actuated.len() || !actuated[c - 6])
             .collect();
         let fz = DMatrix::from_fn(all.nrows(), keep.len(), |r, c| all[(r, keep[c])]);
+        if fz.nrows() <= fz.ncols() {
+            return Vec::new();
+        }
         let fp = self.closure_params(&self.home, &joints);
-        if fz.nrows() <= fz.ncols() || fz.iter().chain(fp.iter()).any(|v| !v.is_finite()) {
+        if fz.iter().chain(fp.iter()).any(|v| !v.is_finite()) {
             return Vec::new();
         }
         let rows = fz.nrows();
