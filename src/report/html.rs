@@ -278,6 +278,14 @@ impl CalibrationReport {
                 esc(&self.no_effect.join(", "))
             );
         }
+        if !self.held_by_assembly.is_empty() {
+            let _ = write!(
+                h,
+                "<p><b>Held as drawn</b> ({}: the machine is overconstrained and would not assemble with any one of them changed, so they were not free): {}</p>",
+                self.held_by_assembly.len(),
+                esc(&self.held_by_assembly.join(", "))
+            );
+        }
         if !self.singular_values.is_empty() {
             h.push_str("<div class=\"plots\">");
             let smax = self.singular_values.iter().copied().fold(0.0, f64::max).max(f64::MIN_POSITIVE);

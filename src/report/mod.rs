@@ -175,6 +175,10 @@ pub struct CalibrationReport {
     pub redundant: Vec<String>,
     /// Names of free parameters with no effect.
     pub no_effect: Vec<String>,
+    /// Names of the parameters an overconstrained machine cannot take alone, held as drawn
+    /// ([`Mechanism::assembly_breaking`]); empty for every other machine.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub held_by_assembly: Vec<String>,
     /// Every parameter.
     pub params: Vec<ParamRow>,
     /// Covariance of the identified parameters.
@@ -321,6 +325,7 @@ impl CalibrationReport {
             singular_values: id.singular_values.clone(),
             redundant: names(&id.redundant),
             no_effect: names(&id.no_effect),
+            held_by_assembly: names(&nominal.assembly_breaking()),
             params: rows,
             covariance,
             identification: SetErrors::compute(data_source, nominal, &result.model, data)?,

@@ -228,6 +228,21 @@ fn a_planar_3rrr_holds_its_out_of_plane_errors_and_runs_the_whole_workflow() {
         "{e}"
     );
     assert!(!tmp.path().join("x.csv").exists() && !tmp.path().join("t.toml").exists());
+    // The report names them too.
+    let sim = ok(
+        tmp.path(),
+        &["simulate", "m.toml", "--poses", "30", "--out", "d.csv", "--truth", "t.toml"],
+    );
+    assert!(
+        sim.contains("planar-3rrr is overconstrained") && sim.contains("on 36 free parameters"),
+        "{sim}"
+    );
+    ok(
+        tmp.path(),
+        &["identify", "m.toml", "d.csv", "--out", "c.toml", "--report", "r.html"],
+    );
+    let html = std::fs::read_to_string(tmp.path().join("r.html")).unwrap();
+    assert!(html.contains("<b>Held as drawn</b> (36: the machine is overconstrained"));
     whole_workflow(PLANAR, 26, "estimate");
 }
 
