@@ -228,6 +228,27 @@ fn a_planar_3rrr_holds_its_out_of_plane_errors_and_runs_the_whole_workflow() {
         "{e}"
     );
     assert!(!tmp.path().join("x.csv").exists() && !tmp.path().join("t.toml").exists());
+    // A drawing whose axes are not all parallel (one elbow tilted by 1.1°, the legs' ends placed
+    // as exported) cannot close: the error names the limb and how far it stays, a few millimetres
+    // (it said 448 mm before: the limb's least-squares solve wandered off its minimum and
+    // reported where it ended).
+    let exported = file.to_toml().unwrap();
+    let at = exported.find("name = \"e2\"").unwrap();
+    let mut tilted = exported.clone();
+    let axis = at + tilted[at..].find("axis = [0.0, 0.0, 1.0]").unwrap();
+    tilted.replace_range(axis..axis + "axis = [0.0, 0.0, 1.0]".len(), "axis = [0.0, 0.02, 1.0]");
+    let e = load(&tilted).unwrap_err();
+    assert!(e.contains("limb 'leg2' is furthest off"), "{e}");
+    let gap: f64 = e
+        .split("furthest off (")
+        .nth(1)
+        .unwrap()
+        .split(' ')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(gap > 1.0 && gap < 10.0, "{e}");
     // The report names them too.
     let sim = ok(
         tmp.path(),

@@ -317,6 +317,9 @@ impl LimbMechanism {
         }
         let mut res = f64::INFINITY;
         let mut stalled = false;
+        // The closest the iteration came: on a target the limb cannot reach (an inconsistent
+        // drawing) Gauss–Newton can wander off its least-squares minimum.
+        let mut closest: Option<(Vec<f64>, f64)> = None;
         for _ in 0..MAX_ITERATIONS {
             couple_limb(slots, &mut q);
             let Ok((mut e, mut jq)) = l.chain.joint_jacobian(&q) else {
@@ -354,6 +357,9 @@ impl LimbMechanism {
             if !res.is_finite() {
                 return (q, f64::INFINITY);
             }
+            if closest.as_ref().is_none_or(|c| res < c.1) {
+                closest = Some((q.clone(), res));
+            }
             // (A step at the round-off of the joint values was the last one that could help: its
             // residual, just evaluated, is the answer.)
             if res < TOLERANCE || stalled {
@@ -379,7 +385,12 @@ impl LimbMechanism {
             stalled = d.amax() < 1e-13;
         }
         couple_limb(slots, &mut q);
-        (q, res)
+        // Where it ended far from the closest it came, that is the answer (a converged or
+        // settled solve ends there itself, unchanged).
+        match closest {
+            Some((best, r)) if res > 2.0 * r => (best, r),
+            _ => (q, res),
+        }
     }
 }
 
