@@ -440,9 +440,11 @@ fn gauss_newton<M: Mechanism + Clone>(
     let mut delta_total = DVector::zeros(p);
     let mut iterations = Vec::new();
     let mut converged = false;
-    // The first kinematic failure of a trial step, and whether any step was taken.
+    // The first kinematic failure of a trial step, whether any step was taken, and whether the
+    // first step was already below the convergence tolerance (a start at the minimum).
     let mut trial_failure: Option<String> = None;
     let mut moved = false;
+    let mut first_tiny = None;
     let mut damping = 0.0;
     let mut growth = 2.0;
     let mut stalls = 0;
@@ -497,6 +499,7 @@ fn gauss_newton<M: Mechanism + Clone>(
         iterations.push(Iteration { cost, step: pred, damping });
         let r_norm = ev.residual.norm();
         let tiny = pred <= opts.step_tolerance * (1.0 + r_norm);
+        first_tiny.get_or_insert(tiny);
         // At round-off level the cost no longer decreases; a step that small is converged.
         let negligible = pred <= 1e-6 * (1.0 + r_norm) && trial_cost >= cost * (1.0 - 1e-12);
         // Levenberg–Marquardt damping by the gain ratio ρ = actual / predicted reduction
@@ -564,8 +567,8 @@ fn gauss_newton<M: Mechanism + Clone>(
         system = reduced::factor(&model, data, &noise, &ev, Form::Gram)?;
     }
     // Stuck at the start: every step tried failed to evaluate (not a start already at the
-    // minimum, whose first step is below the tolerance and is never tried).
-    let stalled = trial_failure.filter(|_| !moved && iterations.first().is_some_and(|it| it.step > opts.step_tolerance));
+    // minimum, whose first step passed the convergence test).
+    let stalled = trial_failure.filter(|_| !moved && first_tiny == Some(false));
     if stalled.is_some() {
         converged = false;
     }
