@@ -5,6 +5,7 @@
 //! the calibrated model file (with its `[frames]` and `[provenance]`), the report with its verdict
 //! ([`CalibrationReport`]), from which the command line, the JSON output and the HTML are written.
 mod checks;
+pub mod gauge;
 mod mixed;
 mod robust;
 pub mod scale;
@@ -196,16 +197,25 @@ pub fn calibrate(
         None => (data, validation),
     };
     let measurements = fitted_measurements(data, opts)?;
-    let (start, free, registration) = match &instrument {
+    let (start, mut free, registration) = match &instrument {
         Some(i) => instrument_start(model, i)?,
         None => starting_model(model, data, &measurements, opts)?,
     };
+    // Where the machine stands, when no instrument sees it: held as drawn, never identified.
+    let placement = match &instrument {
+        Some(i) if !i.tracked() => {
+            gauge::placement_params(&*start, &measurements, 0..6, &free, &opts.noise).map_err(|e| data.locate(e))?
+        }
+        _ => Vec::new(),
+    };
+    free.retain(|c| !placement.contains(c));
     let id_opts = Options {
         method: opts.method,
         noise: opts.noise,
         reweight: opts.reweight,
         free: Some(free.clone()),
         loss: opts.loss,
+        weak: Some(crate::identify::WeakHold::from_params(&start.params(), |u| model.tolerances.of(u))),
         ..Options::default()
     };
     let robust::RobustFit { identification, kept } = robust::fit_setting_blunders_aside(&*start, &measurements, &id_opts, data)?;
@@ -248,6 +258,8 @@ pub fn calibrate(
         start_tolerance_mm,
     };
     let mut report = judge(model, data, validation, opts, &judged)?;
+    let names = start.params();
+    report.placement = placement.iter().map(|&k| names[k].name.clone()).collect();
     if let Some(i) = &instrument {
         for (k, s, f) in crate::instrument::collapsed_pivots(&*start, &*identification.model, &i.data.measurements) {
             report.fail(format!(

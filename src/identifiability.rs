@@ -42,6 +42,11 @@ pub struct Identifiability {
     pub pivoted: Vec<usize>,
     /// Condition number `σ_max/σ_min` of the scaled Jacobian on the identifiable subset.
     pub condition: f64,
+    /// Parameters of full rank that the data see too weakly to fix, held as drawn
+    /// ([`crate::identify::weakly_seen`]); not in [`Self::identifiable`]. Empty unless the
+    /// identification holds such parameters.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub weak: Vec<usize>,
     /// Tolerance used.
     pub tolerance: f64,
 }
@@ -156,6 +161,7 @@ pub fn analyze(a: &DMatrix<f64>, candidates: &[usize], tol: f64) -> Identifiabil
         no_effect,
         pivoted,
         condition,
+        weak: Vec::new(),
         tolerance: tol,
     }
 }

@@ -43,9 +43,13 @@ mod loss;
 mod recursive;
 mod reduced;
 mod refit;
+mod drawn;
 mod solve;
+mod weak;
 pub use loss::{apply_loss, Loss};
+pub use weak::{weakly_seen, WeakHold, WEAK_SEEN};
 pub(crate) use loss::{huber_threshold, loss_weights, pose_rms};
+use loss::reestimate_noise;
 pub use recursive::rls_solve;
 use reduced::{Form, System};
 use solve::{covariance, solve_subset};
@@ -97,6 +101,24 @@ pub struct Options {
     /// only): a start that enters the basin of a known minimum will end there, so it is not
     /// iterated to the end (what [`crate::calibrate`]'s extra starts test). Counted as converged.
     pub agree_with: Option<Agreement>,
+    /// Hold as drawn the parameters the data see too weakly to fix ([`weakly_seen`]), decided at
+    /// the start and again where the fit converged (Gauss–Newton only). `None`: every parameter
+    /// of full rank is fitted.
+    pub weak: Option<WeakHold>,
+}
+
+
+/// How [`gauss_newton`] steps.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Steps<'a> {
+    /// Minimum-norm over every free parameter with an effect (those held as seen too weakly
+    /// excepted), truncated at the identified rank: robust along a path on which the set of
+    /// identifiable parameters changes.
+    MinimumNorm,
+    /// On this identifiable subset only (the parameters the analysis at the start would not
+    /// all choose, where the set is kept from an earlier geometry): the others stay where they
+    /// are.
+    Subset(&'a [usize]),
 }
 
 /// Predictions of a known solution, for [`Options::agree_with`].
@@ -125,6 +147,7 @@ impl Default for Options {
             rank_tolerance: identifiability::DEFAULT_RANK_TOLERANCE,
             loss: Loss::Squares,
             agree_with: None,
+            weak: None,
         }
     }
 }
@@ -153,10 +176,9 @@ pub struct Identification<M> {
     /// Standard deviation per parameter, from [`Identification::covariance`] (0 for parameters
     /// without effect or not free).
     pub std_dev: DVector<f64>,
-    /// Covariance of the identified change (model units: mm, rad), `σ̂₀²·(AᵀA)⁺` on the weighted
-    /// Jacobian at the solution, for the solution the method took: the minimum-norm one over the
-    /// parameters with an effect (Gauss–Newton: the values and the deviations describe the same
-    /// solution), or the identifiable subset (one-step methods). Zero outside those parameters.
+    /// Covariance of the identified change (model units: mm, rad), `σ̂₀²·(AᵀA)⁻¹` on the weighted
+    /// Jacobian at the solution, on the identifiable subset (the parameters the fit moved). Zero
+    /// outside it: redundant parameters and those held as seen too weakly stay as drawn.
     pub covariance: DMatrix<f64>,
     /// Solver history.
     pub iterations: Vec<Iteration>,
@@ -275,31 +297,6 @@ pub fn linearize<M: Mechanism + ?Sized>(model: &M, data: &[Measurement], noise: 
     })
 }
 
-/// Re-estimate the position and orientation noise from weighted residuals (one variance
-/// component per row kind), keeping the ratio meaningful when one kind is absent.
-fn reestimate_noise(residual: &DVector<f64>, angular_rows: &[bool], joint_rows: &[bool], noise: &Noise, dof_ratio: f64) -> Noise {
-    let (mut sp, mut np, mut sa, mut na) = (0.0, 0usize, 0.0, 0usize);
-    for (k, &ang) in angular_rows.iter().enumerate() {
-        let r2 = residual[k] * residual[k];
-        if joint_rows.get(k).copied().unwrap_or(false) {
-            // The encoders keep their stated noise.
-            continue;
-        } else if ang {
-            sa += r2;
-            na += 1;
-        } else {
-            sp += r2;
-            np += 1;
-        }
-    }
-    let scale = |s: f64, n: usize| if n > 0 { (s / (n as f64 * dof_ratio)).sqrt() } else { 1.0 };
-    Noise {
-        position: noise.position * scale(sp, np),
-        orientation: noise.orientation * scale(sa, na),
-        ..*noise
-    }
-}
-
 /// Identify the free parameters of `initial` from `data`. Those an overconstrained mechanism
 /// cannot take alone ([`Mechanism::assembly_breaking`]) stay at their drawn values.
 ///
@@ -325,7 +322,12 @@ pub fn identify<M: Mechanism + Clone>(initial: &M, data: &[Measurement], opts: &
         return Err(CalibError::InvalidOption("noise standard deviations must be positive".into()));
     }
     match opts.method {
-        Method::GaussNewton => refit::refit_where_more_is_seen(gauss_newton(initial, data, opts, &free)?, data, opts, &free),
+        Method::GaussNewton => {
+            let fit = gauss_newton(initial, data, opts, &free, None, Steps::MinimumNorm)?;
+            let fit = drawn::weak_decided_again(fit, initial, data, opts, &free)?;
+            let fit = refit::refit_where_more_is_seen(fit, data, opts, &free)?;
+            drawn::redundant_as_drawn(fit, data, opts, &free)
+        }
         Method::Linear | Method::Recursive => one_step(initial, data, opts, &free),
     }
 }
@@ -404,14 +406,17 @@ fn one_step<M: Mechanism + Clone>(
 
 /// Iterated Gauss–Newton with Levenberg–Marquardt damping, on the reduced problem
 /// ([`reduced`]: the triangular factor of the weighted Jacobian, never the Jacobian itself).
-/// Steps are minimum-norm over every free parameter that has an effect, truncated at the
-/// numerical rank: the same fit as the identifiable subset, but without moving along the weak
-/// directions a particular choice of subset can have.
+/// Steps are taken on the identifiable subset in priority order: a redundant parameter stays
+/// as drawn and the parameters before it in priority (frames, tool, artifact points) take up
+/// what they share with it. With [`Options::weak`] the parameters seen too weakly are held too:
+/// `held` when given (decided where an earlier fit converged), else decided here at the start.
 fn gauss_newton<M: Mechanism + Clone>(
     initial: &M,
     data: &[Measurement],
     opts: &Options,
     free: &[usize],
+    held: Option<&[usize]>,
+    steps: Steps<'_>,
 ) -> Result<Identification<M>, CalibError> {
     let p = initial.n_params();
     let mut model = initial.clone();
@@ -422,7 +427,8 @@ fn gauss_newton<M: Mechanism + Clone>(
     // whose eigenvalues on the identifiable directions are far above round-off.
     let stride = data.len().div_ceil(ANALYSIS_POSES).max(1);
     let known = opts.agree_with.as_ref().and_then(|a| a.identifiability.clone());
-    let (ident, mut system) = if let Some(ident) = known {
+    let is_known = known.is_some();
+    let (mut ident, mut system) = if let Some(ident) = known {
         (ident, reduced::factor(&model, data, &noise, &ev, Form::Gram)?)
     } else if stride == 1 {
         let system = reduced::factor(&model, data, &noise, &ev, Form::Triangular)?;
@@ -434,9 +440,39 @@ fn gauss_newton<M: Mechanism + Clone>(
         let ident = sampled_analysis(&model, data, &noise, opts, free)?;
         (ident, reduced::factor(&model, data, &noise, &ev, Form::Gram)?)
     };
+    if let (Some(hold), false) = (&opts.weak, is_known) {
+        let weak: Vec<usize> = match held {
+            Some(h) => h.iter().copied().filter(|c| ident.identifiable.contains(c)).collect(),
+            None => weakly_seen(&system.gram(), &ident.identifiable, hold, 1.0),
+        };
+        if !weak.is_empty() {
+            ident.identifiable.retain(|c| !weak.contains(c));
+            ident.condition = weak::condition(&system.gram(), &ident.identifiable);
+        }
+        ident.weak = weak;
+    }
+    if let Steps::Subset(set) = steps {
+        ident.weak = held.unwrap_or(&[]).iter().copied().filter(|c| free.contains(c)).collect();
+        ident.redundant = (free.iter().copied())
+            .filter(|c| !set.contains(c) && !ident.weak.contains(c) && !ident.no_effect.contains(c))
+            .chain(ident.no_effect.iter().copied())
+            .collect();
+        ident.identifiable = set.to_vec();
+        ident.condition = weak::condition(&system.gram(), set);
+    }
     let rows = ev.residual.len();
     let (cols, dof_ratio) = identifiable_subset(&ident, rows, data.len())?;
-    let effective: Vec<usize> = free.iter().copied().filter(|c| !ident.no_effect.contains(c)).collect();
+    // Minimum-norm steps move every parameter with an effect but those held as seen too weakly,
+    // on as many directions as are identified.
+    let (solved, rank) = match steps {
+        Steps::MinimumNorm => (
+            (free.iter().copied())
+                .filter(|c| !ident.no_effect.contains(c) && !ident.weak.contains(c))
+                .collect::<Vec<usize>>(),
+            cols.len(),
+        ),
+        Steps::Subset(_) => (cols.clone(), cols.len()),
+    };
     let mut delta_total = DVector::zeros(p);
     let mut iterations = Vec::new();
     let mut converged = false;
@@ -456,7 +492,7 @@ fn gauss_newton<M: Mechanism + Clone>(
             system = reduced::factor(&model, data, &noise, &ev, Form::Gram)?;
         }
         let cost = ev.cost;
-        let step = system.solve(&effective, damping, Some(ident.rank))?;
+        let step = system.solve(&solved, damping, Some(rank))?;
         let pred = system.predicted(&step);
         let mut trial = model.clone();
         trial.retract(&step);
@@ -573,8 +609,8 @@ fn gauss_newton<M: Mechanism + Clone>(
         converged = false;
     }
     let sigma0 = (ev.residual.norm_squared() / (rows - cols.len()) as f64).sqrt();
-    // The covariance of the minimum-norm solution over the parameters with an effect.
-    let covariance = system.covariance(&effective, Some(ident.rank)) * (sigma0 * sigma0);
+    // The covariance of the solution the steps took.
+    let covariance = system.covariance(&solved, Some(rank)) * (sigma0 * sigma0);
     let std_dev = DVector::from_iterator(p, (0..p).map(|i| covariance[(i, i)].max(0.0).sqrt()));
     let information = system.gram();
     Ok(Identification {

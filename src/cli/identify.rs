@@ -298,6 +298,18 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         report.condition,
         report.redundant.join(" ")
     );
+    if !report.weak.is_empty() {
+        println!(
+            "held as drawn, seen too weakly to fix (a correction of their tolerance would change the residual by less than its noise): {}",
+            report.weak.join(" ")
+        );
+    }
+    if !report.placement.is_empty() {
+        println!(
+            "held as drawn, where the machine stands (no instrument in the data sees it; the artifacts' places absorb it): {}",
+            report.placement.join(" ")
+        );
+    }
     println!("identification set before: {}", report.identification.before_stats);
     println!("identification set after:  {}", report.identification.after_stats);
     if let Some(v) = &report.validation {

@@ -1,6 +1,7 @@
 //! The loss applied to each pose's weighted residual ([`Loss`]): plain least squares or Huber's
 //! robust loss on the per-pose RMS residual, with the pose weights it gives.
 use super::Linearization;
+use crate::measure::Noise;
 use nalgebra::DVector;
 use serde::Serialize;
 
@@ -86,4 +87,29 @@ pub(crate) fn huber_threshold(k: f64, s: &[f64]) -> f64 {
     // The rows are noise-weighted: 1 is the stated noise. Without that floor, a noise-free fit
     // (a robust scale of round-off) would treat its least exact poses as blunders.
     k * (1.4826 * median).max(1.0)
+}
+
+/// Re-estimate the position and orientation noise from weighted residuals (one variance
+/// component per row kind), keeping the ratio meaningful when one kind is absent.
+pub(super) fn reestimate_noise(residual: &DVector<f64>, angular_rows: &[bool], joint_rows: &[bool], noise: &Noise, dof_ratio: f64) -> Noise {
+    let (mut sp, mut np, mut sa, mut na) = (0.0, 0usize, 0.0, 0usize);
+    for (k, &ang) in angular_rows.iter().enumerate() {
+        let r2 = residual[k] * residual[k];
+        if joint_rows.get(k).copied().unwrap_or(false) {
+            // The encoders keep their stated noise.
+            continue;
+        } else if ang {
+            sa += r2;
+            na += 1;
+        } else {
+            sp += r2;
+            np += 1;
+        }
+    }
+    let scale = |s: f64, n: usize| if n > 0 { (s / (n as f64 * dof_ratio)).sqrt() } else { 1.0 };
+    Noise {
+        position: noise.position * scale(sp, np),
+        orientation: noise.orientation * scale(sa, na),
+        ..*noise
+    }
 }

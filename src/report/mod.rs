@@ -104,6 +104,9 @@ pub enum ParamStatus {
     Redundant,
     /// Free, but without any effect on the measurements.
     NoEffect,
+    /// Free and of full rank, but seen too weakly to fix: held as drawn
+    /// ([`crate::identify::weakly_seen`]).
+    Weak,
     /// Not free (fixed in the model file).
     Fixed,
 }
@@ -179,6 +182,15 @@ pub struct CalibrationReport {
     /// ([`Mechanism::assembly_breaking`]); empty for every other machine.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub held_by_assembly: Vec<String>,
+    /// Names of the parameters seen too weakly to fix, held as drawn
+    /// ([`crate::identify::weakly_seen`]).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub weak: Vec<String>,
+    /// Names of the parameters that place the machine as a whole, held as drawn because no
+    /// instrument in the data sees where the machine stands ([`crate::calibrate::gauge`]); not
+    /// counted among the free parameters.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub placement: Vec<String>,
     /// Every parameter.
     pub params: Vec<ParamRow>,
     /// Covariance of the identified parameters.
@@ -267,6 +279,8 @@ impl CalibrationReport {
                     ParamStatus::Redundant
                 } else if id.no_effect.contains(&i) {
                     ParamStatus::NoEffect
+                } else if id.weak.contains(&i) {
+                    ParamStatus::Weak
                 } else if free.contains(&i) {
                     ParamStatus::Redundant
                 } else {
@@ -315,17 +329,19 @@ impl CalibrationReport {
             sigma0: result.sigma0,
             noise_mm_deg: (position, orientation.to_degrees()),
             free: free.len(),
-            rank: id.rank,
+            rank: id.identifiable.len(),
             redundancy: data
                 .iter()
                 .map(|m| m.obs.rows() + m.joints.len())
                 .sum::<usize>()
-                .saturating_sub(id.rank),
+                .saturating_sub(id.identifiable.len()),
             condition: id.condition,
             singular_values: id.singular_values.clone(),
             redundant: names(&id.redundant),
             no_effect: names(&id.no_effect),
             held_by_assembly: names(&nominal.assembly_breaking()),
+            weak: names(&id.weak),
+            placement: Vec::new(),
             params: rows,
             covariance,
             identification: SetErrors::compute(data_source, nominal, &result.model, data)?,
