@@ -77,7 +77,10 @@ fn seven_joint(panda_urdf: &str, ball_m: [f64; 3]) -> ModelFile {
         .replace("xyz=\"-0.0825 0.384 0\"", "xyz=\"-0.0900 0.410 0\"");
     let ball = "<origin rpy=\"0.0 0.0 0.0\" xyz=\"7.773732033005863e-05 -4.214022515884392e-05 0.030128297908475325\" />";
     assert!(text.contains(ball), "the Panda URDF's ball joint is not where expected");
-    text = text.replace(ball, &format!("<origin rpy=\"0 0 0\" xyz=\"{} {} {}\" />", ball_m[0], ball_m[1], ball_m[2]));
+    text = text.replace(
+        ball,
+        &format!("<origin rpy=\"0 0 0\" xyz=\"{} {} {}\" />", ball_m[0], ball_m[1], ball_m[2]),
+    );
     kinecal::io::urdf::import(&text, None, Some("ball_link")).unwrap()
 }
 
@@ -140,8 +143,11 @@ fn arm_data(name: &'static str, nominal: ModelFile, configs: &Configurations, pa
         let mut centres = Vec::new();
         for (s, qs) in sockets.iter().enumerate() {
             // The socket: where the Panda's drawing puts the ball, on average.
-            let c: Vector3<f64> =
-                qs.iter().map(|q| panda.forward(q).unwrap().translation.vector).sum::<Vector3<f64>>() / qs.len() as f64;
+            let c: Vector3<f64> = qs
+                .iter()
+                .map(|q| panda.forward(q).unwrap().translation.vector)
+                .sum::<Vector3<f64>>()
+                / qs.len() as f64;
             centres.push(c);
             for q in qs {
                 let jitter = if noise_mm > 0.0 {
@@ -251,9 +257,30 @@ fn main() {
     let panda = kinecal::io::urdf::import(&panda_urdf, None, Some("ball_link")).unwrap().build();
     let ur5e = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/examples/models/ur5e.urdf")).unwrap();
     let arms = [
-        arm_data("7-joint, on axis", seven_joint(&panda_urdf, [0.0, 0.0, 0.03]), &configs, &*panda, noise_mm, seed),
-        arm_data("7-joint, 0.7 mm off", seven_joint(&panda_urdf, [0.0007, 0.0, 0.03]), &configs, &*panda, noise_mm, seed),
-        arm_data("6-joint, 0.7 mm off", six_joint(&ur5e, [0.0007, 0.0, 0.03]), &configs, &*panda, noise_mm, seed),
+        arm_data(
+            "7-joint, on axis",
+            seven_joint(&panda_urdf, [0.0, 0.0, 0.03]),
+            &configs,
+            &*panda,
+            noise_mm,
+            seed,
+        ),
+        arm_data(
+            "7-joint, 0.7 mm off",
+            seven_joint(&panda_urdf, [0.0007, 0.0, 0.03]),
+            &configs,
+            &*panda,
+            noise_mm,
+            seed,
+        ),
+        arm_data(
+            "6-joint, 0.7 mm off",
+            six_joint(&ur5e, [0.0007, 0.0, 0.03]),
+            &configs,
+            &*panda,
+            noise_mm,
+            seed,
+        ),
     ];
     println!("noise {noise_mm} mm per axis, prototype seed {seed}; held-out spread RMS (mm), nominal → calibrated");
     for arm in &arms {
@@ -261,8 +288,16 @@ fn main() {
         println!("\n{} ({} rows per placement: {rows:?})", arm.name, rows.iter().sum::<usize>());
         let n = arm.placements.len();
         for (what, runs) in [
-            ("one-to-many", (0..n).map(|k| (vec![k], (0..n).filter(|&j| j != k).collect::<Vec<_>>())).collect::<Vec<_>>()),
-            ("all-but-one", (0..n).map(|k| ((0..n).filter(|&j| j != k).collect::<Vec<_>>(), vec![k])).collect()),
+            (
+                "one-to-many",
+                (0..n)
+                    .map(|k| (vec![k], (0..n).filter(|&j| j != k).collect::<Vec<_>>()))
+                    .collect::<Vec<_>>(),
+            ),
+            (
+                "all-but-one",
+                (0..n).map(|k| ((0..n).filter(|&j| j != k).collect::<Vec<_>>(), vec![k])).collect(),
+            ),
         ] {
             let mut worst_after: f64 = 0.0;
             let mut failed = 0;
@@ -276,8 +311,16 @@ fn main() {
                     j.after,
                     j.status,
                     if j.converged { "" } else { ", NOT converged" },
-                    if j.beyond > 0 { format!(", {} beyond tolerances", j.beyond) } else { String::new() },
-                    if j.weak.is_empty() { String::new() } else { format!(", weak: {}", j.weak.join(" ")) }
+                    if j.beyond > 0 {
+                        format!(", {} beyond tolerances", j.beyond)
+                    } else {
+                        String::new()
+                    },
+                    if j.weak.is_empty() {
+                        String::new()
+                    } else {
+                        format!(", weak: {}", j.weak.join(" "))
+                    }
                 );
                 worst_after = worst_after.max(j.after);
                 failed += usize::from(j.status == Status::Failed || !j.converged);

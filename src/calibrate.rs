@@ -203,9 +203,7 @@ pub fn calibrate(
     };
     // Where the machine stands, when no instrument sees it: held as drawn, never identified.
     let placement = match &instrument {
-        Some(i) if !i.tracked() => {
-            gauge::placement_params(&*start, &measurements, 0..6, &free, &opts.noise).map_err(|e| data.locate(e))?
-        }
+        Some(i) if !i.tracked() => gauge::placement_params(&*start, &measurements, 0..6, &free, &opts.noise).map_err(|e| data.locate(e))?,
         _ => Vec::new(),
     };
     free.retain(|c| !placement.contains(c));
@@ -252,6 +250,7 @@ pub fn calibrate(
         start: &start,
         identification: &identification,
         free: &free,
+        placement: &placement,
         in_fit: &in_fit,
         blunders: &blunders,
         outcomes: &outcomes,
@@ -508,7 +507,7 @@ fn judge_scale<M: Mechanism>(model: &ModelFile, data: &DataSet, opts: &Calibrati
     let held = nominal_mechanism(model).ok().and_then(|(_, inner_free, _)| {
         let params = j.start.params();
         (inner_free.iter().map(|k| k + FRAME_PARAMS))
-            .find(|k| !j.free.contains(k))
+            .find(|k| !j.free.contains(k) && !j.placement.contains(k))
             .and_then(|k| params.get(k).map(|p| p.name.clone()))
     });
     match held {
@@ -584,6 +583,8 @@ struct Judged<'a, M> {
     start: &'a M,
     identification: &'a Identification<M>,
     free: &'a [usize],
+    /// Held where the machine stands ([`gauge`]): not free, not the scale's gauge either.
+    placement: &'a [usize],
     in_fit: &'a [bool],
     blunders: &'a [i64],
     outcomes: &'a [StartOutcome],

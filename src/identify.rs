@@ -38,21 +38,21 @@ use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use serde::Serialize;
 
+mod drawn;
 mod joints;
 mod loss;
 mod recursive;
 mod reduced;
 mod refit;
-mod drawn;
 mod solve;
 mod weak;
-pub use loss::{apply_loss, Loss};
-pub use weak::{weakly_seen, WeakHold, WEAK_SEEN};
-pub(crate) use loss::{huber_threshold, loss_weights, pose_rms};
 use loss::reestimate_noise;
+pub use loss::{apply_loss, Loss};
+pub(crate) use loss::{huber_threshold, loss_weights, pose_rms};
 pub use recursive::rls_solve;
 use reduced::{Form, System};
 use solve::{covariance, solve_subset};
+pub use weak::{weakly_seen, WeakHold, WEAK_SEEN};
 
 /// Poses the rank analysis of [`identify`]'s Gauss–Newton runs on at most: an orthogonal
 /// factorisation costs rows × p², so larger sets are analysed on an evenly spread subset (the
@@ -106,7 +106,6 @@ pub struct Options {
     /// of full rank is fitted.
     pub weak: Option<WeakHold>,
 }
-
 
 /// How [`gauss_newton`] steps.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

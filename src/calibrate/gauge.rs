@@ -37,7 +37,11 @@ pub fn placement_params(
     // The machine's own parameters: not the frames, not the artifact points (which a rigid
     // motion moves too, but which stand where the artifact happens to be).
     let params = model.params();
-    let machine: Vec<usize> = free.iter().copied().filter(|&c| !frame.contains(&c) && !params[c].is_placement()).collect();
+    let machine: Vec<usize> = free
+        .iter()
+        .copied()
+        .filter(|&c| !frame.contains(&c) && !params[c].is_placement())
+        .collect();
     let with_frame: Vec<usize> = frame.clone().chain(machine.iter().copied()).collect();
     let alone = analyze(&lin.jacobian, &machine, DEFAULT_RANK_TOLERANCE);
     let framed = analyze(&lin.jacobian, &with_frame, DEFAULT_RANK_TOLERANCE);

@@ -139,4 +139,3 @@ fn held_from<M: Mechanism + Clone>(
 fn rows_of(data: &[Measurement]) -> usize {
     data.iter().map(|m| m.obs.rows() + m.joints.len()).sum()
 }
-

@@ -91,7 +91,13 @@ pub(crate) fn huber_threshold(k: f64, s: &[f64]) -> f64 {
 
 /// Re-estimate the position and orientation noise from weighted residuals (one variance
 /// component per row kind), keeping the ratio meaningful when one kind is absent.
-pub(super) fn reestimate_noise(residual: &DVector<f64>, angular_rows: &[bool], joint_rows: &[bool], noise: &Noise, dof_ratio: f64) -> Noise {
+pub(super) fn reestimate_noise(
+    residual: &DVector<f64>,
+    angular_rows: &[bool],
+    joint_rows: &[bool],
+    noise: &Noise,
+    dof_ratio: f64,
+) -> Noise {
     let (mut sp, mut np, mut sa, mut na) = (0.0, 0usize, 0.0, 0usize);
     for (k, &ang) in angular_rows.iter().enumerate() {
         let r2 = residual[k] * residual[k];

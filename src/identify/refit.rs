@@ -47,10 +47,24 @@ pub(super) fn refit_where_more_is_seen<M: Mechanism + Clone>(
     stage.max_iterations = stage.max_iterations.min(STAGE_ITERATIONS);
     let mut pinned = stage.clone();
     pinned.noise.orientation /= ORIENTATION_WEIGHT;
-    let Ok(a) = gauss_newton(&first.model, data, &pinned, free, Some(&first.identifiability.weak), super::Steps::MinimumNorm) else {
+    let Ok(a) = gauss_newton(
+        &first.model,
+        data,
+        &pinned,
+        free,
+        Some(&first.identifiability.weak),
+        super::Steps::MinimumNorm,
+    ) else {
         return Ok(first);
     };
-    let Ok(b) = gauss_newton(&a.model, data, &stage, free, Some(&first.identifiability.weak), super::Steps::MinimumNorm) else {
+    let Ok(b) = gauss_newton(
+        &a.model,
+        data,
+        &stage,
+        free,
+        Some(&first.identifiability.weak),
+        super::Steps::MinimumNorm,
+    ) else {
         return Ok(first);
     };
     if !(b.converged && b.sigma0 < DECISIVE * first.sigma0) {

@@ -86,7 +86,12 @@ pub fn weakly_seen(gram: &DMatrix<f64>, candidates: &[usize], hold: &WeakHold, n
         }
         let rjj = (1.0 - sum).max(0.0).sqrt();
         let seen = rjj * norms[j];
-        let weak = hold.tolerance.get(cj).copied().flatten().is_some_and(|tol| seen * tol < WEAK_SEEN * noise_factor.max(1.0));
+        let weak = hold
+            .tolerance
+            .get(cj)
+            .copied()
+            .flatten()
+            .is_some_and(|tol| seen * tol < WEAK_SEEN * noise_factor.max(1.0));
         if weak || rjj <= 1e-12 {
             if weak {
                 held.push(cj);

@@ -191,14 +191,13 @@ fn reduced_gauss_newton_is_the_full_problem() {
         "full GN step from the solution predicts {predicted:e}"
     );
 
-    // The covariance: σ̂₀² times the rank-truncated pseudo-inverse of the full AᵀA.
-    let mut cov_scaled = nalgebra::DMatrix::zeros(effective.len(), effective.len());
-    for &i in order.iter().take(full.rank) {
-        let v = vt.row(i).transpose();
-        cov_scaled += &v * v.transpose() / svd.singular_values[i].powi(2);
-    }
-    for (i, &ci) in effective.iter().enumerate() {
-        let expected = id.sigma0.powi(2) * cov_scaled[(i, i)] / (norms[i] * norms[i]);
+    // The covariance: σ̂₀² times the inverse of AᵀA on the identifiable subset (the parameters
+    // the fit moved; the redundant ones stay as drawn).
+    let subset = id.identifiability.identifiable.clone();
+    let (a_s, norms_s) = scale_columns(&lin.jacobian, &subset);
+    let inv = (a_s.transpose() * &a_s).try_inverse().unwrap();
+    for (i, &ci) in subset.iter().enumerate() {
+        let expected = id.sigma0.powi(2) * inv[(i, i)] / (norms_s[i] * norms_s[i]);
         assert!(
             (id.covariance[(ci, ci)] - expected).abs() <= 1e-8 * expected.abs().max(1e-30),
             "{ci}: {} vs {expected}",

@@ -493,7 +493,10 @@ fn the_robot_keeps_what_only_the_reflector_offset_explains() {
     let nominal = file.build();
     let free = file.free_indices().unwrap();
     let user = se3::pose_from_parts(Vector3::new(40.0, -30.0, 150.0), Vector3::new(0.2, 0.3, -0.4));
-    for (what, reflector) in [("on the last axis", Vector3::new(0.0, 0.0, 60.0)), ("off it", Vector3::new(15.0, -10.0, 120.0))] {
+    for (what, reflector) in [
+        ("on the last axis", Vector3::new(0.0, 0.0, 60.0)),
+        ("off it", Vector3::new(15.0, -10.0, 120.0)),
+    ] {
         let mut rng = ChaCha8Rng::seed_from_u64(11);
         let (proto, _) = virtual_prototype(&nominal, &free, 0.5, 0.1f64.to_radians(), &mut rng);
         let truth = Framed::new(proto.box_clone(), tracker(), se3::pose_from_parts(reflector, Vector3::zeros()));
@@ -514,7 +517,13 @@ fn the_robot_keeps_what_only_the_reflector_offset_explains() {
             let k = params.iter().position(|p| &p.name == name).unwrap();
             assert_eq!(cal.identification.delta[k], 0.0, "{what}: redundant {name} moved");
         }
-        let held: Vec<String> = cal.report.redundant.iter().filter(|n| !n.starts_with(['m', 't'])).cloned().collect();
+        let held: Vec<String> = cal
+            .report
+            .redundant
+            .iter()
+            .filter(|n| !n.starts_with(['m', 't']))
+            .cloned()
+            .collect();
         assert!(held.iter().any(|n| n.starts_with("6-T.")), "{what}: {held:?}");
         let mut fixed = file.clone();
         fixed.fixed.extend(held.iter().cloned());
