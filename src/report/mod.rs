@@ -2,6 +2,7 @@
 //! serialisable to JSON) and as one self-contained HTML file with inline SVG plots
 //! ([`CalibrationReport::to_html`]).
 pub mod assess;
+mod held_out;
 mod html;
 pub mod kinds;
 pub mod plan;
@@ -9,6 +10,7 @@ pub mod plot;
 mod verdict;
 mod view;
 
+pub use held_out::HeldOutPlacements;
 pub use verdict::{Beyond, Status, ToleranceCheck, Verdict, CHANCE_BEYOND_3_SIGMA, SIGMA0_FAIL, SIGMA0_WARN};
 pub use view::{MachineView, VIEW_POINTS, VIEW_WORST};
 
@@ -185,8 +187,12 @@ pub struct CalibrationReport {
     pub covariance: ParamCovariance,
     /// Identification set.
     pub identification: SetErrors,
-    /// Validation set, if one was given.
+    /// Validation set, if one was given (for instrument data: its tracker rows, if any).
     pub validation: Option<SetErrors>,
+    /// A validation file's instrument rows (seats, pivots, touches): its own artifacts placed by
+    /// its rows under the nominal and the calibrated model (set by `calibrate`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub held_out: Option<HeldOutPlacements>,
     /// Notes that do not change the verdict but deserve a look (poorly determined parameters,
     /// strongly correlated pairs).
     pub flags: Vec<String>,
@@ -333,6 +339,7 @@ impl CalibrationReport {
                 Some((src, v)) => Some(SetErrors::compute(src, nominal, &result.model, v)?),
                 None => None,
             },
+            held_out: None,
             flags: Vec::new(),
             correlation_names: Vec::new(),
             correlation: Vec::new(),
