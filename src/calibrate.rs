@@ -195,7 +195,7 @@ pub fn calibrate(
     opts: &CalibrationOptions,
 ) -> Result<Calibration, CalibrateError> {
     checks::plausible_angles(model, data)?;
-    let raw = data;
+    let (raw, raw_validation) = (data, validation);
     let instrument = InstrumentData::of(data, validation, &opts.seat_distances, &opts.validation_seat_distances)?;
     if !opts.validation_seat_distances.is_empty() && instrument.as_ref().is_none_or(|i| i.held_out.is_none()) {
         return Err(CalibError::InvalidOption(
@@ -274,6 +274,10 @@ pub fn calibrate(
         held_out,
     };
     let mut report = judge(model, data, validation, opts, &judged)?;
+    // Rows beyond the model's (the vendor's) limits, kept as measured: worth a look.
+    report
+        .flags
+        .extend(std::iter::once(raw).chain(raw_validation).flat_map(DataSet::limit_warnings));
     if let Some(i) = &instrument {
         for (k, s, f) in crate::instrument::collapsed_pivots(&*start, &*identification.model, &i.data.measurements) {
             report.fail(format!(

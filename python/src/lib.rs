@@ -342,6 +342,13 @@ impl Data {
         self.set.ids.clone()
     }
 
+    /// One line per input with rows beyond the model's limits (the vendor's software limits):
+    /// kept as measured, said as `kinecal` says it on stderr.
+    #[getter]
+    fn warnings(&self) -> Vec<String> {
+        self.set.limit_warnings()
+    }
+
     /// Inputs (n, inputs) in rad / mm.
     #[getter]
     fn q<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {

@@ -226,6 +226,7 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         if let Some(note) = d.dropped_note() {
             eprintln!("{note}");
         }
+        super::warn_limits(d);
     }
     let sp = progress::spinner(&format!("identifying {} on {} poses", file.name, data.measurements.len()), a.json);
     let cal = calibrate(&file, &data, validation.as_ref(), &opts)?;
