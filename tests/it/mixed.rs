@@ -488,3 +488,39 @@ fn touches_alone_and_beside_tracker_points_recover_a_ur5e_and_an_irb120() {
         }
     }
 }
+
+/// A validation file mixing tracker rows and seats beside a mixed identification: the tracker
+/// rows are judged as poses in the frame the tracker placed, the seats (numbered 0 and 1 like
+/// the identification's, at other places) as held-out artifacts of their own. Noise-free, both
+/// are met to round-off.
+#[test]
+fn a_mixed_validation_file_judges_tracker_rows_as_poses_and_seats_as_their_own() {
+    let (file, truth) = truth_of("irb120");
+    let mut tracker = tracker_rows(&truth, &file, 20, 0.0);
+    let held_tracker = tracker.split_off(10);
+    let all = seats(&file, &truth, 4, &placement(&file, 15, 35.0, 0.0));
+    let (mut rows, mut held): (Vec<Measurement>, Vec<Measurement>) =
+        all.into_iter().partition(|m| matches!(m.obs, Observation::Seat(s) if s < 2));
+    for m in &mut held {
+        let Observation::Seat(s) = m.obs else { unreachable!() };
+        m.obs = Observation::Seat(s - 2);
+    }
+    rows.extend(tracker);
+    held.extend(held_tracker);
+    let opts = CalibrationOptions {
+        noise: exact_noise(),
+        ..CalibrationOptions::default()
+    };
+    let data = DataSet::from_measurements("mixed.csv", rows);
+    let validation = DataSet::from_measurements("held.csv", held);
+    let cal = calibrate(&file, &data, Some(&validation), &opts).unwrap();
+    let poses = cal.report.validation.as_ref().expect("the tracker rows, as poses");
+    let seats = cal.report.held_out.as_ref().expect("the seats, placed by their own rows");
+    eprintln!(
+        "irb120, mixed validation: 10 tracker rows {:.2e} mm RMS, 2 held-out seats {:.4} → {:.2e} mm RMS",
+        poses.after_stats.position_rms_mm, seats.before_rms_mm, seats.after_rms_mm
+    );
+    assert_eq!((poses.after_stats.poses, seats.rows, seats.calibrated.seats.len()), (10, 30, 2));
+    assert!(poses.after_stats.position_rms_mm < 1e-9 && seats.after_rms_mm < 1e-9);
+    assert!(seats.before_rms_mm > 0.1, "{}", seats.before_rms_mm);
+}
