@@ -16,7 +16,7 @@
 //! calibrated model placed as drawn (the rigid motion that best takes its tool points at the
 //! data's configurations onto the starting model's goes into its measurement frame). The report
 //! draws the calibrated machine, its artifacts and its tool points through the same motion
-//! ([`CalibrationReport::place_as_drawn`]), so that the view shows the calibrated model file's
+//! (`CalibrationReport::place_as_drawn`), so that the view shows the calibrated model file's
 //! base frame, the one targets are given in.
 use super::{CalibrationReport, SetErrors};
 use crate::error::{CalibError, KinError};
@@ -323,4 +323,101 @@ pub(super) fn drawn_placement(s: &SetErrors) -> Option<Pose> {
     }
     let v = |p: &[[f64; 3]]| p.iter().map(|x| Vector3::from(*x)).collect::<Vec<_>>();
     crate::measure::register_points(&v(&s.measured), &v(&s.nominal_point))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::instrument::{Artifact, ArtifactPoint, Zero};
+    use crate::model::framed::Framed;
+    use nalgebra::UnitQuaternion;
+
+    /// A seat, a pivot of readings (its relative frame moved by its zero) and a tilted plane on
+    /// the IRB 120 with a tool point off the flange: each artifact's frame and each row's tool
+    /// point come back exactly from the model's predictions.
+    #[test]
+    fn the_artifacts_and_tool_points_come_back_from_the_predictions() {
+        let tool = Pose::translation(15.0, -10.0, 120.0);
+        let inner = Framed::new(crate::model::irb120::nominal(), Pose::identity(), tool);
+        let point = |kind, id, centre: [f64; 3], zero, rotation| ArtifactPoint {
+            kind,
+            id,
+            centre: Vector3::from(centre),
+            zero,
+            rotation,
+        };
+        let tilt = UnitQuaternion::from_euler_angles(0.3, -0.2, 0.7);
+        let model = Artifact {
+            inner: inner.clone(),
+            points: vec![
+                point(PointKind::Seat, 0, [400.0, 20.0, 300.0], None, None),
+                point(
+                    PointKind::Pivot,
+                    0,
+                    [380.0, -50.0, 250.0],
+                    Some(Zero {
+                        value: 93.0,
+                        reference: 3.5,
+                    }),
+                    None,
+                ),
+                point(PointKind::Plane, 0, [420.0, 0.0, 150.0], None, Some(tilt)),
+            ],
+            pairs: Vec::new(),
+        };
+        let obs = [
+            Observation::Seat(0),
+            Observation::Distance {
+                pivot: 0,
+                length: 100.0,
+                relative: true,
+            },
+            Observation::Touch(Touch::Plane { plane: 0, probe: 1.5 }),
+        ];
+        let data: Vec<Measurement> = (0..12)
+            .map(|i| {
+                let x = i as f64;
+                let mut q = vec![
+                    0.1 * x.sin(),
+                    0.3 + 0.05 * x,
+                    0.2 - 0.04 * x,
+                    0.3 * x.cos(),
+                    1.0 + 0.02 * x,
+                    0.1 * x,
+                ];
+                q.push((i % 3) as f64);
+                Measurement {
+                    q,
+                    obs: obs[i % 3].clone(),
+                    joints: Vec::new(),
+                }
+            })
+            .collect();
+        let relative = crate::validate::forward_all(&model, &data).unwrap();
+        let placed = place(&model, &data, &relative).unwrap();
+        for (k, p) in model.points.iter().enumerate() {
+            let f = placed.frames[k].expect("placed");
+            let (want, got) = (p.frame(), f);
+            assert!(
+                (want.translation.vector - got.translation.vector).norm() < 1e-9,
+                "artifact {k}: {got:?}"
+            );
+            assert!(want.rotation.angle_to(&got.rotation) < 1e-12, "artifact {k}");
+        }
+        for (m, p) in data.iter().zip(&placed.points) {
+            let t = inner.forward(&m.q[..6]).unwrap().translation.vector;
+            assert!((t - Vector3::from(*p)).norm() < 1e-9);
+        }
+        assert!(data.iter().all(|m| artifact_index(m).is_some()));
+        let known = Measurement {
+            q: vec![0.0; 7],
+            obs: Observation::Distance {
+                pivot: KNOWN_DISTANCE,
+                length: 50.0,
+                relative: false,
+            },
+            joints: Vec::new(),
+        };
+        assert!(is_known_distance(&known) && artifact_index(&known).is_none());
+    }
 }

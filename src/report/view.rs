@@ -34,7 +34,8 @@ pub struct MachineView {
     pub skeleton_nominal: Vec<Vec<[f64; 3]>>,
     /// The calibrated base frame in the measurement frame: origin, then its x, y and z unit
     /// axes; `None` when the model carries no separate frames (its world frame is then the
-    /// measurement frame).
+    /// measurement frame), and for an instrument calibration no tracker placed (the world frame
+    /// is then the machine's base frame as drawn: [`super::artifacts`]).
     pub base: Option<[[f64; 3]; 4]>,
     /// The calibrated model's tool frame at the first identification pose (origin, then its
     /// x, y, z unit axes, in the measurement frame): where the tool frame found by the
