@@ -234,7 +234,13 @@ pub fn calibrate(
     for &i in &kept {
         in_fit[i] = true;
     }
-    let blunders: Vec<i64> = (0..data.measurements.len()).filter(|&i| !in_fit[i]).map(|i| data.ids[i]).collect();
+    // Poses set aside (a known distance set aside is the report's, not a pose).
+    let pose = |i: &usize| !crate::report::is_known_distance(&data.measurements[*i]);
+    let blunders: Vec<i64> = (0..data.measurements.len())
+        .filter(|&i| !in_fit[i])
+        .filter(pose)
+        .map(|i| data.ids[i])
+        .collect();
     let mut calibrated = model.with_geometry_of(&*identification.model).map_err(|message| IoError::Invalid {
         path: format!("model '{}'", model.name).into(),
         message,
@@ -527,7 +533,15 @@ fn judge<M: Mechanism + Clone>(
         .outliers
         .retain(|o| j.in_fit.get(o.pose).copied().unwrap_or(true));
     report.blunders = j.blunders.to_vec();
-    report.set_ids(&data.ids, validation.map(|v| v.ids.as_slice()));
+    // The poses' ids: the known distances' rows (ids −1, −2, … after the file's) are no poses.
+    let pose_ids: Vec<i64> = (data.ids.iter().zip(&data.measurements))
+        .filter(|(_, m)| !crate::report::is_known_distance(m))
+        .map(|(id, _)| *id)
+        .collect();
+    report.set_ids(&pose_ids, validation.map(|v| v.ids.as_slice()));
+    let seats: Vec<(usize, usize)> = opts.seat_distances.iter().map(|d| (d.a, d.b)).collect();
+    let known = crate::report::artifacts::known_distances(j.start, &j.identification.model, &data.measurements, &seats, j.in_fit);
+    report.set_known_distances(known);
     report.set_inputs(&model.inputs());
     report.tolerance_check = Some(tolerances::tolerance_check(j.identification, j.free, &model.tolerances));
     report.serial_chain = matches!(model.mechanism, MechanismSpec::Serial(_));

@@ -557,12 +557,6 @@ impl<M: Mechanism> Artifact<M> {
         let zero_column = self.zero_index(k).map_or(usize::MAX, |z| p + self.n_point_params() + z);
         self.with_zero(k, zero_column, (shift * pose, out))
     }
-
-    /// The inverse of point `k`'s frame ([`Self::frame`]): for a seat or a pivot, the translation
-    /// by minus its centre.
-    fn shift(&self, k: usize) -> Pose {
-        self.frame(k).inverse()
-    }
 }
 
 impl<M: Mechanism + Clone + 'static> Mechanism for Artifact<M> {
@@ -658,6 +652,10 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Artifact<M> {
     }
     fn task(&self) -> Task {
         self.inner.task()
+    }
+    /// The machine's drawing (the artifacts are the report's to draw).
+    fn skeleton(&self) -> Vec<Vec<Vector3<f64>>> {
+        self.inner.skeleton()
     }
     fn observed_joints(&self) -> Vec<(String, Unit)> {
         self.inner.observed_joints()

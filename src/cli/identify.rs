@@ -285,13 +285,33 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         report.iterations,
         report.sigma0
     );
-    if report.kinds.len() > 1 {
+    if report.kinds.len() > 1 || report.kinds.iter().any(|k| k.instrument()) {
         for k in &report.kinds {
             println!(
-                "  {} rows ({}): residual {:.4} mm RMS, {:.2}× their σ {:.4} mm",
-                k.kind, k.rows, k.rms_mm, k.ratio, k.sigma_mm
+                "  {} rows ({}): residual {:.4} mm RMS ({}), {:.2}× their σ {:.4} mm",
+                k.kind,
+                k.rows,
+                k.rms_mm,
+                k.what(),
+                k.ratio,
+                k.sigma_mm
             );
         }
+    }
+    if let Some(worst) = report
+        .known_distances
+        .iter()
+        .max_by(|a, b| a.error_mm.abs().total_cmp(&b.error_mm.abs()))
+    {
+        println!(
+            "{} known distances between seats: calibrated within {:.4} mm of the stated (seats {}–{}: {:.4} mm for {} mm)",
+            report.known_distances.len(),
+            worst.error_mm.abs(),
+            worst.seats.0,
+            worst.seats.1,
+            worst.fitted_mm,
+            worst.known_mm
+        );
     }
     // Draw-wire readings (reading_mm): each pivot's zero, placed with the calibrated model.
     if let Ok(h) = kinecal::instrument::held_out(&*cal.model_file.build(), &data.measurements, &[]) {

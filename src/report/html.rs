@@ -57,6 +57,7 @@ impl CalibrationReport {
         }
         self.errors_table(&mut h, &sets);
         self.held_out_html(&mut h);
+        self.known_distances_html(&mut h);
         self.variants_html(&mut h);
         self.view_html(&mut h);
         maps_html(&mut h, &sets)?;
@@ -138,11 +139,20 @@ impl CalibrationReport {
             format!("{} mm, {} deg", sig(self.noise_mm_deg.0), sig(self.noise_mm_deg.1)),
         );
         kv(h, "σ̂₀ (a-posteriori, 1 = noise model right)", sig(self.sigma0));
-        if self.kinds.len() > 1 {
+        if self.kinds.len() > 1 || self.kinds.iter().any(|k| k.instrument()) {
             let per: Vec<String> = (self.kinds.iter())
-                .map(|k| format!("{} {} mm RMS / σ {} mm = {:.2}", k.kind, sig(k.rms_mm), sig(k.sigma_mm), k.ratio))
+                .map(|k| {
+                    format!(
+                        "{} ({} rows): {} mm RMS, {:.2}× the stated σ {} mm",
+                        k.what(),
+                        k.rows,
+                        sig(k.rms_mm),
+                        k.ratio,
+                        sig(k.sigma_mm)
+                    )
+                })
                 .collect();
-            kv(h, "each kind against its own noise", per.join("; "));
+            kv(h, "σ of each kind after the fit (residual RMS)", per.join("<br>"));
         }
         kv(
             h,
@@ -260,6 +270,28 @@ impl CalibrationReport {
             }
             h.push_str("</table>\n");
         }
+    }
+
+    /// The known distances between seats the fit held (rows of the fit, not poses).
+    fn known_distances_html(&self, h: &mut String) {
+        if self.known_distances.is_empty() {
+            return;
+        }
+        h.push_str("<h2 id=\"known-distances\">Known distances between seats</h2>\n<p class=\"muted\">Certified dimensions of the artifact (--seat-distance) the fit holds: they give the scale, they are not poses. The seats' centres' distance as the starting model placed them and after calibration.</p><table><tr><th class=\"l\">seats</th><th>known mm</th><th>nominal mm</th><th>calibrated mm</th><th>error mm</th><th class=\"l\"></th></tr>");
+        for d in &self.known_distances {
+            let _ = write!(
+                h,
+                "<tr><td class=\"l\">{}–{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:+.4}</td><td class=\"l warn\">{}</td></tr>",
+                d.seats.0,
+                d.seats.1,
+                sig(d.known_mm),
+                sig(d.nominal_mm),
+                sig(d.fitted_mm),
+                d.error_mm,
+                if d.set_aside { "set aside as a blunder" } else { "" }
+            );
+        }
+        h.push_str("</table>\n");
     }
 
     /// The same data fitted with fewer terms (a model with joint terms only).
