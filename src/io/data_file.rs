@@ -96,7 +96,7 @@ impl DataSet {
     /// for the file in messages. Pose observations are marked as poses, positions as positions.
     pub fn from_measurements(name: &str, measurements: Vec<Measurement>) -> DataSet {
         let format = match measurements.first().map(|m| &m.obs) {
-            _ if mixed::needs_mixed(&measurements) => MeasurementFormat::Mixed,
+            _ if mixed::needs_mixed(&measurements) && !mixed::touches_only(&measurements) => MeasurementFormat::Mixed,
             Some(Observation::Position(_)) => MeasurementFormat::Position,
             Some(Observation::Seat(_)) => MeasurementFormat::Seat,
             Some(Observation::Distance { .. }) => MeasurementFormat::Distance,
@@ -366,11 +366,13 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
             }
         }
     }
-    let format = match mixed::is_mixed(&slots) {
+    // Rows of several kinds (a mixed file, or touches of several kinds): each row read as one
+    // kind, the other kinds' cells empty.
+    let is_mixed = mixed::is_mixed(&slots);
+    let format = match is_mixed {
         true => mixed::check_columns(table, &slots)?,
         false => columns::measurement_format(table, &slots)?,
     };
-    let is_mixed = format == MeasurementFormat::Mixed;
 
     if table.is_empty() {
         return Err(IoError::Invalid {
@@ -518,7 +520,9 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
             }
         }
         let obs = match format {
+            // Touches of several kinds are read row by row as a mixed file's.
             MeasurementFormat::Mixed => mixed::observation(path, line, &slots, &table.columns, row)?,
+            MeasurementFormat::Touch if is_mixed => mixed::observation(path, line, &slots, &table.columns, row)?,
             MeasurementFormat::Position => Observation::Position(p),
             MeasurementFormat::Seat => Observation::Seat(point),
             MeasurementFormat::Touch => columns::touch(touched, point, size, probe),

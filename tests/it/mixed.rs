@@ -22,7 +22,7 @@ use rand_distr::{Distribution, Normal};
 
 /// A virtual prototype of built-in `name` (errors ±0.5 mm / ±0.1°), the ball 120 mm out on its
 /// flange, seen by a tracker standing 2 m away and turned: the truth the rows are drawn from.
-fn truth_of(name: &str) -> (ModelFile, Framed<Box<dyn Mechanism>>) {
+pub(crate) fn truth_of(name: &str) -> (ModelFile, Framed<Box<dyn Mechanism>>) {
     let file: ModelFile = builtin::model_file(name).unwrap();
     let nominal = file.build();
     let free = file.free_indices().unwrap();
@@ -34,7 +34,7 @@ fn truth_of(name: &str) -> (ModelFile, Framed<Box<dyn Mechanism>>) {
 }
 
 /// `n` tracker positions of the tool point at random configurations (seed 21), noise σ per axis.
-fn tracker_rows(truth: &dyn Mechanism, file: &ModelFile, n: usize, sigma: f64) -> Vec<Measurement> {
+pub(crate) fn tracker_rows(truth: &dyn Mechanism, file: &ModelFile, n: usize, sigma: f64) -> Vec<Measurement> {
     let mut rng = ChaCha8Rng::seed_from_u64(21);
     let qs = random_configurations(&*file.build(), &file.inputs(), n, &mut rng).unwrap();
     let normal = Normal::new(0.0, sigma.max(1e-300)).unwrap();
@@ -79,7 +79,7 @@ fn pivots(file: &ModelFile, truth: &dyn Mechanism) -> Vec<Vector3<f64>> {
 }
 
 /// How rows are drawn on `file` about its [`reference`].
-fn placement(file: &ModelFile, per_point: usize, max_tilt_deg: f64, noise_mm: f64) -> Placement {
+pub(crate) fn placement(file: &ModelFile, per_point: usize, max_tilt_deg: f64, noise_mm: f64) -> Placement {
     Placement {
         per_point,
         reference: reference(file),

@@ -163,7 +163,8 @@ fn observed_joint_columns_are_optional_all_or_none_and_round_trip() {
 
 /// Touch files (sphere, plane, cube face) written and read back give the same rows; a plane
 /// touch with every value zero is a row, not a lost measurement; a touch file without the
-/// probe's radius, or with two kinds of touch, is a one-line error naming what is missing.
+/// probe's radius is a one-line error naming what is missing; touches of several kinds share a
+/// file (each row one touch), and a row filling two is a one-line error.
 #[test]
 fn touch_files_round_trip_and_name_what_is_missing() {
     use crate::measure::Touch;
@@ -219,8 +220,32 @@ fn touch_files_round_trip_and_name_what_is_missing() {
     assert!(e.starts_with("d.csv:1: plane touches need one 'probe_radius_mm' column"), "{e}");
     let e = read("q1_deg,d2_mm,face,probe_radius_mm\n0,0,1,2\n").unwrap_err();
     assert!(e.contains("face touches need one 'cube_edge_mm' column"), "{e}");
-    let e = read("q1_deg,d2_mm,plane,sphere,probe_radius_mm\n0,0,1,1,2\n").unwrap_err();
-    assert!(e.contains("one kind of touch per file"), "{e}");
+    // Touches of several kinds in one file: each row one touch, the other kinds' cells empty
+    // (read as files are, empty cells allowed).
+    let read = |text: &str| {
+        let t = crate::io::table::parse_table_with_gaps(Path::new("d.csv"), text).map_err(|e| e.to_string())?;
+        data_from_table(&t, &inputs(), InputColumns::Required).map_err(|e| e.to_string())
+    };
+    let d = read("q1_deg,d2_mm,plane,sphere,sphere_diameter_mm,probe_radius_mm\n0,0,1,,,2\n0,1,,3,25.4,1.5\n").unwrap();
+    assert_eq!(d.format, MeasurementFormat::Touch);
+    assert_eq!(d.measurements[0].obs, Observation::Touch(Touch::Plane { plane: 1, probe: 2.0 }));
+    assert_eq!(
+        d.measurements[1].obs,
+        Observation::Touch(Touch::Sphere {
+            sphere: 3,
+            diameter: 25.4,
+            probe: 1.5
+        })
+    );
+    let text = data_text(Path::new("t.csv"), &inputs(), &[0, 1], &d.measurements, None).unwrap();
+    let back = read(&text).unwrap();
+    assert_eq!(
+        (back.format, &back.measurements),
+        (MeasurementFormat::Touch, &d.measurements),
+        "{text}"
+    );
+    let e = read("q1_deg,d2_mm,plane,sphere,sphere_diameter_mm,probe_radius_mm\n0,0,1,3,25.4,2\n").unwrap_err();
+    assert!(e.contains("d.csv:2:") && e.contains("two touch columns"), "{e}");
 }
 
 /// Limits: rows a little beyond them are kept and said; a column that fits them in the other
