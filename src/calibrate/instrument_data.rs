@@ -72,7 +72,7 @@ impl InstrumentData {
 /// A validation file of an instrument calibration (the identification data hold tracker rows
 /// when `tracked`): its tracker rows indexed as tracker rows, and its instrument rows as read,
 /// checked as identification rows are (each artifact's minimum rows, the seats of the known
-/// distances `held_distances` present).
+/// distances `held_distances` present when there are instrument rows).
 fn split_validation(v: &DataSet, tracked: bool, held_distances: &[SeatDistance]) -> Result<(Option<DataSet>, Option<DataSet>), IoError> {
     let (rows, tracker): (Vec<usize>, Vec<usize>) =
         (0..v.measurements.len()).partition(|&i| v.measurements[i].obs.artifact_point().is_some());
@@ -99,17 +99,10 @@ fn split_validation(v: &DataSet, tracked: bool, held_distances: &[SeatDistance])
         }
     });
     let held = (!rows.is_empty()).then(|| subset(v, &rows));
-    match &held {
-        Some(h) => {
-            crate::instrument::index_points(&h.measurements, held_distances).map_err(|e| h.locate(e))?;
-        }
-        None if !held_distances.is_empty() => {
-            return Err(IoError::Invalid {
-                path: v.path.clone(),
-                message: "known distances between held-out seats are given, and the validation data hold no seat rows".into(),
-            })
-        }
-        None => {}
+    // Known distances without held-out seats are refused by `calibrate` (with or without
+    // validation data).
+    if let Some(h) = &held {
+        crate::instrument::index_points(&h.measurements, held_distances).map_err(|e| h.locate(e))?;
     }
     Ok((tracker, held))
 }

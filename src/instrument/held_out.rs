@@ -95,8 +95,7 @@ pub struct HeldOut {
 impl HeldOut {
     /// 3-D RMS spread over every seat row (mm), `None` without seats.
     pub fn seat_rms_mm(&self) -> Option<f64> {
-        let rows: usize = self.seats.iter().map(|s| s.rows).sum();
-        (rows > 0).then(|| (self.seats.iter().map(|s| s.rms_mm * s.rms_mm * s.rows as f64).sum::<f64>() / rows as f64).sqrt())
+        self.kind_rms_mm(PointKind::Seat).map(|(_, _, rms)| rms)
     }
 
     /// Each artifact judged: its kind, rows and RMS residual (mm).

@@ -287,24 +287,23 @@ impl CalibrationReport {
     pub(super) fn view_html(&self, h: &mut String) {
         let n: usize = self.identification.after.position.len() + self.validation.as_ref().map_or(0, |v| v.after.position.len());
         h.push_str("<h2 id=\"view\">3-D view: where the errors are</h2>\n");
+        // What the points are, where they are drawn, what their error vectors show.
+        let (points, frame, vectors) = if self.machine.artifacts.is_empty() {
+            (
+                "The measured tool positions",
+                "in the measurement frame",
+                "Lines from each point toward the model's position show the error vectors, scaled as stated.",
+            )
+        } else {
+            (
+                "The tool points the calibrated model puts at each row's configuration",
+                "in the machine's base frame (the starting model's tool points when coloured by the error before calibration), with the instrument's artifacts (calibrated solid, as the starting model placed them dashed; a ballbar's bar from its pivot to each tool point)",
+                "Lines from each tool point toward where the instrument puts it (a seat's centre, the bar's measured length, the touched surface) show the error vectors, scaled as stated.",
+            )
+        };
         let _ = write!(
             h,
-            "<p class=\"muted\">{} ({n} poses; at most {VIEW_POINTS} per set drawn, evenly spread, the {VIEW_WORST} worst before and after always) {}, coloured by their position error; ● identification, □ validation. {} Drag to turn, shift-drag to move, wheel to zoom, hover for a pose's id and errors.{}</p>",
-            if self.machine.artifacts.is_empty() {
-                "The measured tool positions"
-            } else {
-                "The tool points the calibrated model puts at each row's configuration"
-            },
-            if self.machine.artifacts.is_empty() {
-                "in the measurement frame"
-            } else {
-                "in the machine's base frame (the starting model's tool points when coloured by the error before calibration), with the instrument's artifacts (calibrated solid, as the starting model placed them dashed; a ballbar's bar from its pivot to each tool point)"
-            },
-            if self.machine.artifacts.is_empty() {
-                "Lines from each point toward the model's position show the error vectors, scaled as stated."
-            } else {
-                "Lines from each tool point toward where the instrument puts it (a seat's centre, the bar's measured length, the touched surface) show the error vectors, scaled as stated."
-            },
+            "<p class=\"muted\">{points} ({n} poses; at most {VIEW_POINTS} per set drawn, evenly spread, the {VIEW_WORST} worst before and after always) {frame}, coloured by their position error; ● identification, □ validation. {vectors} Drag to turn, shift-drag to move, wheel to zoom, hover for a pose's id and errors.{}</p>",
             if self.machine.skeleton.is_empty() {
                 " This kind of machine has no drawing."
             } else {
