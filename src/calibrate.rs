@@ -6,6 +6,7 @@
 //! ([`CalibrationReport`]), from which the command line, the JSON output and the HTML are written.
 mod checks;
 pub mod gauge;
+mod instrument_data;
 mod mixed;
 mod robust;
 pub mod scale;
@@ -25,6 +26,7 @@ use crate::model::Mechanism;
 use crate::register::{register, Registration};
 use crate::report::CalibrationReport;
 use crate::se3::Pose;
+use instrument_data::InstrumentData;
 use thiserror::Error;
 
 /// Where the data's frames come from.
@@ -106,6 +108,9 @@ pub struct CalibrationOptions {
     pub compare_terms: bool,
     /// Known distances between seats (seat data only): the scale seats alone do not give.
     pub seat_distances: Vec<crate::instrument::SeatDistance>,
+    /// Known distances between the seats of the validation data (numbered as in that file: its
+    /// artifacts are its own), judged with the held-out placements.
+    pub validation_seat_distances: Vec<crate::instrument::SeatDistance>,
 }
 
 impl Default for CalibrationOptions {
@@ -121,6 +126,7 @@ impl Default for CalibrationOptions {
             reflectors: ReflectorFit::Frame,
             compare_terms: true,
             seat_distances: Vec::new(),
+            validation_seat_distances: Vec::new(),
         }
     }
 }
@@ -190,8 +196,14 @@ pub fn calibrate(
     opts: &CalibrationOptions,
 ) -> Result<Calibration, CalibrateError> {
     checks::plausible_angles(model, data)?;
-    let raw = data;
-    let instrument = InstrumentData::of(data, validation, &opts.seat_distances)?;
+    let (raw, raw_validation) = (data, validation);
+    let instrument = InstrumentData::of(data, validation, &opts.seat_distances, &opts.validation_seat_distances)?;
+    if !opts.validation_seat_distances.is_empty() && instrument.as_ref().is_none_or(|i| i.held_out.is_none()) {
+        return Err(CalibError::InvalidOption(
+            "known distances between held-out seats need seat rows in the validation data (an instrument calibration's held-out placements)".into(),
+        )
+        .into());
+    }
     let (data, validation) = match &instrument {
         Some(i) => (&i.data, i.validation.as_ref()),
         None => (data, validation),
@@ -230,18 +242,37 @@ pub fn calibrate(
     for &i in &kept {
         in_fit[i] = true;
     }
-    let blunders: Vec<i64> = (0..data.measurements.len()).filter(|&i| !in_fit[i]).map(|i| data.ids[i]).collect();
+    // Poses set aside (a known distance set aside is the report's, not a pose).
+    let pose = |i: &usize| !crate::report::is_known_distance(&data.measurements[*i]);
+    let blunders: Vec<i64> = (0..data.measurements.len())
+        .filter(|&i| !in_fit[i])
+        .filter(pose)
+        .map(|i| data.ids[i])
+        .collect();
     let mut calibrated = model.with_geometry_of(&*identification.model).map_err(|message| IoError::Invalid {
         path: format!("model '{}'", model.name).into(),
         message,
     })?;
-    // With tracker rows the tracker placed the base: the frames stay where it put them.
-    if instrument.as_ref().is_some_and(|i| !i.tracked()) {
+    // The nominal model of an instrument calibration: the drawing with the tool point found
+    // from the data. With tracker rows the tracker placed the base: the frames stay where it
+    // put them; without, the calibrated model is placed where the drawing puts it.
+    let mut held_out = None;
+    if let Some(i) = &instrument {
         let start_file = model.with_geometry_of(&*start).map_err(|message| IoError::Invalid {
             path: format!("model '{}'", model.name).into(),
             message,
         })?;
-        placed_as_drawn(&mut calibrated, &start_file, &raw.measurements);
+        if !i.tracked() {
+            placed_as_drawn(&mut calibrated, &start_file, &raw.measurements);
+        }
+        if let Some(rows) = &i.held_out {
+            held_out = Some(instrument_data::held_out_placements(
+                &start_file,
+                &calibrated,
+                rows,
+                &opts.validation_seat_distances,
+            )?);
+        }
     }
     calibrated.description = Some(format!("calibrated from '{}' on {}", model.name, data.path.display()));
     calibrated.noise = Some(identification.noise);
@@ -255,10 +286,15 @@ pub fn calibrate(
         blunders: &blunders,
         outcomes: &outcomes,
         start_tolerance_mm,
+        held_out,
     };
     let mut report = judge(model, data, validation, opts, &judged)?;
     let names = start.params();
     report.placement = placement.iter().map(|&k| names[k].name.clone()).collect();
+    // Rows beyond the model's (the vendor's) limits, kept as measured: worth a look.
+    report
+        .flags
+        .extend(std::iter::once(raw).chain(raw_validation).flat_map(DataSet::limit_warnings));
     if let Some(i) = &instrument {
         for (k, s, f) in crate::instrument::collapsed_pivots(&*start, &*identification.model, &i.data.measurements) {
             report.fail(format!(
@@ -345,115 +381,6 @@ fn starting_model(
     }
 }
 
-/// Instrument data (seats, distances) with each row's artifact point appended to its inputs
-/// ([`crate::instrument::index_points`]); the validation set indexed on the same points.
-struct InstrumentData {
-    points: Vec<crate::instrument::ArtifactPoint>,
-    pairs: Vec<(usize, usize)>,
-    data: DataSet,
-    validation: Option<DataSet>,
-}
-
-impl InstrumentData {
-    /// Whether the data hold tracker rows besides the instrument's ([`crate::instrument::mixed`]).
-    fn tracked(&self) -> bool {
-        crate::instrument::has_tracker_rows(&self.data.measurements)
-    }
-
-    /// `None` for tracker data.
-    fn of(
-        data: &DataSet,
-        validation: Option<&DataSet>,
-        distances: &[crate::instrument::SeatDistance],
-    ) -> Result<Option<InstrumentData>, IoError> {
-        let Some((points, pairs, indexed)) = crate::instrument::index_points(&data.measurements, distances).map_err(|e| data.locate(e))?
-        else {
-            return Ok(None);
-        };
-        // The known distances' rows: ids −1, −2, … after the file's rows.
-        let mut ids = data.ids.clone();
-        let mut lines = data.lines.clone();
-        for k in 0..pairs.len() {
-            ids.push(-(k as i64) - 1);
-            lines.push(0);
-        }
-        let validation = match validation {
-            None => None,
-            Some(v) => {
-                let tracked = crate::instrument::has_tracker_rows(&indexed);
-                let (vpoints, _, vindexed) = match crate::instrument::index_points(&v.measurements, &[]).map_err(|e| v.locate(e))? {
-                    Some(i) => i,
-                    // Tracker rows alone: held out from a fit the tracker placed.
-                    None if tracked => (Vec::new(), Vec::new(), crate::instrument::mixed::tracker_only(&v.measurements)),
-                    None => return Err(IoError::Invalid {
-                        path: v.path.clone(),
-                        message:
-                            "the identification data are an instrument's (seats or distances); the validation data must be the same kind"
-                                .into(),
-                    }),
-                };
-                let mut measurements = vindexed;
-                for (m, line) in measurements.iter_mut().zip(&v.lines) {
-                    if m.q.last() == Some(&crate::instrument::NO_POINT) {
-                        if !tracked {
-                            return Err(IoError::AtLine {
-                                path: v.path.clone(),
-                                line: *line,
-                                message: "a tracker row, and the identification data hold none: the tracker's frame is not placed for it (give tracker rows in the identification data too)".into(),
-                            });
-                        }
-                        continue;
-                    }
-                    let at = m.q.pop().expect("indexed") as usize;
-                    let p = &vpoints[at];
-                    let k = points
-                        .iter()
-                        .position(|x| x.kind == p.kind && x.id == p.id)
-                        .ok_or_else(|| IoError::Invalid {
-                            path: v.path.clone(),
-                            message: format!(
-                                "{} {} is not in the identification data: --validation rows must use the seats and pivots placed there; judge new placements after identifying, with `kinecal validate CALIBRATED.toml {}` (each seat's spread, the known distances' errors)",
-                                p.kind.name(),
-                                p.id,
-                                v.path.display()
-                            ),
-                        })?;
-                    m.q.push(k as f64);
-                    // A reading's row carries its pivot's reference: the identification's.
-                    if let Measurement {
-                        obs: crate::measure::Observation::Distance { length, .. },
-                        ..
-                    } = m
-                    {
-                        match (p.zero, points[k].zero) {
-                            (Some(held), Some(fit)) => *length += fit.reference - held.reference,
-                            (None, None) => {}
-                            _ => {
-                                return Err(IoError::Invalid {
-                                    path: v.path.clone(),
-                                    message: format!("pivot {}: give lengths (length_mm) in both the identification and the validation data, or readings (reading_mm) in both", p.id),
-                                })
-                            }
-                        }
-                    }
-                }
-                Some(DataSet { measurements, ..v.clone() })
-            }
-        };
-        Ok(Some(InstrumentData {
-            points,
-            pairs,
-            data: DataSet {
-                measurements: indexed,
-                ids,
-                lines,
-                ..data.clone()
-            },
-            validation,
-        }))
-    }
-}
-
 /// A mechanism without frames, its free parameters, and a tool frame to start from.
 type Nominal = (Box<dyn Mechanism>, Vec<usize>, Pose);
 
@@ -470,7 +397,7 @@ pub fn instrument_model(
     data: &DataSet,
     distances: &[crate::instrument::SeatDistance],
 ) -> Result<Option<InstrumentModel>, IoError> {
-    let Some(i) = InstrumentData::of(data, None, distances)? else {
+    let Some(i) = InstrumentData::of(data, None, distances, &[])? else {
         return Ok(None);
     };
     let (start, free, _) = instrument_start(model, &i)?;
@@ -589,6 +516,8 @@ struct Judged<'a, M> {
     blunders: &'a [i64],
     outcomes: &'a [StartOutcome],
     start_tolerance_mm: f64,
+    /// A validation file's instrument rows judged with their own artifacts.
+    held_out: Option<crate::report::HeldOutPlacements>,
 }
 
 /// The report and its verdict: errors before and after on both sets, the corrections against
@@ -617,10 +546,19 @@ fn judge<M: Mechanism + Clone>(
         .outliers
         .retain(|o| j.in_fit.get(o.pose).copied().unwrap_or(true));
     report.blunders = j.blunders.to_vec();
-    report.set_ids(&data.ids, validation.map(|v| v.ids.as_slice()));
+    // The poses' ids: the known distances' rows (ids −1, −2, … after the file's) are no poses.
+    let pose_ids: Vec<i64> = (data.ids.iter().zip(&data.measurements))
+        .filter(|(_, m)| !crate::report::is_known_distance(m))
+        .map(|(id, _)| *id)
+        .collect();
+    report.set_ids(&pose_ids, validation.map(|v| v.ids.as_slice()));
+    let seats: Vec<(usize, usize)> = opts.seat_distances.iter().map(|d| (d.a, d.b)).collect();
+    let known = crate::report::artifacts::known_distances(j.start, &j.identification.model, &data.measurements, &seats, j.in_fit);
+    report.set_known_distances(known);
     report.set_inputs(&model.inputs());
     report.tolerance_check = Some(tolerances::tolerance_check(j.identification, j.free, &model.tolerances));
     report.serial_chain = matches!(model.mechanism, MechanismSpec::Serial(_));
+    report.held_out = j.held_out.clone();
     report.assess(&opts.noise, &model.tolerances);
     report.judge_kinds(crate::report::kinds::kind_residuals(
         &j.identification.model,

@@ -25,7 +25,6 @@
 //! names the parameters that are redundant.
 use crate::error::{CalibError, KinError};
 use crate::measure::{Measurement, Observation};
-use crate::model::framed::Framed;
 use crate::model::{ForwardAndObserved, Mechanism, Task};
 use crate::params::{Param, Unit};
 use crate::se3::Pose;
@@ -37,12 +36,15 @@ pub mod mixed;
 mod offset;
 mod planned;
 pub mod simulate;
+mod start;
 pub mod touch;
 pub mod zero;
 pub use held_out::{held_out, CubeFit, HeldOut, PivotFit, SeatSpread};
 pub use mixed::{has_tracker_rows, NO_POINT};
+#[cfg(test)]
 use offset::fit_offset_and_pivots;
 pub use planned::measure_planned;
+pub use start::start_points;
 pub use zero::{sphere_and_zero, Zero, MIN_ZERO_PIVOT_ROWS};
 
 pub use crate::measure::PointKind;
@@ -222,185 +224,6 @@ pub fn index_points(measurements: &[Measurement], distances: &[SeatDistance]) ->
     Ok(Some((points, pairs, indexed)))
 }
 
-/// Start the tool offset of `framed` and the centres of `points` from `indexed` measurements
-/// ([`index_points`]) at the nominal geometry (module docs): the seats and the tool-point offset
-/// together by linear least squares over every seat row, then each pivot by a sphere fit.
-/// Returns the framed mechanism with its tool offset moved, and the points placed.
-pub fn start_points<M: Mechanism + Clone + 'static>(
-    mut framed: Framed<M>,
-    mut points: Vec<ArtifactPoint>,
-    pairs: Vec<(usize, usize)>,
-    indexed: &[Measurement],
-) -> Result<Artifact<Framed<M>>, CalibError> {
-    let n_q = framed.inner.input_names().len();
-    // The rows of the machine (not the known distances between seats, last).
-    let indexed = &indexed[..indexed.len() - pairs.len()];
-    // With tracker rows the frames were registered on them: the tool point is placed.
-    let tracked = has_tracker_rows(indexed);
-    let (indexed, poses): (Vec<&Measurement>, Vec<(usize, Pose)>) = indexed
-        .iter()
-        .enumerate()
-        .filter(|(_, m)| !mixed::is_tracker_row(&m.q, n_q))
-        .map(|(i, m)| {
-            let pose = framed
-                .forward(&m.q[..n_q])
-                .map_err(|source| CalibError::Kinematics { pose: i, source })?;
-            Ok((m, (m.q[n_q] as usize, pose)))
-        })
-        .collect::<Result<Vec<_>, CalibError>>()?
-        .into_iter()
-        .unzip();
-    let seats: Vec<usize> = (0..points.len()).filter(|&k| points[k].kind == PointKind::Seat).collect();
-    // The tool-point offset found from the seats (tool frame), zero without seats.
-    let mut t = Vector3::zeros();
-    if !seats.is_empty() {
-        // Unknowns: the tool-point offset t (tool frame), then each seat's centre.
-        let col = |k: usize| 3 + 3 * seats.iter().position(|&s| s == k).expect("a seat");
-        let rows: Vec<&(usize, Pose)> = poses.iter().filter(|(k, _)| points[*k].kind == PointKind::Seat).collect();
-        let mut a = DMatrix::zeros(3 * rows.len(), 3 + 3 * seats.len());
-        let mut b = DVector::zeros(3 * rows.len());
-        for (r, (k, pose)) in rows.iter().enumerate() {
-            let rot = pose.rotation.to_rotation_matrix();
-            a.view_mut((3 * r, 0), (3, 3)).copy_from(rot.matrix());
-            for i in 0..3 {
-                a[(3 * r + i, col(*k) + i)] = -1.0;
-                b[3 * r + i] = -pose.translation.vector[i];
-            }
-        }
-        let x = a
-            .svd(true, true)
-            .solve(&b, 1e-10)
-            .map_err(|e| CalibError::Numerical(format!("placing the seats: {e}")))?;
-        t = Vector3::new(x[0], x[1], x[2]);
-        framed.tool *= Translation3::from(t);
-        for &k in &seats {
-            let c = col(k);
-            points[k].centre = Vector3::new(x[c], x[c + 1], x[c + 2]);
-        }
-    }
-    let pivots: Vec<usize> = (0..points.len()).filter(|&k| points[k].kind == PointKind::Pivot).collect();
-    if !pivots.is_empty() {
-        let rows: Vec<(usize, Pose, f64)> = poses
-            .iter()
-            .zip(&indexed)
-            .filter_map(|((k, pose), m)| match m.obs {
-                Observation::Distance { length, .. } => Some((*k, *pose, length)),
-                _ => None,
-            })
-            .collect();
-        place_pivots(&rows, &t, &pivots, &mut points)?;
-        // Without seats the tool-point offset is found with the pivots (Levenberg–Marquardt on
-        // the lengths over the offset and every pivot's centre, [`offset_and_pivots`]). That fit
-        // has local minima (a head that only tilts, started at its platform's centre, stops
-        // 100 mm off), so it starts from the flange origin and from one bar length along each
-        // axis of the tool frame either way, and keeps a clearly lower cost.
-        if seats.is_empty() && !tracked {
-            // A reading's row: its length as placed for the flange origin.
-            let length = |(k, _, l): &(usize, Pose, f64)| points[*k].zero.map_or(*l, |z| l - z.reference + z.value);
-            let bar = rows.iter().map(length).sum::<f64>() / rows.len().max(1) as f64;
-            let mut best: Option<(Vector3<f64>, f64, Vec<ArtifactPoint>)> = None;
-            for t0 in std::iter::once(Vector3::zeros()).chain(offset::along_each_axis(bar)) {
-                let mut candidate = points.clone();
-                if let Some((t, cost)) = offset_and_pivots(&rows, t0, &pivots, &mut candidate) {
-                    // Another start replaces the first (the flange origin) only at a clearly
-                    // lower cost: a machine that never turns its tool (a delta) cannot tell
-                    // the offset from the pivots, and keeps the flange origin.
-                    if best.as_ref().is_none_or(|b| cost < 0.5 * b.1) {
-                        best = Some((t, cost, candidate));
-                    }
-                }
-            }
-            if let Some((t_best, _, placed)) = best {
-                (t, points) = (t_best, placed);
-            }
-            framed.tool *= Translation3::from(t);
-        }
-    }
-    if points.iter().any(|p| p.kind > PointKind::Pivot) {
-        let flange = |pose: &Pose| (pose * framed.tool.inverse()).translation.vector;
-        let rows: Vec<_> = poses
-            .iter()
-            .zip(indexed)
-            .map(|((k, pose), m)| (*k, *pose, flange(pose), &m.obs))
-            .collect();
-        if seats.is_empty() && !tracked && !points.iter().any(|p| p.kind == PointKind::Pivot) {
-            // Touches alone: the tool-point offset is found with the artifacts.
-            framed.tool *= Translation3::from(touch::offset_and_touched(&rows, &mut points)?);
-        } else {
-            touch::place(&rows, &mut points)?;
-        }
-    }
-    Ok(Artifact {
-        inner: framed,
-        points,
-        pairs,
-    })
-}
-
-/// Rounds of placing the pivots for the current tool-point offset and fitting both again
-/// ([`start_points`] without seats).
-const OFFSET_ROUNDS: usize = 5;
-
-/// Each pivot of `pivots` (indices into `points`) placed by a sphere fit of the tool points at
-/// offset `t` to its rows' lengths (rows: point index, flange pose, length).
-fn place_pivots(rows: &[(usize, Pose, f64)], t: &Vector3<f64>, pivots: &[usize], points: &mut [ArtifactPoint]) -> Result<(), CalibError> {
-    for &k in pivots {
-        let sphere: Vec<(Vector3<f64>, f64)> = rows
-            .iter()
-            .filter(|(j, ..)| *j == k)
-            .map(|(_, pose, l)| (pose.translation.vector + pose.rotation * t, *l))
-            .collect();
-        let placed = match points[k].zero {
-            // The rows carry reading + reference: e = zero − reference.
-            Some(z) => sphere_and_zero(&sphere).map(|(c, e)| {
-                (
-                    c,
-                    Some(Zero {
-                        value: z.reference + e,
-                        ..z
-                    }),
-                )
-            }),
-            None => sphere_centre(&sphere).map(|c| (c, None)),
-        };
-        (points[k].centre, points[k].zero) = placed.ok_or_else(|| {
-            CalibError::InvalidOption(format!(
-                "pivot {}: its rows do not place it (the tool points lie in a plane or on a line); measure from more spread poses",
-                points[k].id
-            ))
-        })?;
-    }
-    Ok(())
-}
-
-/// The tool-point offset and the pivots from offset `t0`: the pivots placed for the offset,
-/// then both fitted together; where that stalls with pivots placed for an offset far from the
-/// one it reached, placing them again and fitting again moves on (rounds while the cost falls).
-/// The offset and the cost `Σ r²` reached, the centres moved; `None` when no pivot could be placed.
-fn offset_and_pivots(
-    rows: &[(usize, Pose, f64)],
-    t0: Vector3<f64>,
-    pivots: &[usize],
-    points: &mut [ArtifactPoint],
-) -> Option<(Vector3<f64>, f64)> {
-    place_pivots(rows, &t0, pivots, points).ok()?;
-    let (mut t, mut cost, mut best) = (t0, f64::INFINITY, None);
-    for _ in 0..OFFSET_ROUNDS {
-        let (t_next, c) = fit_offset_and_pivots(rows, t, points);
-        if c.is_nan() || c >= cost * (1.0 - 1e-9) {
-            break;
-        }
-        (cost, t) = (c, t_next);
-        best = Some((t, c, points.to_vec()));
-        if place_pivots(rows, &t, pivots, points).is_err() {
-            break;
-        }
-    }
-    let (t, c, placed) = best?;
-    points.clone_from_slice(&placed);
-    Some((t, c))
-}
-
 /// A fitted tool point counts as collapsed onto its pivot's other rows when its spread is below
 /// this share of the starting model's.
 pub const COLLAPSE: f64 = 0.1;
@@ -557,12 +380,6 @@ impl<M: Mechanism> Artifact<M> {
         let zero_column = self.zero_index(k).map_or(usize::MAX, |z| p + self.n_point_params() + z);
         self.with_zero(k, zero_column, (shift * pose, out))
     }
-
-    /// The inverse of point `k`'s frame ([`Self::frame`]): for a seat or a pivot, the translation
-    /// by minus its centre.
-    fn shift(&self, k: usize) -> Pose {
-        self.frame(k).inverse()
-    }
 }
 
 impl<M: Mechanism + Clone + 'static> Mechanism for Artifact<M> {
@@ -658,6 +475,10 @@ impl<M: Mechanism + Clone + 'static> Mechanism for Artifact<M> {
     }
     fn task(&self) -> Task {
         self.inner.task()
+    }
+    /// The machine's drawing (the artifacts are the report's to draw).
+    fn skeleton(&self) -> Vec<Vec<Vector3<f64>>> {
+        self.inner.skeleton()
     }
     fn observed_joints(&self) -> Vec<(String, Unit)> {
         self.inner.observed_joints()

@@ -110,6 +110,15 @@ class Calibration:
         return None if v is None else dict(v["after_stats"])
 
     @property
+    def held_out(self) -> Optional[Dict[str, Any]]:
+        """A validation set of instrument rows (seats, pivots, touches: held-out placements with
+        artifacts of their own, each placed by its own rows with the model fixed), if one was
+        given: ``rows``, ``before_rms_mm`` / ``after_rms_mm`` (nominal / calibrated, every row),
+        and ``nominal`` / ``calibrated``, each what :func:`validate_instrument` returns (mm)."""
+        h = self.report.get("held_out")
+        return None if h is None else dict(h)
+
+    @property
     def blunders(self) -> List[int]:
         """Ids of the poses set aside as gross blunders."""
         return list(self._raw.blunders)
@@ -125,8 +134,13 @@ class Calibration:
         return f'<iframe srcdoc="{page}" style="width:100%;height:820px;border:1px solid #ddd"></iframe>'
 
     def __repr__(self) -> str:
-        v = self.validation
-        held = f", held-out RMS {v['position_rms_mm']:.4f} mm" if v else ""
+        v, h = self.validation, self.held_out
+        if v:
+            held = f", held-out RMS {v['position_rms_mm']:.4f} mm"
+        elif h:
+            held = f", held-out placements {h['before_rms_mm']:.4f} → {h['after_rms_mm']:.4f} mm RMS"
+        else:
+            held = ""
         return f"Calibration({self.report['model']!r}: {self.verdict}, σ̂₀ {self.sigma0:.3f}{held})"
 
 
@@ -164,6 +178,7 @@ def calibrate(
     huber: float = 5.0,
     seat_distances: Sequence[str] = (),
     kind_noise: Sequence[str] = (),
+    validation_seat_distances: Sequence[str] = (),
 ) -> Calibration:
     """Identify the model's free parameters from ``data`` — the call behind ``kinecal identify``,
     with the same options: the measurement and tool frames found from the data (``frames=
@@ -174,7 +189,10 @@ def calibrate(
     "points"`` to fit three reflector centres; for seat data (a ``seat`` column), known distances
     between seats as ``"A:B:MM"`` strings (``seat_distances``, docs/instruments.md); each
     instrument kind's own noise as ``"KIND=MM"`` strings (``kind_noise``, e.g. ``"probe=0.005"``,
-    ``"seat=0.01"``, ``"distance=0.001"``; a kind without its own takes ``noise_mm``)."""
+    ``"seat=0.01"``, ``"distance=0.001"``; a kind without its own takes ``noise_mm``). Instrument
+    rows in ``validation`` are held-out placements with artifacts of their own (``Calibration.
+    held_out``); ``validation_seat_distances`` (``"A:B:MM"``, that file's seat numbers) are the
+    known distances between their seats."""
     return Calibration(
         _kinecal.calibrate(
             model,
@@ -193,6 +211,7 @@ def calibrate(
             huber=huber,
             seat_distances=list(seat_distances),
             kind_noise=list(kind_noise),
+            validation_seat_distances=list(validation_seat_distances),
         )
     )
 

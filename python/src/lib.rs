@@ -342,6 +342,13 @@ impl Data {
         self.set.ids.clone()
     }
 
+    /// One line per input with rows beyond the model's limits (the vendor's software limits):
+    /// kept as measured, said as `kinecal` says it on stderr.
+    #[getter]
+    fn warnings(&self) -> Vec<String> {
+        self.set.limit_warnings()
+    }
+
     /// Inputs (n, inputs) in rad / mm.
     #[getter]
     fn q<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
@@ -430,7 +437,7 @@ fn method_of(name: &str) -> PyResult<Method> {
 /// Identify the model's free parameters from `data` (optionally validated on `validation`): the
 /// library call behind `kinecal identify`, with the same options and defaults.
 #[pyfunction]
-#[pyo3(signature = (model, data, validation = None, *, noise_mm = None, noise_deg = None, encoder_noise_deg = None, encoder_noise_mm = None, method = "gauss-newton", frames = "estimate", reflectors = "frame", starts = 3, seed = 1, reweight = false, huber = 5.0, seat_distances = Vec::new(), kind_noise = Vec::new()))]
+#[pyo3(signature = (model, data, validation = None, *, noise_mm = None, noise_deg = None, encoder_noise_deg = None, encoder_noise_mm = None, method = "gauss-newton", frames = "estimate", reflectors = "frame", starts = 3, seed = 1, reweight = false, huber = 5.0, seat_distances = Vec::new(), kind_noise = Vec::new(), validation_seat_distances = Vec::new()))]
 #[allow(clippy::too_many_arguments)]
 fn calibrate(
     py: Python<'_>,
@@ -450,6 +457,7 @@ fn calibrate(
     huber: f64,
     seat_distances: Vec<String>,
     kind_noise: Vec<String>,
+    validation_seat_distances: Vec<String>,
 ) -> PyResult<Calibration> {
     let base = model.file.noise.unwrap_or_default();
     // Each kind's own σ, `KIND=MM` as `kinecal identify --kind-noise` takes it.
@@ -473,12 +481,14 @@ fn calibrate(
     if !huber.is_finite() || huber < 0.0 {
         return Err(err("huber: a finite number of standard deviations ≥ 0 (0 = off)"));
     }
-    let seat_distances = seat_distances
-        .iter()
-        .map(|s| s.parse().map_err(|e: String| err(format!("seat_distances: {e}"))))
-        .collect::<PyResult<Vec<_>>>()?;
+    let distances = |list: &[String], what: &str| {
+        list.iter()
+            .map(|s| s.parse().map_err(|e: String| err(format!("{what}: {e}"))))
+            .collect::<PyResult<Vec<_>>>()
+    };
     let opts = CalibrationOptions {
-        seat_distances,
+        seat_distances: distances(&seat_distances, "seat_distances")?,
+        validation_seat_distances: distances(&validation_seat_distances, "validation_seat_distances")?,
         compare_terms: true,
         method: method_of(method)?,
         noise,

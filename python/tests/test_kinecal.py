@@ -152,6 +152,39 @@ def test_python_equals_the_command_line_on_the_quickstart_files(tmp_path):
     assert abs(cal.validation["position_rms_mm"] - cli["validation"]["after_stats"]["position_rms_mm"]) <= 1e-12
 
 
+def test_held_out_placements_are_their_own_artifacts_as_on_the_command_line(tmp_path):
+    """Real seat data (tests/data/mukca-panda): three placements identify, the fourth is the
+    validation set with its sockets numbered 0 and 1 like the first placement's; calibrate()
+    judges them as held-out artifacts of their own (Calibration.held_out), with the figures
+    `kinecal validate` gives on the written model, and the warnings of a narrowed URDF limit."""
+    exe = kinecal_binary()
+    if exe is None:
+        pytest.skip("no kinecal binary built (cargo build) next to the package")
+    run = lambda *a: subprocess.run([exe, *a], cwd=tmp_path, check=True, capture_output=True, text=True).stdout
+    data = ROOT / "tests/data/mukca-panda"
+    urdf = (data / "panda.urdf").read_text().replace('lower="-3.0718"', 'lower="-2.8900"', 1)
+    (tmp_path / "panda.urdf").write_text(urdf)
+    run("model", "import", "panda.urdf", "--tip", "ball_link", "-o", "panda.toml")
+    def join(places, out):
+        seats = [a for p in places for s in (0, 1) for a in ("--seat", str(data / p / f"socket_{s}.csv"))]
+        run("data", "join", "panda.toml", *seats, "--angles", "rad", "--out", out)
+    join(["back_left", "front_right", "high"], "ident.csv")
+    join(["mid_left"], "held.csv")
+    m = kinecal.Model.load(str(tmp_path / "panda.toml"))
+    ident = kinecal.Data.read(str(tmp_path / "ident.csv"), m)
+    assert len(ident.warnings) == 1 and "panda_joint4: " in ident.warnings[0] and "vendor's software limits" in ident.warnings[0]
+    cal = kinecal.calibrate(m, ident, kinecal.Data.read(str(tmp_path / "held.csv"), m),
+                            seat_distances=["0:1:50", "2:3:50", "4:5:50"], validation_seat_distances=["0:1:50"])
+    h = cal.held_out
+    assert cal.validation is None and h["rows"] == 63 and cal.verdict != "failed"
+    (tmp_path / "cal.toml").write_text(cal.model.to_toml())
+    cli = json.loads(run("validate", "cal.toml", "held.csv", "--seat-distance", "0:1:50", "--json"))["instrument"]
+    for mine, theirs in zip(h["calibrated"]["seats"], cli["seats"]):
+        assert abs(mine["rms_mm"] - theirs["rms_mm"]) <= 1e-9
+    assert abs(h["calibrated"]["distances"][0][3] - cli["distances"][0][3]) <= 1e-9
+    assert h["before_rms_mm"] > 3.0 and h["after_rms_mm"] < 0.5
+
+
 def test_plan_chooses_a_well_conditioned_set():
     m = kinecal.Model.load("irb120")
     rng = np.random.default_rng(3)

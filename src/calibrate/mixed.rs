@@ -16,7 +16,7 @@ use crate::register::register;
 /// [`crate::instrument::index_points`], `points` and `pairs` its artifact points and known distances): the
 /// frames registered on the tracker rows ([`crate::register`]), then the tool point and the
 /// artifact points started from the instrument rows ([`crate::instrument::start_points`], in the tracker's
-/// frame). Free, in priority order: the frames, the artifact points, the model's free parameters.
+/// frame; a tool point found by seats moves that frame with it). Free, in priority order: the frames, the artifact points, the model's free parameters.
 pub(super) fn start(
     model: &ModelFile,
     data: &DataSet,

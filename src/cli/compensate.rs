@@ -54,6 +54,7 @@ pub fn run(a: CompensateArgs) -> anyhow::Result<()> {
     let model = file.build();
     let inputs = file.inputs();
     let data = read_data(&a.targets, &file.data_columns(), InputColumns::Optional)?;
+    super::warn_limits(&data);
     let targets = target_poses(&data.measurements).map_err(|i| {
         anyhow::anyhow!(
             "{}:{}: a target needs an orientation (qw,qx,qy,qz or roll,pitch,yaw), not only a position",

@@ -119,12 +119,13 @@ fn summary(d: &DataSet, json: bool) -> anyhow::Result<()> {
     };
     // The rows per artifact (seat, pivot, sphere, plane, cube face).
     let artifacts = kinecal::measure::artifact_rows(&d.measurements);
+    // (stderr, so that --json stays one document on stdout.)
+    super::warn_limits(d);
     if json {
         println!(
             "{}",
-            serde_json::to_string_pretty(
-                &serde_json::json!({"path": d.path, "poses": d.measurements.len(), "format": format, "artifacts": artifacts})
-            )?
+            serde_json::to_string_pretty(&serde_json::json!({"path": d.path, "poses": d.measurements.len(), "format": format,
+                "artifacts": artifacts, "beyond_limits": d.beyond_limits}))?
         );
     } else {
         println!("{}: {} poses, measured: {format}", d.path.display(), d.measurements.len());
@@ -196,6 +197,7 @@ pub fn run(args: DataArgs) -> anyhow::Result<()> {
             let file = ModelFile::load_or_builtin(&model)?;
             let inputs = file.data_columns();
             let d = read_data(&data, &inputs, InputColumns::Required)?;
+            super::warn_limits(&d);
             let (a, b) = split(&d, rule);
             for (part, path) in [(&a, &out), (&b, &rest)] {
                 anyhow::ensure!(!part.ids.is_empty(), "--by {by}: {} would get no pose", path.display());

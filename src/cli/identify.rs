@@ -52,9 +52,16 @@ pub struct IdentifyArgs {
     /// Where to write the calibrated model (TOML, same format and units as the input model).
     #[arg(long, short)]
     pub out: PathBuf,
-    /// Independent validation data (CSV), evaluated before and after calibration.
+    /// Independent validation data (CSV), evaluated before and after calibration. Instrument
+    /// data (seats, pivots, touches) are held-out placements: their artifacts are their own,
+    /// each placed by its own rows with the model fixed, as `kinecal validate` judges them.
     #[arg(long)]
     pub validation: Option<PathBuf>,
+    /// A known distance between two seats of the validation data, `A:B:MM`, numbered as in that
+    /// file (its seats are its own, whatever the identification data's numbers); its error is
+    /// reported before and after and judged. Repeat for more.
+    #[arg(long = "validation-seat-distance", value_name = "A:B:MM", requires = "validation")]
+    pub validation_seat_distances: Vec<kinecal::instrument::SeatDistance>,
     /// Write the HTML report here.
     #[arg(long)]
     pub report: Option<PathBuf>,
@@ -177,6 +184,7 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
     let opts = CalibrationOptions {
         compare_terms: true,
         seat_distances: a.seat_distances.clone(),
+        validation_seat_distances: a.validation_seat_distances.clone(),
         method: match a.method {
             MethodArg::GaussNewton => Method::GaussNewton,
             MethodArg::Linear => Method::Linear,
@@ -218,6 +226,7 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         if let Some(note) = d.dropped_note() {
             eprintln!("{note}");
         }
+        super::warn_limits(d);
     }
     let sp = progress::spinner(&format!("identifying {} on {} poses", file.name, data.measurements.len()), a.json);
     let cal = calibrate(&file, &data, validation.as_ref(), &opts)?;
@@ -276,13 +285,33 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         report.iterations,
         report.sigma0
     );
-    if report.kinds.len() > 1 {
+    if report.kinds.len() > 1 || report.kinds.iter().any(|k| k.instrument()) {
         for k in &report.kinds {
             println!(
-                "  {} rows ({}): residual {:.4} mm RMS, {:.2}× their σ {:.4} mm",
-                k.kind, k.rows, k.rms_mm, k.ratio, k.sigma_mm
+                "  {} rows ({}): residual {:.4} mm RMS ({}), {:.2}× their σ {:.4} mm",
+                k.kind,
+                k.rows,
+                k.rms_mm,
+                k.what(),
+                k.ratio,
+                k.sigma_mm
             );
         }
+    }
+    if let Some(worst) = report
+        .known_distances
+        .iter()
+        .max_by(|a, b| a.error_mm.abs().total_cmp(&b.error_mm.abs()))
+    {
+        println!(
+            "{} known distances between seats: calibrated within {:.4} mm of the stated (seats {}–{}: {:.4} mm for {} mm)",
+            report.known_distances.len(),
+            worst.error_mm.abs(),
+            worst.seats.0,
+            worst.seats.1,
+            worst.fitted_mm,
+            worst.known_mm
+        );
     }
     // Draw-wire readings (reading_mm): each pivot's zero, placed with the calibrated model.
     if let Ok(h) = kinecal::instrument::held_out(&*cal.model_file.build(), &data.measurements, &[]) {
@@ -315,6 +344,11 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
     if let Some(v) = &report.validation {
         println!("validation set before:     {}", v.before_stats);
         println!("validation set after:      {}", v.after_stats);
+    }
+    if let Some(h) = &report.held_out {
+        for line in h.lines() {
+            println!("{line}");
+        }
     }
     for (set, s) in std::iter::once(("identification", &report.identification)).chain(report.validation.as_ref().map(|v| ("validation", v)))
     {

@@ -61,6 +61,14 @@ pub fn note_held(file: &kinecal::io::model_file::ModelFile, json: bool) {
     }
 }
 
+/// One `warning:` line on stderr per input of `data` with rows beyond the model's limits (kept
+/// as measured: [`kinecal::io::data_file::BeyondLimits`]).
+pub fn warn_limits(data: &kinecal::io::data_file::DataSet) {
+    for line in data.limit_warnings() {
+        eprintln!("warning: {line}");
+    }
+}
+
 /// The current UTC date and time as ISO 8601 (`2026-11-24T13:05:00Z`), for provenance records.
 pub fn utc_now() -> String {
     let secs = std::time::SystemTime::now()

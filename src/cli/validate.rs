@@ -33,6 +33,7 @@ pub fn run(a: ValidateArgs) -> anyhow::Result<()> {
     if let Some(note) = data.dropped_note() {
         eprintln!("{note}");
     }
+    super::warn_limits(&data);
     if matches!(
         data.format,
         MeasurementFormat::Seat | MeasurementFormat::Distance | MeasurementFormat::Touch

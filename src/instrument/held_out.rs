@@ -95,9 +95,49 @@ pub struct HeldOut {
 impl HeldOut {
     /// 3-D RMS spread over every seat row (mm), `None` without seats.
     pub fn seat_rms_mm(&self) -> Option<f64> {
-        let rows: usize = self.seats.iter().map(|s| s.rows).sum();
-        (rows > 0).then(|| (self.seats.iter().map(|s| s.rms_mm * s.rms_mm * s.rows as f64).sum::<f64>() / rows as f64).sqrt())
+        self.kind_rms_mm(PointKind::Seat).map(|(_, _, rms)| rms)
     }
+
+    /// Each artifact judged: its kind, rows and RMS residual (mm).
+    fn groups(&self) -> impl Iterator<Item = (PointKind, usize, f64)> + '_ {
+        let seats = self.seats.iter().map(|s| (PointKind::Seat, s.rows, s.rms_mm));
+        let pivots = self.pivots.iter().map(|p| (p.kind, p.rows, p.rms_mm));
+        let planes = self.planes.iter().map(|p| (PointKind::Plane, p.rows, p.rms_mm));
+        let cubes = self.cubes.iter().map(|c| (PointKind::Cube, c.rows, c.rms_mm));
+        seats.chain(pivots).chain(planes).chain(cubes)
+    }
+
+    /// Rows judged, every artifact.
+    pub fn rows(&self) -> usize {
+        self.groups().map(|g| g.1).sum()
+    }
+
+    /// RMS over every row of its residual (mm): a seat row's distance from its seat's mean, a
+    /// pivot's or sphere's length residual, a plane touch's distance from its best plane, a cube
+    /// touch's from its placed face. `None` without rows.
+    pub fn rms_mm(&self) -> Option<f64> {
+        pooled(self.groups())
+    }
+
+    /// Artifacts of `kind`, their rows and the RMS of those rows' residuals (mm, as
+    /// [`HeldOut::rms_mm`]); `None` when there is none of that kind.
+    pub fn kind_rms_mm(&self, kind: PointKind) -> Option<(usize, usize, f64)> {
+        let of: Vec<_> = self.groups().filter(|g| g.0 == kind).collect();
+        let rows = of.iter().map(|g| g.1).sum();
+        pooled(of.iter().copied()).map(|rms| (of.len(), rows, rms))
+    }
+
+    /// RMS of the known distances' errors (mm), `None` without known distances.
+    pub fn distance_error_rms_mm(&self) -> Option<f64> {
+        let n = self.distances.len();
+        (n > 0).then(|| (self.distances.iter().map(|d| d.3 * d.3).sum::<f64>() / n as f64).sqrt())
+    }
+}
+
+/// The RMS over every row of groups given as (kind, rows, RMS).
+fn pooled(groups: impl Iterator<Item = (PointKind, usize, f64)>) -> Option<f64> {
+    let (rows, sum) = groups.fold((0usize, 0.0), |(n, s), (_, r, rms)| (n + r, s + rms * rms * r as f64));
+    (rows > 0).then(|| (sum / rows as f64).sqrt())
 }
 
 /// `model`'s tool points at `measurements` (seat or distance rows, as read) judged as the module

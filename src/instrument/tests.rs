@@ -2,6 +2,7 @@
 use super::*;
 use crate::measure::{residual, residual_jacobian, Touch};
 use crate::model::builtin::irb120;
+use crate::model::framed::Framed;
 use crate::se3;
 
 fn artifact() -> Artifact<Framed<crate::model::chain::SerialChain>> {

@@ -150,6 +150,12 @@ impl<M> Artifact<M> {
         self.points[k].frame()
     }
 
+    /// The inverse of point `k`'s frame ([`Self::frame`]): for a seat or a pivot, the translation
+    /// by minus its centre.
+    pub(super) fn shift(&self, k: usize) -> Pose {
+        self.frame(k).inverse()
+    }
+
     /// How many parameters the points have (three each, six for a cube).
     pub fn n_point_params(&self) -> usize {
         self.point_offset(self.points.len())

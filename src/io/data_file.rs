@@ -85,6 +85,10 @@ pub struct DataSet {
     /// Inputs the file did not hold and that were derived from its row order (the approach
     /// directions `dir_<joint>` of a model with lost motion).
     pub derived: Vec<String>,
+    /// Inputs with rows beyond the model's limits, kept as measured: a model file's limits are
+    /// the vendor's software limits, not the robot's ([`BeyondLimits`]; one warning line each,
+    /// [`DataSet::limit_warnings`]).
+    pub beyond_limits: Vec<BeyondLimits>,
 }
 
 impl DataSet {
@@ -92,7 +96,7 @@ impl DataSet {
     /// for the file in messages. Pose observations are marked as poses, positions as positions.
     pub fn from_measurements(name: &str, measurements: Vec<Measurement>) -> DataSet {
         let format = match measurements.first().map(|m| &m.obs) {
-            _ if mixed::needs_mixed(&measurements) => MeasurementFormat::Mixed,
+            _ if mixed::needs_mixed(&measurements) && !mixed::touches_only(&measurements) => MeasurementFormat::Mixed,
             Some(Observation::Position(_)) => MeasurementFormat::Position,
             Some(Observation::Seat(_)) => MeasurementFormat::Seat,
             Some(Observation::Distance { .. }) => MeasurementFormat::Distance,
@@ -108,8 +112,15 @@ impl DataSet {
             dropped: Vec::new(),
             reflectors: Vec::new(),
             derived: Vec::new(),
+            beyond_limits: Vec::new(),
             measurements,
         }
+    }
+
+    /// One line per input with rows beyond the model's limits, naming the file:
+    /// `d.csv: panda_joint4: 12 rows beyond the model's limits […] rad, by up to 0.1623 rad (9.30°) …`.
+    pub fn limit_warnings(&self) -> Vec<String> {
+        self.beyond_limits.iter().map(|b| format!("{}: {b}", self.path.display())).collect()
     }
 
     /// A line saying which rows were dropped as lost measurements, if any:
@@ -292,91 +303,6 @@ pub fn read_data(path: &Path, inputs: &[InputSpec], input_columns: InputColumns)
     data_from_table(&table, inputs, input_columns)
 }
 
-/// The configurations of a file that holds the inputs of each row: a plan, a measurement data
-/// file (its measurement columns are not read) or an inputs-only file such as the commands of
-/// `kinecal compensate`. Inputs in mm / rad, one per row.
-pub fn read_configurations(path: &Path, inputs: &[InputSpec]) -> Result<Vec<Vec<f64>>, IoError> {
-    Ok(read_commands(path, inputs)?.1)
-}
-
-/// The ids and inputs (mm / rad) of a file that holds the inputs of each row, as
-/// [`read_configurations`] reads it: also a targets file holding the commands (the test poses of
-/// `kinecal plan --iso9283`: `id`, pose and input columns). Ids: the file's (row numbers from 0
-/// without an `id` column).
-pub fn read_commands(path: &Path, inputs: &[InputSpec]) -> Result<(Vec<i64>, Vec<Vec<f64>>), IoError> {
-    let text = super::read_text(path)?;
-    let table = super::table::parse_table_with_gaps(path, &text)?;
-    let inputs_only = table
-        .columns
-        .iter()
-        .all(|c| matches!(classify(path, c, inputs), Ok((Slot::Id | Slot::Input(_), _))));
-    if inputs_only {
-        // Read as `read_inputs` reads it: an empty cell is an error, not a lost measurement.
-        return inputs_from_table(path, &super::table::parse_table(path, &text)?, inputs);
-    }
-    let data = data_from_table(&table, inputs, InputColumns::Required)?;
-    Ok((data.ids, data.measurements.into_iter().map(|m| m.q).collect()))
-}
-
-/// Read an inputs-only file (an optional `id` column and one column per input, with unit
-/// suffixes), such as the commands `kinecal compensate` writes. Returns the ids (row numbers from
-/// 0 without an `id` column) and the inputs in mm / rad. Any other column is an error.
-pub fn read_inputs(path: &Path, inputs: &[InputSpec]) -> Result<(Vec<i64>, Vec<Vec<f64>>), IoError> {
-    inputs_from_table(path, &read_table(path)?, inputs)
-}
-
-/// [`read_inputs`] of a table already read.
-fn inputs_from_table(path: &Path, table: &Table, inputs: &[InputSpec]) -> Result<(Vec<i64>, Vec<Vec<f64>>), IoError> {
-    let mut slots = Vec::with_capacity(table.columns.len());
-    for col in &table.columns {
-        match classify(path, col, inputs)? {
-            (s @ (Slot::Id | Slot::Input(_)), f) => slots.push((s, f)),
-            _ => {
-                return Err(IoError::AtLine {
-                    path: path.to_path_buf(),
-                    line: 1,
-                    message: format!(
-                        "column '{col}': an inputs file holds only id and the input columns ({})",
-                        input_headers(inputs).join(",")
-                    ),
-                })
-            }
-        }
-    }
-    for (k, inp) in inputs.iter().enumerate() {
-        if !slots.iter().any(|(s, _)| matches!(s, Slot::Input(j) if *j == k)) {
-            if inp.approach_of.is_some() {
-                continue;
-            }
-            return Err(IoError::MissingColumn {
-                path: path.to_path_buf(),
-                column: header_of(inp),
-                header: table.columns.join(","),
-            });
-        }
-    }
-    let mut ids = Vec::with_capacity(table.len());
-    let mut qs = Vec::with_capacity(table.len());
-    for (r, row) in table.rows.iter().enumerate() {
-        let mut q = vec![0.0; inputs.len()];
-        let mut id = r as i64;
-        for ((slot, f), v) in slots.iter().zip(row) {
-            match slot {
-                Slot::Id => id = *v as i64,
-                Slot::Input(k) => q[*k] = v * f,
-                _ => {}
-            }
-        }
-        ids.push(id);
-        qs.push(q);
-    }
-    let present: Vec<bool> = (0..inputs.len())
-        .map(|k| slots.iter().any(|(s, _)| matches!(s, Slot::Input(j) if *j == k)))
-        .collect();
-    crate::model::kind::approach_from_order(inputs, &present, &mut qs);
-    Ok((ids, qs))
-}
-
 /// A model's data columns ([`crate::io::model_file::ModelFile::data_columns`]) split into its
 /// inputs and the observed joints' readings that follow them.
 pub(crate) fn split_observed(columns: &[InputSpec]) -> (&[InputSpec], &[InputSpec]) {
@@ -440,11 +366,13 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
             }
         }
     }
-    let format = match mixed::is_mixed(&slots) {
+    // Rows of several kinds (a mixed file, or touches of several kinds): each row read as one
+    // kind, the other kinds' cells empty.
+    let is_mixed = mixed::is_mixed(&slots);
+    let format = match is_mixed {
         true => mixed::check_columns(table, &slots)?,
         false => columns::measurement_format(table, &slots)?,
     };
-    let is_mixed = format == MeasurementFormat::Mixed;
 
     if table.is_empty() {
         return Err(IoError::Invalid {
@@ -591,11 +519,10 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
                 }
             }
         }
-        if has_inputs {
-            check_limits(path, line, inputs, &q)?;
-        }
         let obs = match format {
+            // Touches of several kinds are read row by row as a mixed file's.
             MeasurementFormat::Mixed => mixed::observation(path, line, &slots, &table.columns, row)?,
+            MeasurementFormat::Touch if is_mixed => mixed::observation(path, line, &slots, &table.columns, row)?,
             MeasurementFormat::Position => Observation::Position(p),
             MeasurementFormat::Seat => Observation::Seat(point),
             MeasurementFormat::Touch => columns::touch(touched, point, size, probe),
@@ -642,7 +569,18 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
             ),
         });
     }
+    let beyond_limits = if has_inputs {
+        // Each input's unit factor as the file states it (none for an input it does not hold).
+        let factors: Vec<Option<f64>> = (0..n_q)
+            .map(|k| slots.iter().find(|(s, _)| matches!(s, Slot::Input(j) if *j == k)).map(|(_, f)| *f))
+            .collect();
+        let qs: Vec<Vec<f64>> = measurements.iter().map(|m| m.q.clone()).collect();
+        limits::check(path, inputs, &factors, &qs, &kept_lines, &ids)?
+    } else {
+        Vec::new()
+    };
     Ok(DataSet {
+        beyond_limits,
         path: path.clone(),
         measurements,
         lines: kept_lines,
@@ -655,36 +593,15 @@ pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: Inpu
     })
 }
 
-/// Each input within its limits (the model file's): a value outside is a wrong unit, a wrong
-/// column order or a wrong model far more often than a real pose.
-fn check_limits(path: &Path, line: usize, inputs: &[InputSpec], q: &[f64]) -> Result<(), IoError> {
-    for (inp, &v) in inputs.iter().zip(q) {
-        let Some((lo, hi)) = inp.limits else { continue };
-        let slack = 1e-9 * (1.0 + lo.abs().max(hi.abs()));
-        if v < lo - slack || v > hi + slack {
-            let (shown, lo_s, hi_s, unit) = match inp.unit {
-                Unit::Angle => (v.to_degrees(), lo.to_degrees(), hi.to_degrees(), "deg"),
-                Unit::Dimensionless => (v, lo, hi, ""),
-                Unit::Length => (v, lo, hi, "mm"),
-            };
-            return Err(IoError::AtLine {
-                path: path.to_path_buf(),
-                line,
-                message: format!(
-                    "{}: {shown:.4} {unit} is outside the model's limits [{lo_s:.4}, {hi_s:.4}] {unit} (check the column's unit and the joint order)",
-                    inp.name
-                ),
-            });
-        }
-    }
-    Ok(())
-}
-
 mod columns;
+mod commands;
+mod limits;
 mod mixed;
 mod write;
 pub use columns::expected_columns;
 use columns::{classify, Slot};
+pub use commands::{read_commands, read_configurations, read_inputs};
+pub use limits::{check as check_limits, BeyondLimits, FAR_BEYOND_RANGE};
 pub use write::{csv_text, data_text, header_of, input_headers, input_values_for_file, write_csv, write_data};
 
 #[cfg(test)]

@@ -8,7 +8,7 @@
 //!
 //! Ids are the rows' order over all files (1, 2, …); approach directions, where the model has
 //! them, follow from that order ([`crate::model::kind::approach_from_order`]).
-use super::data_file::DataSet;
+use super::data_file::{check_limits, DataSet};
 use super::model_file::{AngleUnit, InputSpec, LengthUnit};
 use super::IoError;
 use crate::measure::{Measurement, Observation};
@@ -26,9 +26,21 @@ pub fn join_seat_exports(seats: &[PathBuf], angles: AngleUnit, lengths: LengthUn
         .filter(|(_, i)| i.approach_of.is_none() && !i.observed)
         .collect();
     let n_inputs = columns.iter().filter(|i| !i.observed).count();
+    // Each input's unit factor as the exports state it (none for approach directions).
+    let factors: Vec<Option<f64>> = (columns[..n_inputs].iter())
+        .map(|i| match i.unit {
+            _ if i.approach_of.is_some() => None,
+            Unit::Angle => Some(angles.to_rad()),
+            Unit::Length => Some(lengths.to_mm()),
+            Unit::Dimensionless => Some(1.0),
+        })
+        .collect();
     let mut measurements = Vec::new();
     let mut lines = Vec::new();
+    // Where each file's rows start.
+    let mut starts = Vec::new();
     for (seat, path) in seats.iter().enumerate() {
+        starts.push(measurements.len());
         let text = std::fs::read_to_string(path).map_err(|source| IoError::Read {
             path: path.clone(),
             source,
@@ -124,5 +136,21 @@ pub fn join_seat_exports(seats: &[PathBuf], angles: AngleUnit, lengths: LengthUn
     let mut set = DataSet::from_measurements(&name, measurements);
     set.ids = (1..=set.measurements.len() as i64).collect();
     set.lines = lines;
+    // Rows beyond the model's limits: a mistake refused with its file and line, else one
+    // warning per input over every file ([`super::data_file::BeyondLimits`]).
+    let qs: Vec<Vec<f64>> = set.measurements.iter().map(|m| m.q.clone()).collect();
+    starts.push(qs.len());
+    for (k, path) in seats.iter().enumerate() {
+        let rows = starts[k]..starts[k + 1];
+        check_limits(
+            path,
+            &columns[..n_inputs],
+            &factors,
+            &qs[rows.clone()],
+            &set.lines[rows.clone()],
+            &set.ids[rows],
+        )?;
+    }
+    set.beyond_limits = check_limits(&set.path, &columns[..n_inputs], &factors, &qs, &set.lines, &set.ids)?;
     Ok(set)
 }

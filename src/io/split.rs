@@ -51,6 +51,8 @@ pub fn subset(data: &DataSet, rows: &[usize]) -> DataSet {
             rows.iter().map(|&i| data.reflectors[i]).collect()
         },
         derived: data.derived.clone(),
+        // (Said when the whole file was read.)
+        beyond_limits: Vec::new(),
     }
 }
 

@@ -56,6 +56,8 @@ impl CalibrationReport {
             sets.push(("validation", v));
         }
         self.errors_table(&mut h, &sets);
+        self.held_out_html(&mut h);
+        self.known_distances_html(&mut h);
         self.variants_html(&mut h);
         self.view_html(&mut h);
         maps_html(&mut h, &sets)?;
@@ -104,6 +106,18 @@ impl CalibrationReport {
         if let Some(v) = &self.validation {
             kv(h, "validation data", esc(&v.source));
         }
+        if let Some(ho) = &self.held_out {
+            kv(
+                h,
+                "held-out placements",
+                format!(
+                    "{}: {} → {} mm RMS (below)",
+                    esc(&ho.source),
+                    sig(ho.before_rms_mm),
+                    sig(ho.after_rms_mm)
+                ),
+            );
+        }
         kv(h, "poses (identification)", self.identification.before_stats.poses.to_string());
         kv(
             h,
@@ -125,11 +139,20 @@ impl CalibrationReport {
             format!("{} mm, {} deg", sig(self.noise_mm_deg.0), sig(self.noise_mm_deg.1)),
         );
         kv(h, "σ̂₀ (a-posteriori, 1 = noise model right)", sig(self.sigma0));
-        if self.kinds.len() > 1 {
+        if self.kinds.len() > 1 || self.kinds.iter().any(|k| k.instrument()) {
             let per: Vec<String> = (self.kinds.iter())
-                .map(|k| format!("{} {} mm RMS / σ {} mm = {:.2}", k.kind, sig(k.rms_mm), sig(k.sigma_mm), k.ratio))
+                .map(|k| {
+                    format!(
+                        "{} ({} rows): {} mm RMS, {:.2}× the stated σ {} mm",
+                        k.what(),
+                        k.rows,
+                        sig(k.rms_mm),
+                        k.ratio,
+                        sig(k.sigma_mm)
+                    )
+                })
                 .collect();
-            kv(h, "each kind against its own noise", per.join("; "));
+            kv(h, "σ of each kind after the fit (residual RMS)", per.join("<br>"));
         }
         kv(
             h,
@@ -183,6 +206,92 @@ impl CalibrationReport {
             }
             h.push_str("</table>\n");
         }
+    }
+
+    /// A validation file's instrument rows, its artifacts placed by their own rows.
+    fn held_out_html(&self, h: &mut String) {
+        let Some(ho) = &self.held_out else { return };
+        let _ = write!(
+            h,
+            "<h2 id=\"held-out\">Held-out placements</h2>\n<p>{}: {} rows. Each artifact of this file is its own (never matched to the identification's by number): it is placed by its own rows with the model fixed, under the nominal model (the drawing with the tool point found from the identification data) and the calibrated one, as <code>kinecal validate</code> does. 0 if the model were exact.</p>\n<table id=\"held-out-table\"><tr><th class=\"l\">artifact</th><th>rows</th><th class=\"l\">residual</th><th>nominal RMS mm</th><th>calibrated RMS mm</th><th>calibrated max mm</th></tr>",
+            esc(&ho.source),
+            ho.rows
+        );
+        let (n, c) = (&ho.nominal, &ho.calibrated);
+        let mut row = |name: String, rows: usize, kind, before: f64, after: f64, max: f64| {
+            let _ = write!(
+                h,
+                "<tr><td class=\"l\">{name}</td><td>{rows}</td><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+                super::held_out::residual_of(kind),
+                sig(before),
+                sig(after),
+                sig(max)
+            );
+        };
+        use crate::instrument::PointKind;
+        for (b, a) in n.seats.iter().zip(&c.seats) {
+            row(format!("seat {}", a.seat), a.rows, PointKind::Seat, b.rms_mm, a.rms_mm, a.max_mm);
+        }
+        for (b, a) in n.pivots.iter().zip(&c.pivots) {
+            row(
+                format!("{} {}", a.kind.name(), a.pivot),
+                a.rows,
+                a.kind,
+                b.rms_mm,
+                a.rms_mm,
+                a.max_mm,
+            );
+        }
+        for (b, a) in n.planes.iter().zip(&c.planes) {
+            row(format!("plane {}", a.plane), a.rows, PointKind::Plane, b.rms_mm, a.rms_mm, a.max_mm);
+        }
+        for (b, a) in n.cubes.iter().zip(&c.cubes) {
+            row(format!("cube {}", a.cube), a.rows, PointKind::Cube, b.rms_mm, a.rms_mm, a.max_mm);
+        }
+        let _ = writeln!(
+            h,
+            "<tr><th class=\"l\">every row</th><th>{}</th><th></th><th>{}</th><th>{}</th><th></th></tr></table>",
+            ho.rows,
+            sig(ho.before_rms_mm),
+            sig(ho.after_rms_mm)
+        );
+        if !n.distances.is_empty() {
+            h.push_str(
+                "<table><tr><th class=\"l\">known distance</th><th>mm</th><th>nominal error mm</th><th>calibrated error mm</th></tr>",
+            );
+            for ((x, y, known, before), (.., after)) in n.distances.iter().zip(&c.distances) {
+                let _ = write!(
+                    h,
+                    "<tr><td class=\"l\">seats {x}–{y}</td><td>{}</td><td>{:+.4}</td><td>{:+.4}</td></tr>",
+                    sig(*known),
+                    before,
+                    after
+                );
+            }
+            h.push_str("</table>\n");
+        }
+    }
+
+    /// The known distances between seats the fit held (rows of the fit, not poses).
+    fn known_distances_html(&self, h: &mut String) {
+        if self.known_distances.is_empty() {
+            return;
+        }
+        h.push_str("<h2 id=\"known-distances\">Known distances between seats</h2>\n<p class=\"muted\">Certified dimensions of the artifact (--seat-distance) the fit holds: they give the scale, they are not poses. The seats' centres' distance as the starting model placed them and after calibration.</p><table><tr><th class=\"l\">seats</th><th>known mm</th><th>nominal mm</th><th>calibrated mm</th><th>error mm</th><th class=\"l\"></th></tr>");
+        for d in &self.known_distances {
+            let _ = write!(
+                h,
+                "<tr><td class=\"l\">{}–{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:+.4}</td><td class=\"l warn\">{}</td></tr>",
+                d.seats.0,
+                d.seats.1,
+                sig(d.known_mm),
+                sig(d.nominal_mm),
+                sig(d.fitted_mm),
+                d.error_mm,
+                if d.set_aside { "set aside as a blunder" } else { "" }
+            );
+        }
+        h.push_str("</table>\n");
     }
 
     /// The same data fitted with fewer terms (a model with joint terms only).

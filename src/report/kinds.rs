@@ -23,6 +23,24 @@ pub struct KindResidual {
     pub ratio: f64,
 }
 
+impl KindResidual {
+    /// What its residual measures, e.g. `seat spread (per axis)`, `bar length`.
+    pub fn what(&self) -> &'static str {
+        match RowKind::ALL.into_iter().find(|r| r.name() == self.kind) {
+            Some(RowKind::Tracker) => "tracker position (per axis)",
+            Some(RowKind::Seat) => "seat spread (per axis)",
+            Some(RowKind::Distance) => "bar length",
+            Some(RowKind::Probe) => "touch distance (along the surface's normal)",
+            None => "residual",
+        }
+    }
+
+    /// Whether it is an instrument's kind (not a tracker's).
+    pub fn instrument(&self) -> bool {
+        self.kind != RowKind::Tracker.name()
+    }
+}
+
 /// Each kind's residual of `model` at `data` (as the fit used them), in [`RowKind::ALL`] order;
 /// kinds without rows left out, rows the model cannot evaluate skipped.
 pub fn kind_residuals(model: &dyn Mechanism, data: &[Measurement], noise: &Noise) -> Vec<KindResidual> {

@@ -1,7 +1,9 @@
 //! The calibration report: everything an identification produced, as data ([`CalibrationReport`],
 //! serialisable to JSON) and as one self-contained HTML file with inline SVG plots
 //! ([`CalibrationReport::to_html`]).
+pub mod artifacts;
 pub mod assess;
+mod held_out;
 mod html;
 pub mod kinds;
 pub mod plan;
@@ -9,6 +11,8 @@ pub mod plot;
 mod verdict;
 mod view;
 
+pub use artifacts::{is_known_distance, ArtifactView, KnownDistance};
+pub use held_out::HeldOutPlacements;
 pub use verdict::{Beyond, Status, ToleranceCheck, Verdict, CHANCE_BEYOND_3_SIGMA, SIGMA0_FAIL, SIGMA0_WARN};
 pub use view::{MachineView, VIEW_POINTS, VIEW_WORST};
 
@@ -47,39 +51,79 @@ pub struct SetErrors {
     /// Observed joints' readings against the calibrated model.
     pub joints_after: Vec<crate::validate::JointErrors>,
     /// Measured tool position of each pose (mm, in the measurement frame; for reflector points,
-    /// their mean), where the 3-D view draws it.
+    /// their mean), where the 3-D view draws it. An instrument's row (seat, pivot, touch)
+    /// measures no coordinates: its entry is the calibrated model's tool point at the row's
+    /// configuration, in the machine's base frame ([`artifacts`]).
     pub measured: Vec<[f64; 3]>,
     /// Position error vector of each pose before calibration: measured minus the starting
     /// model's position (mm; for reflector points, the mean of the points' errors). Its length
-    /// is `before.position` for a position or pose observation.
+    /// is `before.position` for a position or pose observation. For an instrument's row: where
+    /// the instrument puts the tool point minus where the model does (the seat's centre minus
+    /// the tool point, the length's error along the bar, the touch's along the surface's
+    /// normal), in the base frame.
     pub error_before: Vec<[f64; 3]>,
     /// The same after calibration (measured minus the calibrated model's position).
     pub error_after: Vec<[f64; 3]>,
+    /// Per pose, the index of its artifact in [`MachineView::artifacts`] for an instrument's
+    /// row, `None` for a tracker's; empty when no row is an instrument's.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub artifact: Vec<Option<usize>>,
+    /// Per pose, the starting model's tool point (mm; an instrument's row in the base frame, a
+    /// tracker's in the measurement frame); empty when no row is an instrument's.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub nominal_point: Vec<[f64; 3]>,
 }
 
 impl SetErrors {
-    /// Errors of `nominal` and `calibrated` on `data`, with outliers beyond `3σ` flagged.
+    /// Errors of `nominal` and `calibrated` on `data`, with outliers beyond `3σ` flagged. Known
+    /// distances between seats ([`is_known_distance`]) are no poses: left out (the poses are the
+    /// other rows, in their order).
     pub fn compute<A: Mechanism + ?Sized, B: Mechanism + ?Sized>(
         source: impl Into<String>,
         nominal: &A,
         calibrated: &B,
         data: &[Measurement],
     ) -> Result<SetErrors, CalibError> {
+        let poses: Vec<Measurement>;
+        let data = if data.iter().any(is_known_distance) {
+            poses = data.iter().filter(|m| !is_known_distance(m)).cloned().collect();
+            &poses[..]
+        } else {
+            data
+        };
         let start = forward_all(nominal, data)?;
         let before = errors_at(&start, data);
         // The calibrated poses once, for the errors and the outliers.
         let reached = forward_all(calibrated, data)?;
         let after = errors_at(&reached, data);
-        let (measured, error_before): (Vec<_>, Vec<_>) = data.iter().zip(&start).map(|(m, t)| view::position_and_error(&m.obs, t)).unzip();
-        let error_after = data
-            .iter()
-            .zip(&reached)
-            .map(|(m, t)| view::position_and_error(&m.obs, t).1)
-            .collect();
+        let (mut artifact, mut nominal_point) = (Vec::new(), Vec::new());
+        let (measured, error_before, error_after) = if data.iter().any(|m| artifacts::artifact_index(m).is_some()) {
+            let (b, a) = (
+                artifacts::place(nominal, data, &start)?,
+                artifacts::place(calibrated, data, &reached)?,
+            );
+            artifact = data.iter().map(artifacts::artifact_index).collect();
+            nominal_point = b.points;
+            (a.points, b.errors, a.errors)
+        } else {
+            let (measured, error_before) = data
+                .iter()
+                .zip(&start)
+                .map(|(m, t)| artifacts::position_and_error(&m.obs, t))
+                .unzip();
+            let error_after = data
+                .iter()
+                .zip(&reached)
+                .map(|(m, t)| artifacts::position_and_error(&m.obs, t).1)
+                .collect();
+            (measured, error_before, error_after)
+        };
         Ok(SetErrors {
             measured,
             error_before,
             error_after,
+            artifact,
+            nominal_point,
             joints_before: crate::validate::observed_joint_errors(nominal, data)?,
             joints_after: crate::validate::observed_joint_errors(calibrated, data)?,
             source: source.into(),
@@ -197,8 +241,12 @@ pub struct CalibrationReport {
     pub covariance: ParamCovariance,
     /// Identification set.
     pub identification: SetErrors,
-    /// Validation set, if one was given.
+    /// Validation set, if one was given (for instrument data: its tracker rows, if any).
     pub validation: Option<SetErrors>,
+    /// A validation file's instrument rows (seats, pivots, touches): its own artifacts placed by
+    /// its rows under the nominal and the calibrated model (set by `calibrate`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub held_out: Option<HeldOutPlacements>,
     /// Notes that do not change the verdict but deserve a look (poorly determined parameters,
     /// strongly correlated pairs).
     pub flags: Vec<String>,
@@ -231,6 +279,10 @@ pub struct CalibrationReport {
     pub machine: MachineView,
     /// Each measurement kind's residual against its own stated noise (set by `calibrate`).
     pub kinds: Vec<kinds::KindResidual>,
+    /// The known distances between seats the fit held (set by `calibrate`; empty without them):
+    /// rows of the fit, not poses.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub known_distances: Vec<KnownDistance>,
 }
 
 /// The same data fitted by a model with fewer terms (see [`CalibrationReport::variants`]).
@@ -255,7 +307,9 @@ pub const STRONG_CORRELATION: f64 = 0.95;
 
 impl CalibrationReport {
     /// Assemble the report of `result`, identified from `nominal` with the free parameters
-    /// `free`; `validation` is an optional independent data set.
+    /// `free`; `validation` is an optional independent data set. For instrument data
+    /// ([`artifacts`]) the view draws the artifacts and the tool points in the machine's base
+    /// frame, the calibrated ones placed as `calibrate` places the calibrated model.
     #[allow(clippy::too_many_arguments)]
     pub fn new<M: Mechanism + Clone>(
         nominal: &M,
@@ -349,6 +403,7 @@ impl CalibrationReport {
                 Some((src, v)) => Some(SetErrors::compute(src, nominal, &result.model, v)?),
                 None => None,
             },
+            held_out: None,
             flags: Vec::new(),
             correlation_names: Vec::new(),
             correlation: Vec::new(),
@@ -360,9 +415,22 @@ impl CalibrationReport {
             variants: Vec::new(),
             tolerance_check: None,
             serial_chain: false,
-            machine: MachineView::of(nominal, &result.model, data.first().map(|m| m.q.as_slice())),
+            machine: MachineView::of(nominal, &result.model, data.first()),
             kinds: Vec::new(),
+            known_distances: Vec::new(),
         };
+        // An instrument's artifacts, placed by both models (the rows of tracker data are not
+        // evaluated again).
+        if !report.identification.artifact.is_empty() {
+            let (b, a) = (
+                artifacts::place(nominal, data, &forward_all(nominal, data)?)?,
+                artifacts::place(&result.model, data, &forward_all(&result.model, data)?)?,
+            );
+            report.machine.artifacts = artifacts::artifact_views(data, &a, &b);
+        }
+        if let Some(motion) = artifacts::drawn_placement(&report.identification) {
+            report.place_as_drawn(&motion);
+        }
         report.correlations(result, &params);
         report.absorbed = absorbed(result, &params);
         report.assess(&result.noise, &Tolerances::default());

@@ -2,8 +2,8 @@
 //!
 //! | verdict | evidence it needs |
 //! |---|---|
-//! | failed | the result is wrong or cannot be trusted: no convergence; a residual that is not finite; a residual far beyond the stated noise ([`SIGMA0_FAIL`]) *together with* hardly any improvement over the nominal model ([`FAIL_IMPROVEMENT`]; between it and [`CLEAR_IMPROVEMENT`] a warning) or a residual larger than any error the tolerances allow; corrections far beyond the tolerances ([`FAR_BEYOND`]) in every split of the redundant parameters and frames ([`ToleranceCheck`]); starts that reach different predictions (set by `calibrate`) |
-//! | usable with warnings | the result improves the machine but leaves something to look at: a residual above the stated noise ([`SIGMA0_WARN`]: real machines leave one after a geometric calibration), fewer residual rows beyond the identified parameters than there are parameters (the fit can follow the data, and nothing checks it), corrections somewhat beyond the tolerances in every split, a held-out error that grew, poses set aside as blunders, more outliers than chance gives |
+//! | failed | the result is wrong or cannot be trusted: no convergence; a residual that is not finite; a residual far beyond the stated noise ([`SIGMA0_FAIL`]) *together with* hardly any improvement over the nominal model (on held-out poses, else held-out instrument rows, else the identification poses; [`FAIL_IMPROVEMENT`]; between it and [`CLEAR_IMPROVEMENT`] a warning) or a residual larger than any error the tolerances allow; corrections far beyond the tolerances ([`FAR_BEYOND`]) in every split of the redundant parameters and frames ([`ToleranceCheck`]); starts that reach different predictions (set by `calibrate`) |
+//! | usable with warnings | the result improves the machine but leaves something to look at: a residual above the stated noise ([`SIGMA0_WARN`]: real machines leave one after a geometric calibration), fewer residual rows beyond the identified parameters than there are parameters (the fit can follow the data, and nothing checks it), corrections somewhat beyond the tolerances in every split, a held-out error that grew (held-out poses; a validation file's instrument rows, its own artifacts placed by its rows; known distances between its seats) or stayed far above the identification's, poses set aside as blunders, more outliers than chance gives |
 //! | calibrated | converged, residual consistent with the stated noise, nothing of the above |
 //!
 //! A large σ̂₀ alone never fails a calibration: a real robot always leaves more residual than its
@@ -135,17 +135,19 @@ impl CalibrationReport {
         .filter(|r| r.is_finite())
         .fold(1.0, f64::max);
         let excess = self.sigma0 * ratio;
-        // The set the improvement is judged on: held-out poses when there are.
-        let (set, judged) = match &self.validation {
-            Some(v) if v.after_stats.poses > 0 => ("held-out", v),
-            _ => ("identification", &self.identification),
-        };
-        let (before, after) = (judged.before_stats, judged.after_stats);
-        let orientation_ratio = match (before.orientation_mean_deg, after.orientation_mean_deg) {
+        // The set the improvement is judged on: held-out poses when there are, else held-out
+        // instrument rows (their artifacts placed by their own rows), else the identification's.
+        let orientation_ratio = |s: &super::SetErrors| match (s.before_stats.orientation_mean_deg, s.after_stats.orientation_mean_deg) {
             (Some(b), Some(a)) if b > 0.0 => a / b,
             _ => f64::INFINITY,
         };
-        let improvement = after.position_rms_mm / before.position_rms_mm;
+        let of = |s: &super::SetErrors| (s.before_stats.position_rms_mm, s.after_stats.position_rms_mm, orientation_ratio(s));
+        let (set, (before_rms, after_rms, orientation_ratio)) = match (&self.validation, &self.held_out) {
+            (Some(v), _) if v.after_stats.poses > 0 => ("held-out", of(v)),
+            (_, Some(h)) if h.rows > 0 => ("held-out", (h.before_rms_mm, h.after_rms_mm, f64::INFINITY)),
+            _ => ("identification", of(&self.identification)),
+        };
+        let improvement = after_rms / before_rms;
         let clear = improvement <= CLEAR_IMPROVEMENT || orientation_ratio <= CLEAR_IMPROVEMENT;
         let improves = improvement <= FAIL_IMPROVEMENT || orientation_ratio <= FAIL_IMPROVEMENT;
         let left_mm = self.identification.after_stats.position_rms_mm;
@@ -169,16 +171,14 @@ impl CalibrationReport {
             failed.push("the residual is not finite".into());
         } else if excess > SIGMA0_FAIL && !improves {
             failed.push(format!(
-                "the residual is {excess:.1}× the stated noise (σ̂₀ {:.2}{reweighted}) and the calibration does not clearly improve on the nominal model ({set} RMS {:.4} → {:.4} mm): a wrong unit or column order, a model of another machine, or data in an unregistered frame",
-                self.sigma0, before.position_rms_mm, after.position_rms_mm
+                "the residual is {excess:.1}× the stated noise (σ̂₀ {:.2}{reweighted}) and the calibration does not clearly improve on the nominal model ({set} RMS {before_rms:.4} → {after_rms:.4} mm): a wrong unit or column order, a model of another machine, or data in an unregistered frame",
+                self.sigma0
             ));
         } else {
             if excess > SIGMA0_FAIL && !clear {
                 warnings.push(format!(
-                    "the calibration improves the {set} poses by only {:.0} % (RMS {:.4} → {:.4} mm) while the residual is {excess:.1}× the stated noise: too few or badly spread poses for the {} parameters identified (kinecal plan), or errors the model does not describe",
+                    "the calibration improves the {set} poses by only {:.0} % (RMS {before_rms:.4} → {after_rms:.4} mm) while the residual is {excess:.1}× the stated noise: too few or badly spread poses for the {} parameters identified (kinecal plan), or errors the model does not describe",
                     100.0 * (1.0 - improvement),
-                    before.position_rms_mm,
-                    after.position_rms_mm,
                     self.rank
                 ));
             }
@@ -194,8 +194,8 @@ impl CalibrationReport {
                     "compliance, backlash, temperature"
                 };
                 warnings.push(format!(
-                    "the residual is {excess:.1}× the stated noise (σ̂₀ {:.2}{reweighted}; {left_mm:.4} mm RMS left on the identification poses, {set} RMS {:.4} → {:.4} mm): real machines leave such a residual after a geometric calibration ({advice}), or the stated noise is optimistic (--noise-mm, --noise-deg)",
-                    self.sigma0, before.position_rms_mm, after.position_rms_mm
+                    "the residual is {excess:.1}× the stated noise (σ̂₀ {:.2}{reweighted}; {left_mm:.4} mm RMS left on the identification poses, {set} RMS {before_rms:.4} → {after_rms:.4} mm): real machines leave such a residual after a geometric calibration ({advice}), or the stated noise is optimistic (--noise-mm, --noise-deg)",
+                    self.sigma0
                 ));
             }
         }
@@ -226,6 +226,7 @@ impl CalibrationReport {
                 ));
             }
         }
+        self.held_out_verdict(left_mm, &mut warnings);
         if !self.blunders.is_empty() {
             let ids: Vec<String> = self.blunders.iter().map(|i| i.to_string()).collect();
             warnings.push(format!(
@@ -311,6 +312,32 @@ impl CalibrationReport {
             self.flags.push(format!(
                 "reported corrections beyond the tolerances {limits}: {}: one split of parameters the data see only together (with the frames or each other); an equivalent split within the tolerances exists",
                 list(&reported)
+            ));
+        }
+    }
+
+    /// Held-out instrument rows (a validation file's own artifacts, [`super::HeldOutPlacements`]):
+    /// predicted worse than by the nominal model, or far worse than the identification rows, is a
+    /// warning; so are known distances between held-out seats further off than the nominal's.
+    fn held_out_verdict(&self, left_mm: f64, warnings: &mut Vec<String>) {
+        let Some(h) = self.held_out.as_ref().filter(|h| h.rows > 0) else {
+            return;
+        };
+        let (before, after) = (h.before_rms_mm, h.after_rms_mm);
+        if after > before {
+            warnings.push(format!(
+                "the calibrated model predicts the held-out data ({}, each artifact placed by its own rows) worse than the nominal model ({before:.4} → {after:.4} mm RMS): it is not calibrated for what these rows see; identify on placements that span the ones held out, or with fewer free parameters",
+                h.source
+            ));
+        } else if after > HELD_OUT_GAP * left_mm.max(self.noise_mm_deg.0) {
+            warnings.push(format!(
+                "the held-out data ({}) keep {after:.4} mm RMS against {left_mm:.4} mm on the identification rows (nominal {before:.4} mm): parameters the identification rows cannot show act on the held-out placements; measure placements that vary what these held fixed",
+                h.source
+            ));
+        }
+        if let Some((b, a)) = h.distance_error_rms_mm().filter(|(b, a)| a > b) {
+            warnings.push(format!(
+                "the known distances between held-out seats are further off with the calibrated model than with the nominal one (error {b:.4} → {a:.4} mm RMS): the calibration's scale does not hold there"
             ));
         }
     }

@@ -9,10 +9,10 @@
 //! errors as the report's JSON ([`SetErrors`]), rounded to 10 nm, at most [`VIEW_POINTS`] poses
 //! per set (evenly spread, the worst [`VIEW_WORST`] before and after always kept), each with its
 //! index in the set (`i`) so that it can be traced back.
+use super::artifacts::axes;
 use super::{CalibrationReport, SetErrors};
-use crate::measure::Observation;
+use crate::measure::Measurement;
 use crate::model::Mechanism;
-use crate::se3::Pose;
 use nalgebra::Vector3;
 use serde::Serialize;
 use std::fmt::Write as _;
@@ -34,7 +34,8 @@ pub struct MachineView {
     pub skeleton_nominal: Vec<Vec<[f64; 3]>>,
     /// The calibrated base frame in the measurement frame: origin, then its x, y and z unit
     /// axes; `None` when the model carries no separate frames (its world frame is then the
-    /// measurement frame).
+    /// measurement frame), and for an instrument calibration no tracker placed (the world frame
+    /// is then the machine's base frame as drawn: [`super::artifacts`]).
     pub base: Option<[[f64; 3]; 4]>,
     /// The calibrated model's tool frame at the first identification pose (origin, then its
     /// x, y, z unit axes, in the measurement frame): where the tool frame found by the
@@ -47,6 +48,10 @@ pub struct MachineView {
     /// of a redundant base placement, moves every vertex alike and shows nowhere). Empty when
     /// the drawings differ in structure.
     pub moved: Vec<Vec<f64>>,
+    /// An instrument's artifacts (seats, pivots, spheres, planes, a cube) at their places,
+    /// indexed as [`SetErrors::artifact`]; empty for tracker data.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub artifacts: Vec<super::ArtifactView>,
 }
 
 /// Per vertex of `b`, its distance from the same vertex of `a` after the rigid motion that
@@ -88,24 +93,16 @@ fn lines(m: &(impl Mechanism + ?Sized)) -> Vec<Vec<[f64; 3]>> {
     m.skeleton().iter().map(|l| l.iter().map(arr).collect()).collect()
 }
 
-/// A frame as its origin and unit axes.
-fn axes(x: &Pose) -> [[f64; 3]; 4] {
-    let r = x.rotation.to_rotation_matrix();
-    let m = r.matrix();
-    [
-        arr(&x.translation.vector),
-        arr(&m.column(0).into()),
-        arr(&m.column(1).into()),
-        arr(&m.column(2).into()),
-    ]
-}
-
 impl MachineView {
     /// The drawing of `nominal` (the starting model) and `calibrated`, the calibrated base
-    /// frame, and the calibrated tool frame at the inputs `first` (the first pose), if given.
-    pub fn of<A: Mechanism + ?Sized, B: Mechanism + ?Sized>(nominal: &A, calibrated: &B, first: Option<&[f64]>) -> MachineView {
+    /// frame, and the calibrated tool frame at the measurement `first` (the first pose), if
+    /// given (for an instrument's row, the machine's own tool frame:
+    /// [`super::artifacts::machine_pose`]). Without artifacts ([`MachineView::artifacts`]).
+    pub fn of<A: Mechanism + ?Sized, B: Mechanism + ?Sized>(nominal: &A, calibrated: &B, first: Option<&Measurement>) -> MachineView {
         let base = calibrated.frames().map(|(x, _)| axes(&x));
-        let tool = first.and_then(|q| calibrated.forward(q).ok()).map(|t| axes(&t));
+        let tool = first
+            .and_then(|m| super::artifacts::machine_pose(calibrated, m).ok())
+            .map(|t| axes(&t));
         let (skeleton, skeleton_nominal) = (lines(calibrated), lines(nominal));
         MachineView {
             moved: shape_change(&skeleton_nominal, &skeleton),
@@ -113,36 +110,7 @@ impl MachineView {
             skeleton_nominal,
             base,
             tool,
-        }
-    }
-}
-
-/// The measured tool position of an observation and its position error against the model's
-/// pose `t`, measured minus model (mm); for reflector points, their means.
-pub fn position_and_error(obs: &Observation, t: &Pose) -> ([f64; 3], [f64; 3]) {
-    let p = t.translation.vector;
-    match obs {
-        Observation::Pose(m) => (arr(&m.translation.vector), arr(&(m.translation.vector - p))),
-        Observation::Position(m) => (arr(m), arr(&(m - p))),
-        // Instrument rows: `t` is the tool point relative to the seat or pivot (its centre at
-        // the origin); the error is the seat's centre minus the tool point, or the length's
-        // error along the bar.
-        Observation::Seat(_) => (arr(&p), arr(&-p)),
-        Observation::Distance { length, .. } => {
-            let u = p.try_normalize(1e-12).unwrap_or_else(Vector3::zeros);
-            (arr(&p), arr(&(u * (length - p.norm()))))
-        }
-        // A touch: its error along the surface's normal at the tool point.
-        Observation::Touch(t) => (arr(&p), arr(&(t.gradient(&p) * t.residual(&p)))),
-        Observation::Points(pts) => {
-            let n = pts.len().max(1) as f64;
-            let mean = pts.iter().map(|(_, m)| *m).sum::<Vector3<f64>>() / n;
-            let err = pts
-                .iter()
-                .map(|(r, m)| m - t.transform_point(&(*r).into()).coords)
-                .sum::<Vector3<f64>>()
-                / n;
-            (arr(&mean), arr(&err))
+            artifacts: Vec::new(),
         }
     }
 }
@@ -218,6 +186,13 @@ fn set_json(out: &mut String, name: &str, s: &SetErrors) {
     list(out, "id", keep.iter().map(|&i| s.ids.get(i).copied().unwrap_or(i as i64) as f64), 0);
     let flat = |v: &[[f64; 3]]| keep.iter().flat_map(|&i| at(v, i)).collect::<Vec<f64>>();
     list(out, "p", flat(&s.measured).into_iter(), POSITION_DECIMALS);
+    if !s.artifact.is_empty() {
+        // An instrument's rows: the artifact of each (−1 for a tracker row) and the starting
+        // model's tool point, drawn when the view shows the errors before calibration.
+        let k = |i: usize| s.artifact.get(i).copied().flatten().map_or(-1.0, |k| k as f64);
+        list(out, "k", keep.iter().map(|&i| k(i)), 0);
+        list(out, "pb", flat(&s.nominal_point).into_iter(), POSITION_DECIMALS);
+    }
     list(out, "eb", flat(&s.error_before).into_iter(), ERROR_DECIMALS);
     list(out, "ea", flat(&s.error_after).into_iter(), ERROR_DECIMALS);
     list(out, "b", keep.iter().map(|&i| s.before.position[i]), ERROR_DECIMALS);
@@ -250,7 +225,12 @@ impl CalibrationReport {
     /// for pose measurements, orientation errors `ob`/`oa` (deg), before/after calibration; the
     /// machine's `skeleton` and `nominal` drawing (flat x, y, z per polyline), the shape change
     /// `moved` per skeleton vertex ([`MachineView::moved`]), the `base` frame and the `tool`
-    /// frame at the first identification pose, whose id is `toolPose`.
+    /// frame at the first identification pose, whose id is `toolPose`. For an instrument's
+    /// data, per set also each drawn pose's artifact `k` (−1 for a tracker row) and the
+    /// starting model's tool point `pb`, `world` (`"base frame"`: the name of the view's world
+    /// frame, when no tracker placed it), and the `artifacts`: `name`, `kind`, the fitted frame
+    /// `f` and the starting model's `n` (origin, then the x, y, z axes, flat), `size`
+    /// ([`super::ArtifactView`]).
     pub fn view_json(&self) -> String {
         let mut out = String::from("{\"sets\":[");
         set_json(&mut out, "identification", &self.identification);
@@ -279,6 +259,25 @@ impl CalibrationReport {
         }
         let tool_pose = self.identification.ids.first().copied().unwrap_or(0);
         let _ = write!(out, "\"toolPose\":{tool_pose},");
+        if !self.machine.artifacts.is_empty() {
+            // An instrument alone places nothing: the world frame is the machine's base frame.
+            if self.identification.artifact.iter().all(Option::is_some) {
+                out.push_str("\"world\":\"base frame\",");
+            }
+            out.push_str("\"artifacts\":[");
+            for (k, a) in self.machine.artifacts.iter().enumerate() {
+                if k > 0 {
+                    out.push(',');
+                }
+                let _ = write!(out, "{{\"name\":{},\"kind\":{},", string(&a.name), string(&a.kind));
+                list(&mut out, "f", a.frame.iter().flatten().copied(), 6);
+                list(&mut out, "n", a.frame_nominal.iter().flatten().copied(), 6);
+                let _ = write!(out, "\"size\":");
+                num(&mut out, a.size, POSITION_DECIMALS);
+                out.push('}');
+            }
+            out.push_str("],");
+        }
         out.pop();
         out.push('}');
         out
@@ -288,9 +287,23 @@ impl CalibrationReport {
     pub(super) fn view_html(&self, h: &mut String) {
         let n: usize = self.identification.after.position.len() + self.validation.as_ref().map_or(0, |v| v.after.position.len());
         h.push_str("<h2 id=\"view\">3-D view: where the errors are</h2>\n");
+        // What the points are, where they are drawn, what their error vectors show.
+        let (points, frame, vectors) = if self.machine.artifacts.is_empty() {
+            (
+                "The measured tool positions",
+                "in the measurement frame",
+                "Lines from each point toward the model's position show the error vectors, scaled as stated.",
+            )
+        } else {
+            (
+                "The tool points the calibrated model puts at each row's configuration",
+                "in the machine's base frame (the starting model's tool points when coloured by the error before calibration), with the instrument's artifacts (calibrated solid, as the starting model placed them dashed; a ballbar's bar from its pivot to each tool point)",
+                "Lines from each tool point toward where the instrument puts it (a seat's centre, the bar's measured length, the touched surface) show the error vectors, scaled as stated.",
+            )
+        };
         let _ = write!(
             h,
-            "<p class=\"muted\">The measured tool positions ({n} poses; at most {VIEW_POINTS} per set drawn, evenly spread, the {VIEW_WORST} worst before and after always) in the measurement frame, coloured by their position error; ● identification, □ validation. Lines from each point toward the model's position show the error vectors, scaled as stated. Drag to turn, shift-drag to move, wheel to zoom, hover for a pose's id and errors.{}</p>",
+            "<p class=\"muted\">{points} ({n} poses; at most {VIEW_POINTS} per set drawn, evenly spread, the {VIEW_WORST} worst before and after always) {frame}, coloured by their position error; ● identification, □ validation. {vectors} Drag to turn, shift-drag to move, wheel to zoom, hover for a pose's id and errors.{}</p>",
             if self.machine.skeleton.is_empty() {
                 " This kind of machine has no drawing."
             } else {

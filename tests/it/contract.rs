@@ -311,6 +311,7 @@ fn data_set(name: &str, ids: std::ops::Range<i64>, m: Vec<Measurement>) -> DataS
         dropped: Vec::new(),
         reflectors: Vec::new(),
         derived: Vec::new(),
+        beyond_limits: Vec::new(),
         measurements: m,
     }
 }

@@ -297,3 +297,104 @@ fn seat_exports_join_into_one_seat_file() {
     assert!(e.contains("one.csv: 1 configurations: a seat needs at least 2"), "{e}");
     assert!(!d.join("x.csv").exists());
 }
+
+/// A vendor's URDF whose limits are narrower than the robot's own log (panda_joint4 down to
+/// −2.89 rad where the robot went to −3.049 rad): its limits are the vendor's software limits,
+/// so the rows are kept with one warning naming the joint and the excess, from `data join`,
+/// `data check` and `identify`, and the calibration runs (exit 0). Values in the wrong unit
+/// still get the unit hint, and a value beyond the limits by more than half their range is
+/// still refused.
+#[test]
+fn limits_narrower_than_the_data_are_a_warning_and_a_wrong_unit_is_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mukca-panda");
+    let urdf = fs::read_to_string(data.join("panda.urdf")).unwrap();
+    let narrowed = urdf.replacen("lower=\"-3.0718\"", "lower=\"-2.8900\"", 1);
+    assert_ne!(narrowed, urdf);
+    fs::write(d.join("panda.urdf"), narrowed).unwrap();
+    ok(d, &["model", "import", "panda.urdf", "--tip", "ball_link", "-o", "panda.toml"]);
+    let sockets: Vec<String> = ["back_left", "front_right", "high"]
+        .iter()
+        .flat_map(|p| [0, 1].map(|s| data.join(p).join(format!("socket_{s}.csv")).display().to_string()))
+        .collect();
+    let join = |angles: &str, out: &str| {
+        let mut args = vec!["data", "join", "panda.toml", "--angles", angles, "--out", out];
+        for s in &sockets {
+            args.extend(["--seat", s.as_str()]);
+        }
+        kinecal(d, &args)
+    };
+    let joined = join("rad", "seats.csv");
+    assert!(joined.status.success());
+    let said = String::from_utf8(joined.stderr).unwrap();
+    // The robot's own minimum of joint 4 over these files, beyond the narrowed −2.89 rad.
+    let lowest = sockets
+        .iter()
+        .flat_map(|s| {
+            fs::read_to_string(s)
+                .unwrap()
+                .lines()
+                .filter_map(|l| l.split(',').nth(3)?.trim().parse::<f64>().ok())
+                .collect::<Vec<_>>()
+        })
+        .fold(f64::INFINITY, f64::min);
+    let excess = -2.89 - lowest;
+    assert!(excess > 0.1, "{lowest}");
+    let expected = format!("by up to {excess:.4} rad ({:.2}°)", excess.to_degrees());
+    assert_eq!(said.lines().count(), 1, "{said}");
+    assert!(
+        said.starts_with("warning: 6 seat exports: panda_joint4: ")
+            && said.contains("rows beyond the model's limits [-2.8900, -0.0698] rad")
+            && said.contains(&expected)
+            && said.contains("vendor's software limits"),
+        "{said}"
+    );
+    // The joined file states degrees: the same rows, the same excess, in degrees.
+    let checked = kinecal(d, &["data", "check", "panda.toml", "seats.csv"]);
+    let said = String::from_utf8(checked.stderr).unwrap();
+    assert!(
+        checked.status.success() && said.contains("panda_joint4: ") && said.contains(&format!("by up to {:.4} deg", excess.to_degrees())),
+        "{said}"
+    );
+    let mut args = vec!["identify", "panda.toml", "seats.csv", "--out", "cal.toml", "--json"];
+    args.extend([
+        "--seat-distance",
+        "0:1:50",
+        "--seat-distance",
+        "2:3:50",
+        "--seat-distance",
+        "4:5:50",
+    ]);
+    let out = kinecal(d, &args);
+    let said = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(out.status.code(), Some(0), "{said}");
+    assert!(said.contains("warning: seats.csv: panda_joint4: "), "{said}");
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_ne!(report["verdict"]["status"], "failed");
+    assert!(
+        report["flags"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|f| f.as_str().unwrap().contains("panda_joint4: ")),
+        "the report shows it too"
+    );
+    // Radians joined as degrees: within ±2π, every one fits the limits read as radians.
+    let wrong = join("deg", "wrong.csv");
+    assert_eq!(wrong.status.code(), Some(1));
+    let e = String::from_utf8(wrong.stderr).unwrap();
+    assert!(
+        e.contains("panda_joint4: ") && e.contains("check the column's unit") && e.contains("read in rad"),
+        "{e}"
+    );
+    assert!(e.contains("/socket_0.csv:1: panda_joint4: "), "named with its file and line: {e}");
+    // Degrees in a column said to be radians: far beyond, every one fits read as degrees.
+    let text = fs::read_to_string(d.join("seats.csv")).unwrap().replace("_deg", "_rad");
+    fs::write(d.join("rad.csv"), text).unwrap();
+    let e = fails(d, &["data", "check", "panda.toml", "rad.csv"]);
+    assert!(
+        e.contains("is outside the model's limits") && e.contains("check the column's unit") && e.contains("read in deg"),
+        "{e}"
+    );
+}

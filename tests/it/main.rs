@@ -1,4 +1,5 @@
 //! kinecal integration tests (one binary, one module per concern).
+mod any_instruments;
 mod architecture;
 mod assess;
 mod chain;

@@ -22,7 +22,7 @@ use rand_distr::{Distribution, Normal};
 
 /// A virtual prototype of built-in `name` (errors ±0.5 mm / ±0.1°), the ball 120 mm out on its
 /// flange, seen by a tracker standing 2 m away and turned: the truth the rows are drawn from.
-fn truth_of(name: &str) -> (ModelFile, Framed<Box<dyn Mechanism>>) {
+pub(crate) fn truth_of(name: &str) -> (ModelFile, Framed<Box<dyn Mechanism>>) {
     let file: ModelFile = builtin::model_file(name).unwrap();
     let nominal = file.build();
     let free = file.free_indices().unwrap();
@@ -34,7 +34,7 @@ fn truth_of(name: &str) -> (ModelFile, Framed<Box<dyn Mechanism>>) {
 }
 
 /// `n` tracker positions of the tool point at random configurations (seed 21), noise σ per axis.
-fn tracker_rows(truth: &dyn Mechanism, file: &ModelFile, n: usize, sigma: f64) -> Vec<Measurement> {
+pub(crate) fn tracker_rows(truth: &dyn Mechanism, file: &ModelFile, n: usize, sigma: f64) -> Vec<Measurement> {
     let mut rng = ChaCha8Rng::seed_from_u64(21);
     let qs = random_configurations(&*file.build(), &file.inputs(), n, &mut rng).unwrap();
     let normal = Normal::new(0.0, sigma.max(1e-300)).unwrap();
@@ -79,7 +79,7 @@ fn pivots(file: &ModelFile, truth: &dyn Mechanism) -> Vec<Vector3<f64>> {
 }
 
 /// How rows are drawn on `file` about its [`reference`].
-fn placement(file: &ModelFile, per_point: usize, max_tilt_deg: f64, noise_mm: f64) -> Placement {
+pub(crate) fn placement(file: &ModelFile, per_point: usize, max_tilt_deg: f64, noise_mm: f64) -> Placement {
     Placement {
         per_point,
         reference: reference(file),
@@ -487,4 +487,40 @@ fn touches_alone_and_beside_tracker_points_recover_a_ur5e_and_an_irb120() {
             );
         }
     }
+}
+
+/// A validation file mixing tracker rows and seats beside a mixed identification: the tracker
+/// rows are judged as poses in the frame the tracker placed, the seats (numbered 0 and 1 like
+/// the identification's, at other places) as held-out artifacts of their own. Noise-free, both
+/// are met to round-off.
+#[test]
+fn a_mixed_validation_file_judges_tracker_rows_as_poses_and_seats_as_their_own() {
+    let (file, truth) = truth_of("irb120");
+    let mut tracker = tracker_rows(&truth, &file, 20, 0.0);
+    let held_tracker = tracker.split_off(10);
+    let all = seats(&file, &truth, 4, &placement(&file, 15, 35.0, 0.0));
+    let (mut rows, mut held): (Vec<Measurement>, Vec<Measurement>) =
+        all.into_iter().partition(|m| matches!(m.obs, Observation::Seat(s) if s < 2));
+    for m in &mut held {
+        let Observation::Seat(s) = m.obs else { unreachable!() };
+        m.obs = Observation::Seat(s - 2);
+    }
+    rows.extend(tracker);
+    held.extend(held_tracker);
+    let opts = CalibrationOptions {
+        noise: exact_noise(),
+        ..CalibrationOptions::default()
+    };
+    let data = DataSet::from_measurements("mixed.csv", rows);
+    let validation = DataSet::from_measurements("held.csv", held);
+    let cal = calibrate(&file, &data, Some(&validation), &opts).unwrap();
+    let poses = cal.report.validation.as_ref().expect("the tracker rows, as poses");
+    let seats = cal.report.held_out.as_ref().expect("the seats, placed by their own rows");
+    eprintln!(
+        "irb120, mixed validation: 10 tracker rows {:.2e} mm RMS, 2 held-out seats {:.4} → {:.2e} mm RMS",
+        poses.after_stats.position_rms_mm, seats.before_rms_mm, seats.after_rms_mm
+    );
+    assert_eq!((poses.after_stats.poses, seats.rows, seats.calibrated.seats.len()), (10, 30, 2));
+    assert!(poses.after_stats.position_rms_mm < 1e-9 && seats.after_rms_mm < 1e-9);
+    assert!(seats.before_rms_mm > 0.1, "{}", seats.before_rms_mm);
 }

@@ -83,6 +83,7 @@ fn data_set(name: &str, truth: &dyn Mechanism, qs: &[Vec<f64>], kind: Kind, nois
         dropped: Vec::new(),
         reflectors: Vec::new(),
         derived: Vec::new(),
+        beyond_limits: Vec::new(),
         measurements,
     }
 }

@@ -480,6 +480,7 @@ fn calibrated_irb120_through_urdf_and_back() {
             dropped: Vec::new(),
             reflectors: Vec::new(),
             derived: Vec::new(),
+            beyond_limits: Vec::new(),
             measurements,
         }
     };

@@ -200,7 +200,7 @@ pub(super) fn measurement_format(table: &Table, slots: &[(Slot, f64)]) -> Result
     if n_touch > 0 {
         let [kind] = touched.as_slice() else {
             return Err(at_header(
-                "give one kind of touch per file: 'sphere' (with sphere_diameter_mm), 'plane' or 'face' (with cube_edge_mm), each with probe_radius_mm".into(),
+                "touch rows need one column naming what each touched: 'sphere' (with sphere_diameter_mm), 'plane' or 'face' (with cube_edge_mm), each with probe_radius_mm".into(),
             ));
         };
         let (name, _, size) = TOUCH_COLUMNS.iter().find(|t| t.1 == *kind).expect("a touch kind");

@@ -16,16 +16,27 @@
 use super::*;
 use crate::measure::PointKind;
 
-/// Whether the columns hold more than one kind of measurement (a mixed file).
+/// Whether the columns hold more than one kind of measurement (a mixed file; touches of
+/// several kinds, spheres and planes say, count as several).
 pub(super) fn is_mixed(slots: &[(Slot, f64)]) -> bool {
     let has = |pred: &dyn Fn(&Slot) -> bool| slots.iter().any(|(s, _)| pred(s));
+    let touched: std::collections::BTreeSet<PointKind> = slots
+        .iter()
+        .filter_map(|(s, _)| if let Slot::Touched(k) = s { Some(*k) } else { None })
+        .collect();
     let kinds = [
         has(&|s| matches!(s, Slot::Pos(_) | Slot::Quat(_) | Slot::Rpy(_) | Slot::Reflector(..))),
         has(&|s| matches!(s, Slot::Seat)),
         has(&|s| matches!(s, Slot::Pivot | Slot::Length | Slot::Reading)),
-        has(&|s| matches!(s, Slot::Touched(_) | Slot::Size | Slot::Probe)),
+        touched.is_empty() && has(&|s| matches!(s, Slot::Size | Slot::Probe)),
     ];
-    kinds.iter().filter(|k| **k).count() > 1
+    kinds.iter().filter(|k| **k).count() + touched.len() > 1
+}
+
+/// Whether every row of `measurements` is a touch (of any artifact kind): such a set is
+/// [`MeasurementFormat::Touch`] even when it mixes spheres, planes and a cube.
+pub(super) fn touches_only(measurements: &[Measurement]) -> bool {
+    measurements.iter().all(|m| matches!(m.obs, Observation::Touch(_)))
 }
 
 /// The columns of a mixed file checked: each kind's complete (x,y,z together, a pivot with a
@@ -66,6 +77,10 @@ pub(super) fn check_columns(table: &Table, slots: &[(Slot, f64)]) -> Result<Meas
         if with(touch) && !with(size) {
             return Err(at_header(format!("'{touch}' touches need a '{size}_mm' column (mm)")));
         }
+    }
+    // Touches of several kinds and nothing else: touch data.
+    if tracker + has(&|s| matches!(s, Slot::Seat)) + pivot + lengths == 0 {
+        return Ok(MeasurementFormat::Touch);
     }
     Ok(MeasurementFormat::Mixed)
 }
@@ -185,14 +200,18 @@ pub(super) fn observation(
     }
 }
 
-/// Whether `measurements` need a mixed file: more than one kind, or lengths and readings.
+/// Whether `measurements` need a mixed file: more than one kind, lengths and readings, or
+/// touches of several artifact kinds (their columns differ).
 pub(super) fn needs_mixed(measurements: &[Measurement]) -> bool {
+    use crate::measure::Touch;
     let kind = |m: &Measurement| match &m.obs {
         Observation::Pose(_) | Observation::Position(_) | Observation::Points(_) => 0,
         Observation::Seat(_) => 1,
         Observation::Distance { relative: false, .. } => 2,
         Observation::Distance { relative: true, .. } => 3,
-        Observation::Touch(_) => 4,
+        Observation::Touch(Touch::Sphere { .. }) => 4,
+        Observation::Touch(Touch::Plane { .. }) => 5,
+        Observation::Touch(Touch::Face { .. }) => 6,
     };
     measurements.windows(2).any(|w| kind(&w[0]) != kind(&w[1]))
 }

@@ -163,7 +163,8 @@ fn observed_joint_columns_are_optional_all_or_none_and_round_trip() {
 
 /// Touch files (sphere, plane, cube face) written and read back give the same rows; a plane
 /// touch with every value zero is a row, not a lost measurement; a touch file without the
-/// probe's radius, or with two kinds of touch, is a one-line error naming what is missing.
+/// probe's radius is a one-line error naming what is missing; touches of several kinds share a
+/// file (each row one touch), and a row filling two is a one-line error.
 #[test]
 fn touch_files_round_trip_and_name_what_is_missing() {
     use crate::measure::Touch;
@@ -219,6 +220,68 @@ fn touch_files_round_trip_and_name_what_is_missing() {
     assert!(e.starts_with("d.csv:1: plane touches need one 'probe_radius_mm' column"), "{e}");
     let e = read("q1_deg,d2_mm,face,probe_radius_mm\n0,0,1,2\n").unwrap_err();
     assert!(e.contains("face touches need one 'cube_edge_mm' column"), "{e}");
-    let e = read("q1_deg,d2_mm,plane,sphere,probe_radius_mm\n0,0,1,1,2\n").unwrap_err();
-    assert!(e.contains("one kind of touch per file"), "{e}");
+    // Touches of several kinds in one file: each row one touch, the other kinds' cells empty
+    // (read as files are, empty cells allowed).
+    let read = |text: &str| {
+        let t = crate::io::table::parse_table_with_gaps(Path::new("d.csv"), text).map_err(|e| e.to_string())?;
+        data_from_table(&t, &inputs(), InputColumns::Required).map_err(|e| e.to_string())
+    };
+    let d = read("q1_deg,d2_mm,plane,sphere,sphere_diameter_mm,probe_radius_mm\n0,0,1,,,2\n0,1,,3,25.4,1.5\n").unwrap();
+    assert_eq!(d.format, MeasurementFormat::Touch);
+    assert_eq!(d.measurements[0].obs, Observation::Touch(Touch::Plane { plane: 1, probe: 2.0 }));
+    assert_eq!(
+        d.measurements[1].obs,
+        Observation::Touch(Touch::Sphere {
+            sphere: 3,
+            diameter: 25.4,
+            probe: 1.5
+        })
+    );
+    let text = data_text(Path::new("t.csv"), &inputs(), &[0, 1], &d.measurements, None).unwrap();
+    let back = read(&text).unwrap();
+    assert_eq!(
+        (back.format, &back.measurements),
+        (MeasurementFormat::Touch, &d.measurements),
+        "{text}"
+    );
+    let e = read("q1_deg,d2_mm,plane,sphere,sphere_diameter_mm,probe_radius_mm\n0,0,1,3,25.4,2\n").unwrap_err();
+    assert!(e.contains("d.csv:2:") && e.contains("two touch columns"), "{e}");
+}
+
+/// Limits: rows a little beyond them are kept and said; a column that fits them in the other
+/// unit of its kind, or a value beyond them by more than half their range, is refused.
+#[test]
+fn rows_beyond_the_limits_are_kept_unless_a_mistake_explains_them() {
+    let limited = || {
+        let mut i = inputs();
+        i[0].limits = Some((-100f64.to_radians(), 100f64.to_radians()));
+        i[1].limits = Some((200.0, 400.0));
+        i
+    };
+    let read = |text: &str| {
+        let t = parse_table(Path::new("d.csv"), text).unwrap();
+        data_from_table(&t, &limited(), InputColumns::Required).map_err(|e| e.to_string())
+    };
+    // 110° and 105° against ±100°: kept, one warning for q1 with its excess.
+    let d = read("id,q1_deg,d2_mm,x_mm,y_mm,z_mm\n1,110,300,0,0,1\n2,50,300,0,0,1\n3,-105,300,0,0,1\n").unwrap();
+    assert_eq!(d.measurements.len(), 3);
+    assert_eq!(d.beyond_limits.len(), 1);
+    let b = &d.beyond_limits[0];
+    assert_eq!(
+        (b.input.as_str(), b.rows, b.ids.clone(), b.unit.as_str()),
+        ("q1", 2, vec![1, 3], "deg")
+    );
+    assert!((b.max_excess - 10.0).abs() < 1e-9 && (b.limits.1 - 100.0).abs() < 1e-9, "{b:?}");
+    assert!(d.limit_warnings()[0].starts_with(
+        "d.csv: q1: 2 rows beyond the model's limits [-100.0000, 100.0000] deg, by up to 10.0000 deg (0.1745 rad) (ids 1, 3)"
+    ));
+    // Metres in a millimetre column: they fit read in m.
+    let e = read("q1_deg,d2_mm,x_mm,y_mm,z_mm\n0,0.3,0,0,1\n0,0.25,0,0,1\n").unwrap_err();
+    assert!(
+        e.starts_with("d.csv:2: d2: 0.3000 mm is outside the model's limits") && e.contains("read in m: check the column's unit"),
+        "{e}"
+    );
+    // 300° against ±100°: beyond by more than half the range, and not radians.
+    let e = read("q1_deg,d2_mm,x_mm,y_mm,z_mm\n300,300,0,0,1\n").unwrap_err();
+    assert!(e.contains("more than half their range"), "{e}");
 }
