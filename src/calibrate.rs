@@ -213,12 +213,12 @@ pub fn calibrate(
         Some(i) => instrument_start(model, i)?,
         None => starting_model(model, data, &measurements, opts)?,
     };
-    // Where the machine stands, when no instrument sees it: held as drawn, never identified.
+    // Where the machine stands, when no instrument sees it: held as drawn, never identified
+    // (unless holding it costs the fit more than noise can: then it was no pure gauge).
     let placement = match &instrument {
         Some(i) if !i.tracked() => gauge::placement_params(&*start, &measurements, 0..6, &free, &opts.noise).map_err(|e| data.locate(e))?,
         _ => Vec::new(),
     };
-    free.retain(|c| !placement.contains(c));
     let id_opts = Options {
         method: opts.method,
         noise: opts.noise,
@@ -226,6 +226,7 @@ pub fn calibrate(
         free: Some(free.clone()),
         loss: opts.loss,
         weak: Some(crate::identify::WeakHold::from_params(&start.params(), |u| model.tolerances.of(u))),
+        gauge: placement,
         ..Options::default()
     };
     let robust::RobustFit { identification, kept } = robust::fit_setting_blunders_aside(&*start, &measurements, &id_opts, data)?;
@@ -238,6 +239,8 @@ pub fn calibrate(
         seed: opts.seed,
     };
     let starts::Starts { identification, outcomes } = starts::other_starts(&setup, identification, &measurements, &kept, data)?;
+    let placement = identification.identifiability.gauge.clone();
+    free.retain(|c| !placement.contains(c));
     let mut in_fit = vec![false; data.measurements.len()];
     for &i in &kept {
         in_fit[i] = true;
@@ -291,6 +294,9 @@ pub fn calibrate(
     let mut report = judge(model, data, validation, opts, &judged)?;
     let names = start.params();
     report.placement = placement.iter().map(|&k| names[k].name.clone()).collect();
+    if !report.weak.is_empty() {
+        report.weak_cause = (measurements.first()).and_then(|m| crate::report::weak_cause::known_cause(&*start, &m.q));
+    }
     // Rows beyond the model's (the vendor's) limits, kept as measured: worth a look.
     report
         .flags

@@ -47,6 +47,11 @@ pub struct Identifiability {
     /// identification holds such parameters.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub weak: Vec<usize>,
+    /// Parameters held as drawn as where the machine stands, a motion no instrument of the data
+    /// sees ([`crate::identify::Options::gauge`]); not in [`Self::identifiable`]. Empty unless
+    /// the identification holds such parameters.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub gauge: Vec<usize>,
     /// Tolerance used.
     pub tolerance: f64,
 }
@@ -162,6 +167,7 @@ pub fn analyze(a: &DMatrix<f64>, candidates: &[usize], tol: f64) -> Identifiabil
         pivoted,
         condition,
         weak: Vec::new(),
+        gauge: Vec::new(),
         tolerance: tol,
     }
 }

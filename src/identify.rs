@@ -105,6 +105,11 @@ pub struct Options {
     /// the start and again where the fit converged (Gauss–Newton only). `None`: every parameter
     /// of full rank is fitted.
     pub weak: Option<WeakHold>,
+    /// Parameters that, with the others, only place the machine where no instrument of the data
+    /// sees it (a gauge: seats, spheres or a ballbar absorb the base's pose): held as drawn, and
+    /// listed in [`Identifiability::gauge`]. Freed again where the fit with them held explains
+    /// the data worse than noise can (they were not a pure gauge at this geometry).
+    pub gauge: Vec<usize>,
 }
 
 /// How [`gauss_newton`] steps.
@@ -147,6 +152,7 @@ impl Default for Options {
             loss: Loss::Squares,
             agree_with: None,
             weak: None,
+            gauge: Vec::new(),
         }
     }
 }
@@ -321,12 +327,7 @@ pub fn identify<M: Mechanism + Clone>(initial: &M, data: &[Measurement], opts: &
         return Err(CalibError::InvalidOption("noise standard deviations must be positive".into()));
     }
     match opts.method {
-        Method::GaussNewton => {
-            let fit = gauss_newton(initial, data, opts, &free, None, Steps::MinimumNorm)?;
-            let fit = drawn::weak_decided_again(fit, initial, data, opts, &free)?;
-            let fit = refit::refit_where_more_is_seen(fit, data, opts, &free)?;
-            drawn::redundant_as_drawn(fit, data, opts, &free)
-        }
+        Method::GaussNewton => drawn::fitted_with_gauge(initial, data, opts, &free),
         Method::Linear | Method::Recursive => one_step(initial, data, opts, &free),
     }
 }

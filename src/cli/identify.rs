@@ -332,6 +332,9 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
             "held as drawn, seen too weakly to fix (a correction of their tolerance would change the residual by less than its noise): {}",
             report.weak.join(" ")
         );
+        if let Some(cause) = &report.weak_cause {
+            println!("  likely cause: {cause}");
+        }
     }
     if !report.placement.is_empty() {
         println!(

@@ -1,11 +1,50 @@
 //! What the fit holds as drawn, decided where it converged: the parameters seen too weakly
 //! ([`super::weakly_seen`], decided again with the noise the fit shows) and the redundant ones
 //! (back to their drawn values, the identifiable subset taking up their share).
-use super::{gauss_newton, sampled_analysis, solve, weak, weakly_seen, Identification, Options, Steps};
+use super::{gauss_newton, refit, sampled_analysis, solve, weak, weakly_seen, Identification, Options, Steps};
 use crate::error::CalibError;
 use crate::measure::Measurement;
 use crate::model::Mechanism;
 use nalgebra::DVector;
+
+/// Gauss–Newton from `initial` on `free` with [`Options::gauge`] held as drawn ([`fitted`]),
+/// unless holding it explains the data worse than noise can against the same fit with it free
+/// ([`costs_more_than_noise`]): then the gauge was no pure gauge at this geometry, and the free
+/// fit stands.
+pub(super) fn fitted_with_gauge<M: Mechanism + Clone>(
+    initial: &M,
+    data: &[Measurement],
+    opts: &Options,
+    free: &[usize],
+) -> Result<Identification<M>, CalibError> {
+    let gauge: Vec<usize> = opts.gauge.iter().copied().filter(|c| free.contains(c)).collect();
+    if gauge.is_empty() {
+        return fitted(initial, data, opts, free);
+    }
+    let placed: Vec<usize> = free.iter().copied().filter(|c| !gauge.contains(c)).collect();
+    let mut held = fitted(initial, data, opts, &placed)?;
+    let freed = fitted(initial, data, opts, free)?;
+    Ok(if costs_more_than_noise(&held, &freed, data, gauge.len()) {
+        freed
+    } else {
+        held.identifiability.gauge = gauge;
+        held
+    })
+}
+
+/// Gauss–Newton from `initial` on `free`, the weak directions decided again where it converged,
+/// refitted where more is seen there, and the redundant parameters back as drawn.
+fn fitted<M: Mechanism + Clone>(
+    initial: &M,
+    data: &[Measurement],
+    opts: &Options,
+    free: &[usize],
+) -> Result<Identification<M>, CalibError> {
+    let fit = gauss_newton(initial, data, opts, free, None, Steps::MinimumNorm)?;
+    let fit = weak_decided_again(fit, initial, data, opts, free)?;
+    let fit = refit::refit_where_more_is_seen(fit, data, opts, free)?;
+    redundant_as_drawn(fit, data, opts, free)
+}
 
 /// Rounds of deciding again, where the fit converged, which parameters are seen too weakly.
 const WEAK_ROUNDS: usize = 3;
@@ -46,8 +85,49 @@ pub(super) fn weak_decided_again<M: Mechanism + Clone>(
             // geometry can creep along the curved valley the hold left).
             fit = gauss_newton(initial, data, opts, free, Some(&now), Steps::MinimumNorm)?;
         }
+        if !fit.identifiability.weak.is_empty() {
+            return seen_when_freed(fit, initial, data, opts, free);
+        }
     }
     Ok(fit)
+}
+
+/// The held fit `held`, or the fit with nothing held as seen too weakly where that one
+/// explains the data better than noise can: the rise of the weighted cost `|r|²` the hold
+/// brings, against the χ² bound of [`weak::RELEASE_Z`] for as many degrees of freedom as held
+/// parameters, in units of the free fit's σ̂₀². The comparison of the two converged fits (not
+/// of a linear prediction at one of them) lets curved valleys and data cleaner than their
+/// stated noise (a simulation) free what they show; noise alone frees nothing.
+fn seen_when_freed<M: Mechanism + Clone>(
+    held: Identification<M>,
+    initial: &M,
+    data: &[Measurement],
+    opts: &Options,
+    free: &[usize],
+) -> Result<Identification<M>, CalibError> {
+    let unheld = Options {
+        weak: None,
+        ..opts.clone()
+    };
+    let Ok(freed) = gauss_newton(initial, data, &unheld, free, None, Steps::MinimumNorm) else {
+        return Ok(held);
+    };
+    let k = held.identifiability.weak.len();
+    Ok(if costs_more_than_noise(&held, &freed, data, k) {
+        freed
+    } else {
+        held
+    })
+}
+
+/// Whether `held` (a fit with `k` parameters held) explains `data` worse than `freed` (the same
+/// with them free, converged) by more than noise can: the rise of the weighted cost `|r|²`
+/// beyond the χ² bound of [`weak::RELEASE_Z`] for `k` degrees of freedom, in units of the
+/// freed fit's σ̂₀².
+pub(super) fn costs_more_than_noise<M>(held: &Identification<M>, freed: &Identification<M>, data: &[Measurement], k: usize) -> bool {
+    let rows = rows_of(data) as f64;
+    let cost = |f: &Identification<M>| f.sigma0.powi(2) * (rows - f.identifiability.identifiable.len() as f64).max(1.0);
+    freed.converged && cost(held) - cost(freed) > weak::chi2_bound(k) * freed.sigma0.powi(2)
 }
 
 /// `fit` with its redundant parameters back as drawn. Minimum-norm steps share each redundant

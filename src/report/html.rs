@@ -395,6 +395,22 @@ impl CalibrationReport {
                 esc(&self.held_by_assembly.join(", "))
             );
         }
+        if !self.weak.is_empty() {
+            let _ = write!(
+                h,
+                "<p id=\"weak\"><b>Seen too weakly to fix</b>, held as drawn ({}: a correction of their tolerance would change the residual by less than its noise){}: {}</p>",
+                self.weak.len(),
+                self.weak_cause.as_ref().map_or(String::new(), |c| format!("; likely cause: {}", esc(c))),
+                esc(&self.weak.join(", "))
+            );
+        }
+        if !self.placement.is_empty() {
+            let _ = write!(
+                h,
+                "<p id=\"placement\"><b>Where the machine stands</b>, held as drawn (no instrument in the data sees it; the artifacts' places absorb it): {}</p>",
+                esc(&self.placement.join(", "))
+            );
+        }
         if !self.singular_values.is_empty() {
             h.push_str("<div class=\"plots\">");
             let smax = self.singular_values.iter().copied().fold(0.0, f64::max).max(f64::MIN_POSITIVE);

@@ -10,6 +10,7 @@ pub mod plan;
 pub mod plot;
 mod verdict;
 mod view;
+pub mod weak_cause;
 
 pub use artifacts::{is_known_distance, ArtifactView, KnownDistance};
 pub use held_out::HeldOutPlacements;
@@ -230,6 +231,10 @@ pub struct CalibrationReport {
     /// ([`crate::identify::weakly_seen`]).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub weak: Vec<String>,
+    /// The likely cause of [`Self::weak`] and what would reveal them, where it is a known one
+    /// ([`weak_cause::known_cause`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub weak_cause: Option<String>,
     /// Names of the parameters that place the machine as a whole, held as drawn because no
     /// instrument in the data sees where the machine stands ([`crate::calibrate::gauge`]); not
     /// counted among the free parameters.
@@ -395,6 +400,7 @@ impl CalibrationReport {
             no_effect: names(&id.no_effect),
             held_by_assembly: names(&nominal.assembly_breaking()),
             weak: names(&id.weak),
+            weak_cause: None,
             placement: Vec::new(),
             params: rows,
             covariance,

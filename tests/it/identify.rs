@@ -176,7 +176,7 @@ fn reduced_gauss_newton_is_the_full_problem() {
     // own stopping rule (a step below 1e-6·(1 + |r|) that no longer lowers the cost: here a
     // change of the cost at round-off level, 1e-13 relative).
     let effective: Vec<usize> = all.iter().copied().filter(|c| !full.no_effect.contains(c)).collect();
-    let (a, norms) = scale_columns(&lin.jacobian, &effective);
+    let (a, _) = scale_columns(&lin.jacobian, &effective);
     let svd = a.clone().svd(true, true);
     let (u, vt) = (svd.u.as_ref().unwrap(), svd.v_t.as_ref().unwrap());
     let mut order: Vec<usize> = (0..svd.singular_values.len()).collect();

@@ -91,6 +91,11 @@ fn data_set(name: &str, truth: &dyn Mechanism, qs: &[Vec<f64>], kind: Kind, nois
 /// Calibrate the built-in `name` from tracker-frame data of a virtual prototype; returns the
 /// held-out statistics of the calibrated model against the truth's exact poses.
 fn run(name: &str, kind: Kind, noise: Option<Noise>, poses: usize) -> ErrorStats {
+    run_judged(name, kind, noise, poses).0
+}
+
+/// [`run`], with the verdict of the calibration.
+fn run_judged(name: &str, kind: Kind, noise: Option<Noise>, poses: usize) -> (ErrorStats, Status) {
     let file: ModelFile = builtin::model_file(name).unwrap();
     let nominal = file.build();
     let free = file.free_indices().unwrap();
@@ -111,7 +116,10 @@ fn run(name: &str, kind: Kind, noise: Option<Noise>, poses: usize) -> ErrorStats
     // The calibrated model file, written and read back, predicts the same poses.
     let text = cal.model_file.to_toml().unwrap();
     let back = ModelFile::load_str(std::path::Path::new("cal.toml"), &text).unwrap().build();
-    ErrorStats::of(&pose_errors(&*back, &exact.measurements).unwrap())
+    (
+        ErrorStats::of(&pose_errors(&*back, &exact.measurements).unwrap()),
+        cal.report.verdict.status,
+    )
 }
 
 fn check_exact(name: &str, kind: Kind) {
@@ -455,15 +463,25 @@ fn position_data_at_one_tool_orientation_register_without_running_off() {
 /// Models whose noise-free fit from one reflector's positions in a far frame stops short of
 /// round-off (held-out max measured with the data of [`run`]). The bound guards against a
 /// regression.
-const REFLECTOR_FLOORS: [(&str, f64); 1] = [("t3r1", 1e-4)];
+const REFLECTOR_FLOORS: [(&str, f64); 2] = [("t3r1", 1e-4), ("linear-delta", 5e-3)];
+
+/// Models whose frames one reflector's positions do not register from the drawing: the 3-PRS
+/// head only lifts and tilts, and its fit stops in another minimum (7.6 mm RMS left, the starts
+/// 3.3–3.9 mm apart). Such a fit must be failed, never reported calibrated.
+const REFLECTOR_UNREGISTERED: [&str; 1] = ["head-3prs"];
 
 /// Every built-in model measured by one reflector (positions only) in a tracker frame 2 m away
 /// and turned, 150 mm from the flange / platform, frames estimated, noise-free.
 #[test]
 fn every_shipped_model_with_one_reflector_in_a_tracker_frame() {
     for (name, _) in builtin::list() {
-        let e = run(name, Kind::Position, None, 60).position_max_mm;
-        eprintln!("{name}: noise-free, one reflector, tracker 2 m / 120°, frames estimated: held-out max {e:.2e} mm");
+        let (stats, status) = run_judged(name, Kind::Position, None, 60);
+        let e = stats.position_max_mm;
+        eprintln!("{name}: noise-free, one reflector, tracker 2 m / 120°, frames estimated: held-out max {e:.2e} mm, {status:?}");
+        if REFLECTOR_UNREGISTERED.contains(&name) {
+            assert!(e < 1e-9 || status == Status::Failed, "{name}: held-out {e:e} mm, {status:?}");
+            continue;
+        }
         let bound = REFLECTOR_FLOORS.iter().find(|(n, _)| *n == name).map_or(1e-9, |(_, b)| *b);
         assert!(e < bound, "{name}: held-out {e:e} mm");
     }
