@@ -1,0 +1,280 @@
+//! Calibrated kinematics written into the files controllers read (`kinecal model export
+//! --format ur-yaml | linuxcnc-hexapod | klipper-delta`) and read back: each file evaluated by
+//! kinematics written here from the file's documented convention (not kinecal's), round trips
+//! byte for byte, one line with file:line for a malformed file.
+use crate::cli::{fails, ok};
+use crate::registration::{data_set, tool, tracker, Kind};
+use kinecal::calibrate::{calibrate, CalibrationOptions};
+use kinecal::io::controllers::{self, Controller, ControllerError};
+use kinecal::io::model_file::ModelFile;
+use kinecal::model::framed::Framed;
+use kinecal::simulate::{random_configurations, virtual_prototype};
+use kinecal::Mechanism;
+use nalgebra::{Matrix3, Matrix4, Vector3};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use std::collections::BTreeMap;
+use std::f64::consts::PI;
+use std::path::Path;
+
+/// A homogeneous transform from a rotation and a translation.
+fn hom(r: Matrix3<f64>, t: Vector3<f64>) -> Matrix4<f64> {
+    let mut m = Matrix4::identity();
+    m.fixed_view_mut::<3, 3>(0, 0).copy_from(&r);
+    m.fixed_view_mut::<3, 1>(0, 3).copy_from(&t);
+    m
+}
+
+fn rx(a: f64) -> Matrix3<f64> {
+    let (s, c) = a.sin_cos();
+    Matrix3::new(1.0, 0.0, 0.0, 0.0, c, -s, 0.0, s, c)
+}
+fn ry(a: f64) -> Matrix3<f64> {
+    let (s, c) = a.sin_cos();
+    Matrix3::new(c, 0.0, s, 0.0, 1.0, 0.0, -s, 0.0, c)
+}
+fn rz(a: f64) -> Matrix3<f64> {
+    let (s, c) = a.sin_cos();
+    Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0)
+}
+
+/// URDF `<origin xyz rpy>`: `Trans(xyz)·Rz(yaw)·Ry(pitch)·Rx(roll)`.
+fn urdf_origin(xyz: [f64; 3], rpy: [f64; 3]) -> Matrix4<f64> {
+    hom(rz(rpy[2]) * ry(rpy[1]) * rx(rpy[0]), Vector3::from(xyz))
+}
+
+fn matrix_of(p: &kinecal::se3::Pose) -> Matrix4<f64> {
+    p.to_homogeneous()
+}
+
+/// Position (mm) and rotation (rad) apart.
+fn apart(a: &Matrix4<f64>, b: &Matrix4<f64>) -> (f64, f64) {
+    let dp = (a.fixed_view::<3, 1>(0, 3) - b.fixed_view::<3, 1>(0, 3)).norm();
+    let r = a.fixed_view::<3, 3>(0, 0).transpose() * b.fixed_view::<3, 3>(0, 0);
+    let c = ((r.trace() - 1.0) / 2.0).clamp(-1.0, 1.0);
+    // acos loses digits near 0: the skew part instead.
+    let s = Vector3::new(r[(2, 1)] - r[(1, 2)], r[(0, 2)] - r[(2, 0)], r[(1, 0)] - r[(0, 1)]).norm() / 2.0;
+    (dp, s.atan2(c))
+}
+
+// ---------------------------------------------------------------- Universal Robots
+
+/// The UR kinematics YAML read here, by line: segment → [x y z roll pitch yaw].
+fn read_ur_yaml(text: &str) -> BTreeMap<String, [f64; 6]> {
+    let keys = ["x", "y", "z", "roll", "pitch", "yaw"];
+    let mut out: BTreeMap<String, [f64; 6]> = BTreeMap::new();
+    let mut seg = String::new();
+    for line in text.lines().filter(|l| !l.trim_start().starts_with('#') && !l.trim().is_empty()) {
+        let (k, v) = line.split_once(':').unwrap();
+        let indent = line.len() - line.trim_start().len();
+        if indent == 2 && v.trim().is_empty() {
+            seg = k.trim().to_string();
+        } else if indent == 4 {
+            let i = keys.iter().position(|x| *x == k.trim()).unwrap();
+            out.entry(seg.clone()).or_insert([0.0; 6])[i] = v.trim().parse().unwrap();
+        }
+    }
+    out
+}
+
+/// ur_description's forward kinematics from base_link to tool0 (metres → mm).
+fn ur_forward(seg: &BTreeMap<String, [f64; 6]>, q: &[f64]) -> Matrix4<f64> {
+    let names = ["shoulder", "upper_arm", "forearm", "wrist_1", "wrist_2", "wrist_3"];
+    let mut t = urdf_origin([0.0; 3], [0.0, 0.0, PI]);
+    for (k, n) in names.iter().enumerate() {
+        let s = seg[*n];
+        t = t * urdf_origin([s[0] * 1000.0, s[1] * 1000.0, s[2] * 1000.0], [s[3], s[4], s[5]]) * hom(rz(q[k]), Vector3::zeros());
+    }
+    t * urdf_origin([0.0; 3], [0.0, -PI / 2.0, -PI / 2.0]) * urdf_origin([0.0; 3], [PI / 2.0, 0.0, PI / 2.0])
+}
+
+/// A UR5e with random geometric errors, calibrated from noise-free tracker poses (tracker 2 m
+/// away, tool 150 mm off the flange), written as the UR YAML: the YAML's own forward kinematics
+/// with the calibrated measurement and tool frames give the calibrated model's measured poses
+/// to 1e-9 mm / 1e-9 rad, and the printed difference is round-off.
+#[test]
+fn calibrated_ur5e_written_as_ur_yaml_is_the_calibrated_model() {
+    let file = kinecal::io::urdf::import(&crate::urdf::ur5e_urdf(), None, None).unwrap();
+    let nominal = file.build();
+    let mut rng = ChaCha8Rng::seed_from_u64(47);
+    let (proto, _) = virtual_prototype(&nominal, &file.free_indices().unwrap(), 0.5, 0.1f64.to_radians(), &mut rng);
+    let truth = Framed::new(proto, tracker(), tool());
+    let inputs = file.inputs();
+    let qs = random_configurations(&*nominal, &inputs, 60, &mut rng).unwrap();
+    let data = data_set("ident.csv", &truth, &qs, Kind::Pose, None, 1);
+    let cal = calibrate(&file, &data, None, &CalibrationOptions::default()).unwrap();
+    let calibrated = cal.model_file;
+    let export = controllers::export(&calibrated, Controller::UrYaml).unwrap();
+    let seg = read_ur_yaml(&export.text);
+    assert_eq!(seg.len(), 6, "{}", export.text);
+    let frames = calibrated.frames.as_ref().expect("tracker calibration has frames");
+    let model = calibrated.build();
+    // The calibrated chain's own tool, seen from tool0 (the written file leaves it to the TCP).
+    let kinecal::io::model_file::MechanismSpec::Serial(chain) = &calibrated.mechanism else {
+        panic!("serial")
+    };
+    let leftover = ur_forward(&seg, &[0.0; 6]).try_inverse().unwrap() * matrix_of(&chain.forward(&[0.0; 6]).unwrap());
+    let (mut pmax, mut rmax) = (0.0f64, 0.0f64);
+    for q in random_configurations(&*nominal, &inputs, 200, &mut rng).unwrap() {
+        let yaml = matrix_of(&frames.measurement) * ur_forward(&seg, &q) * leftover * matrix_of(&frames.tool);
+        let (dp, dr) = apart(&yaml, &matrix_of(&model.forward(&q).unwrap()));
+        pmax = pmax.max(dp);
+        rmax = rmax.max(dr);
+    }
+    eprintln!(
+        "UR5e calibrated → ur-yaml: independent FK vs calibrated model {pmax:.2e} mm, {rmax:.2e} rad; printed {}",
+        export.projection.difference
+    );
+    assert!(pmax < 1e-9 && rmax < 1e-9, "{pmax:e} mm, {rmax:e} rad");
+    // The chain's tool stays where the calibration put it: only a small leftover (the frames
+    // carry the tool), and the library says so.
+    let d = export.projection.difference;
+    assert!(d.position_max_mm < 1e-9 && d.rotation_max_rad.unwrap() < 1e-9, "{d}");
+    assert!(export.projection.not_represented.is_empty());
+    assert!(export.projection.not_written.iter().any(|l| l.starts_with("measurement frame")));
+    // The truth's joint geometry is what the file holds: the same tool0 poses as the truth's
+    // chain up to the frames, i.e. the calibration reached the truth through the file too.
+    let truth_poses: Vec<_> = qs.iter().take(5).map(|q| truth.forward(q).unwrap()).collect();
+    for (q, t) in qs.iter().take(5).zip(truth_poses) {
+        let yaml = matrix_of(&frames.measurement) * ur_forward(&seg, q) * leftover * matrix_of(&frames.tool);
+        let (dp, _) = apart(&yaml, &matrix_of(&t));
+        assert!(dp < 1e-6, "against the truth: {dp:e} mm");
+    }
+}
+
+/// ur_description's default kinematics of a UR5e (the nominal values, as the factory file
+/// writes them: π/2 to 10 digits).
+const UR5E_DEFAULT: &str = "kinematics:
+  shoulder:
+    x: 0
+    y: 0
+    z: 0.1625
+    roll: 0
+    pitch: 0
+    yaw: 0
+  upper_arm:
+    x: 0
+    y: 0
+    z: 0
+    roll: 1.570796327
+    pitch: 0
+    yaw: 0
+  forearm:
+    x: -0.425
+    y: 0
+    z: 0
+    roll: 0
+    pitch: 0
+    yaw: 0
+  wrist_1:
+    x: -0.3922
+    y: 0
+    z: 0.1333
+    roll: 0
+    pitch: 0
+    yaw: 0
+  wrist_2:
+    x: 0
+    y: -0.0997
+    z: 0
+    roll: 1.570796327
+    pitch: 0
+    yaw: 0
+  wrist_3:
+    x: 0
+    y: 0.0996
+    z: 0
+    roll: 1.570796326589793
+    pitch: 3.141592653589793
+    yaw: 3.141592653589793
+  hash: \"calib_12345678901234567890\"
+";
+
+/// The factory (nominal) YAML of a UR5e imports to the URDF's geometry.
+#[test]
+fn factory_ur5e_yaml_imports_to_the_urdf_geometry() {
+    let from_yaml = controllers::import(UR5E_DEFAULT, Controller::UrYaml).unwrap().build();
+    let from_urdf = kinecal::io::urdf::import(&crate::urdf::ur5e_urdf(), None, None).unwrap().build();
+    assert_eq!(from_yaml.input_names(), from_urdf.input_names());
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let file = kinecal::io::urdf::import(&crate::urdf::ur5e_urdf(), None, None).unwrap();
+    let (mut pmax, mut rmax) = (0.0f64, 0.0f64);
+    for q in random_configurations(&*from_urdf, &file.inputs(), 200, &mut rng).unwrap() {
+        let (dp, dr) = apart(
+            &matrix_of(&from_yaml.forward(&q).unwrap()),
+            &matrix_of(&from_urdf.forward(&q).unwrap()),
+        );
+        pmax = pmax.max(dp);
+        rmax = rmax.max(dr);
+    }
+    // The file's π/2 has 10 digits: 3.3e-10 rad per joint.
+    assert!(pmax < 2e-6 && rmax < 2e-9, "{pmax:e} mm, {rmax:e} rad");
+}
+
+/// Written, imported, written again: byte for byte (also through the model file's TOML), for
+/// the nominal UR5e and a calibrated-like one with errors in every joint frame.
+#[test]
+fn ur_yaml_round_trips_byte_for_byte() {
+    let file = kinecal::io::urdf::import(&crate::urdf::ur5e_urdf(), None, None).unwrap();
+    let nominal = file.build();
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let (proto, _) = virtual_prototype(&nominal, &file.free_indices().unwrap(), 2.0, 0.5f64.to_radians(), &mut rng);
+    for f in [file.clone(), file.with_geometry_of(&*proto).unwrap()] {
+        let text = controllers::export(&f, Controller::UrYaml).unwrap().text;
+        let back = controllers::import(&text, Controller::UrYaml).unwrap();
+        assert_eq!(controllers::export(&back, Controller::UrYaml).unwrap().text, text);
+        let toml = back.to_toml().unwrap();
+        let again = ModelFile::load_str(Path::new("ur.toml"), &toml).unwrap();
+        assert_eq!(controllers::export(&again, Controller::UrYaml).unwrap().text, text);
+    }
+}
+
+/// Every broken UR YAML: one error naming its line.
+#[test]
+fn malformed_ur_yaml_names_the_line() {
+    let good = controllers::export(
+        &kinecal::io::urdf::import(&crate::urdf::ur5e_urdf(), None, None).unwrap(),
+        Controller::UrYaml,
+    )
+    .unwrap()
+    .text;
+    let line_of = |needle: &str| good.lines().position(|l| l.contains(needle)).unwrap() + 1;
+    let forearm_x = line_of("    x: -0.4250000000000");
+    let cases: Vec<(String, usize)> = vec![
+        (good.replace("    x: -0.4250000000000", "    x: abc"), forearm_x),
+        (good.replace("    x: -0.4250000000000", "    q: 1"), forearm_x),
+        (good.replace("  forearm:", "  elbow:"), line_of("  forearm:")),
+        (good.replace("    x: -0.4250000000000\n", ""), line_of("  forearm:")),
+        (good.replace("    x: -0.4250000000000", "    x: nan"), forearm_x),
+        (good.replace("    x: -0.4250000000000", "    just text"), forearm_x),
+    ];
+    for (text, line) in cases {
+        match controllers::import(&text, Controller::UrYaml) {
+            Err(ControllerError::Parse { line: l, message }) => assert_eq!(l, line, "{message}"),
+            other => panic!("expected a parse error at line {line}, got {other:?}"),
+        }
+    }
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("bad.yaml"), good.replace("    x: -0.4250000000000", "    x: abc")).unwrap();
+    let err = fails(dir.path(), &["model", "import", "bad.yaml", "--format", "ur-yaml"]);
+    assert!(err.starts_with(&format!("bad.yaml:{forearm_x}: ")), "{err}");
+}
+
+/// The command: export prints the difference and the frames left out; import reads the file.
+#[test]
+fn ur_yaml_through_the_cli() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("ur5e.urdf"), crate::urdf::ur5e_urdf()).unwrap();
+    ok(dir.path(), &["model", "import", "ur5e.urdf", "--out", "ur5e.toml"]);
+    let out = ok(
+        dir.path(),
+        &["model", "export", "ur5e.toml", "--format", "ur-yaml", "--out", "ur5e.yaml"],
+    );
+    assert!(out.contains("ur-yaml: tool position max"), "{out}");
+    ok(
+        dir.path(),
+        &["model", "import", "ur5e.yaml", "--format", "ur-yaml", "--out", "back.toml"],
+    );
+    let again = ok(dir.path(), &["model", "export", "back.toml", "--format", "ur-yaml"]);
+    assert_eq!(again, std::fs::read_to_string(dir.path().join("ur5e.yaml")).unwrap());
+}
