@@ -5,7 +5,7 @@
 use crate::error::KinError;
 use crate::model::kind::InputSpec;
 use crate::model::Mechanism;
-use crate::se3;
+use crate::se3::{self, Pose};
 use nalgebra::{DMatrix, DVector};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -49,24 +49,34 @@ pub fn spread_configurations(model: &dyn Mechanism, inputs: &[InputSpec], n: usi
 /// The tool-pose differences between `a` and `b` at `configurations`; rotations compared only
 /// when `with_rotation`.
 pub fn compare(a: &dyn Mechanism, b: &dyn Mechanism, configurations: &[Vec<f64>], with_rotation: bool) -> Result<PoseDifference, KinError> {
-    let (mut pmax, mut psum, mut rmax, mut rsum) = (0.0f64, 0.0, 0.0f64, 0.0);
-    for q in configurations {
-        let (ta, tb) = (a.forward(q)?, b.forward(q)?);
-        let e = se3::pose_error(&ta, &tb);
-        let (dp, dr) = (e.fixed_rows::<3>(0).norm(), e.fixed_rows::<3>(3).norm());
-        pmax = pmax.max(dp);
-        psum += dp * dp;
-        rmax = rmax.max(dr);
-        rsum += dr * dr;
+    let pairs = configurations
+        .iter()
+        .map(|q| Ok((a.forward(q)?, b.forward(q)?)))
+        .collect::<Result<Vec<_>, KinError>>()?;
+    Ok(PoseDifference::of(&pairs, with_rotation))
+}
+
+impl PoseDifference {
+    /// The differences of pairs of tool poses; rotations only when `with_rotation`.
+    pub fn of(pairs: &[(Pose, Pose)], with_rotation: bool) -> PoseDifference {
+        let (mut pmax, mut psum, mut rmax, mut rsum) = (0.0f64, 0.0, 0.0f64, 0.0);
+        for (ta, tb) in pairs {
+            let e = se3::pose_error(ta, tb);
+            let (dp, dr) = (e.fixed_rows::<3>(0).norm(), e.fixed_rows::<3>(3).norm());
+            pmax = pmax.max(dp);
+            psum += dp * dp;
+            rmax = rmax.max(dr);
+            rsum += dr * dr;
+        }
+        let n = pairs.len().max(1) as f64;
+        PoseDifference {
+            poses: pairs.len(),
+            position_max_mm: pmax,
+            position_rms_mm: (psum / n).sqrt(),
+            rotation_max_rad: with_rotation.then_some(rmax),
+            rotation_rms_rad: with_rotation.then_some((rsum / n).sqrt()),
+        }
     }
-    let n = configurations.len().max(1) as f64;
-    Ok(PoseDifference {
-        poses: configurations.len(),
-        position_max_mm: pmax,
-        position_rms_mm: (psum / n).sqrt(),
-        rotation_max_rad: with_rotation.then_some(rmax),
-        rotation_rms_rad: with_rotation.then_some((rsum / n).sqrt()),
-    })
 }
 
 /// Gauss–Newton on `residual(x)` from `x0` with a central-difference Jacobian (steps `h`), the

@@ -278,3 +278,144 @@ fn ur_yaml_through_the_cli() {
     let again = ok(dir.path(), &["model", "export", "back.toml", "--format", "ur-yaml"]);
     assert_eq!(again, std::fs::read_to_string(dir.path().join("ur5e.yaml")).unwrap());
 }
+
+// ---------------------------------------------------------------- LinuxCNC genhexkins
+
+/// The genhexkins HAL file read here: (base, platform, offset) per strut.
+fn read_genhex(text: &str) -> ([[f64; 3]; 6], [[f64; 3]; 6], [f64; 6]) {
+    let (mut b, mut p, mut o) = ([[0.0; 3]; 6], [[0.0; 3]; 6], [0.0; 6]);
+    for line in text.lines().filter(|l| l.starts_with("setp ")) {
+        let w: Vec<&str> = line.split_whitespace().collect();
+        let v: f64 = w[2].parse().unwrap();
+        let n: Vec<&str> = w[1].split('.').collect();
+        let i: usize = n[n.len() - 2].parse().unwrap_or_else(|_| n[1].parse().unwrap());
+        match n.as_slice() {
+            ["genhexkins", "base", _, a] => b[i][["x", "y", "z"].iter().position(|x| x == a).unwrap()] = v,
+            ["genhexkins", "platform", _, a] => p[i][["x", "y", "z"].iter().position(|x| x == a).unwrap()] = v,
+            ["offset", _, "offset"] => o[i] = v,
+            _ => panic!("{line}"),
+        }
+    }
+    (b, p, o)
+}
+
+/// genhexkins's inverse kinematics (strut length) plus the documented offset: the actuator
+/// positions at platform pose `t`.
+fn genhex_inputs(g: &([[f64; 3]; 6], [[f64; 3]; 6], [f64; 6]), t: &Matrix4<f64>) -> [f64; 6] {
+    std::array::from_fn(|i| {
+        let a = t * nalgebra::Vector4::new(g.1[i][0], g.1[i][1], g.1[i][2], 1.0);
+        (Vector3::new(a.x, a.y, a.z) - Vector3::from(g.0[i])).norm() + g.2[i]
+    })
+}
+
+/// The built-in Stewart platform with random errors in all 42 joint points and lengths,
+/// calibrated from noise-free tracker poses: genhexkins's inverse kinematics with the written
+/// parameters gives kinecal's calibrated inverse kinematics to 1e-9 mm.
+#[test]
+fn calibrated_stewart_written_for_genhexkins_gives_the_calibrated_leg_lengths() {
+    let file = kinecal::io::builtin::model_file("stewart").unwrap();
+    let nominal = file.build();
+    let mut rng = ChaCha8Rng::seed_from_u64(48);
+    let (proto, _) = virtual_prototype(&nominal, &file.free_indices().unwrap(), 0.5, 0.1f64.to_radians(), &mut rng);
+    let truth = Framed::new(proto, tracker(), tool());
+    let inputs = file.inputs();
+    let qs = random_configurations(&*nominal, &inputs, 60, &mut rng).unwrap();
+    let data = data_set("ident.csv", &truth, &qs, Kind::Pose, None, 1);
+    let cal = calibrate(&file, &data, None, &CalibrationOptions::default()).unwrap();
+    let export = controllers::export(&cal.model_file, Controller::LinuxcncHexapod).unwrap();
+    let g = read_genhex(&export.text);
+    let machine = cal.model_file.mechanism.build();
+    let mut worst = 0.0f64;
+    for q in random_configurations(&*machine, &inputs, 200, &mut rng).unwrap() {
+        let t = machine.forward(&q).unwrap();
+        let kinecal_ik = machine.inverse(&t, None).unwrap();
+        let genhex = genhex_inputs(&g, &matrix_of(&t));
+        for i in 0..6 {
+            worst = worst.max((genhex[i] - kinecal_ik[i]).abs());
+        }
+    }
+    eprintln!(
+        "calibrated stewart → linuxcnc-hexapod: independent IK vs calibrated IK {worst:.2e} mm; printed {}",
+        export.projection.difference
+    );
+    assert!(worst < 1e-9, "{worst:e} mm");
+    assert!(export.projection.not_represented.is_empty());
+    assert!(
+        export.projection.difference.position_max_mm < 1e-8,
+        "{}",
+        export.projection.difference
+    );
+    // Round trip byte for byte, also through the model file.
+    let back = controllers::import(&export.text, Controller::LinuxcncHexapod).unwrap();
+    assert_eq!(controllers::export(&back, Controller::LinuxcncHexapod).unwrap().text, export.text);
+    let again = ModelFile::load_str(Path::new("h.toml"), &back.to_toml().unwrap()).unwrap();
+    assert_eq!(controllers::export(&again, Controller::LinuxcncHexapod).unwrap().text, export.text);
+}
+
+/// The Stewart platform as limbs with random errors of every kind its free parameters allow:
+/// the per-leg projection leaves a strut-length residual where a limb is more than two points
+/// and a length; genhexkins's inverse kinematics with the written parameters is within that
+/// residual of the model's, and the pose difference printed is the forward kinematics'.
+#[test]
+fn stewart_limbs_projected_for_genhexkins_leave_the_printed_residual() {
+    let file = kinecal::io::builtin::model_file("stewart-limbs").unwrap();
+    let nominal = file.build();
+    let mut rng = ChaCha8Rng::seed_from_u64(49);
+    // Every error coordinate of the limbs, also those the calibration holds as drawn (actuator
+    // axes off the universal joints' centres, joint axes): not all of them are genhexkins's.
+    let all: Vec<usize> = (0..nominal.n_params()).collect();
+    let (proto, _) = virtual_prototype(&nominal, &all, 0.5, 0.2f64.to_radians(), &mut rng);
+    let model = file.with_geometry_of(&*proto).unwrap();
+    let export = controllers::export(&model, Controller::LinuxcncHexapod).unwrap();
+    let fit = export.projection.fit_residual_mm.expect("a least-squares projection");
+    let g = read_genhex(&export.text);
+    let machine = model.mechanism.build();
+    let mut worst = 0.0f64;
+    for q in random_configurations(&*machine, &model.inputs(), 200, &mut rng).unwrap() {
+        let t = machine.forward(&q).unwrap();
+        let genhex = genhex_inputs(&g, &matrix_of(&t));
+        for i in 0..6 {
+            worst = worst.max((genhex[i] - q[i]).abs());
+        }
+    }
+    eprintln!(
+        "stewart-limbs with errors → linuxcnc-hexapod: strut residual {fit:.2e} mm (fit), {worst:.2e} mm (independent IK, other poses); printed {}; {:?}",
+        export.projection.difference, export.projection.not_represented
+    );
+    assert!(worst <= 1.5 * fit + 1e-9, "independent {worst:e} mm vs printed {fit:e} mm");
+    assert!(fit > 1e-6, "these errors are not all representable: residual {fit:e} mm");
+    assert!(!export.projection.not_represented.is_empty());
+    assert!(export.projection.difference.position_max_mm > 1e-6);
+}
+
+/// Every broken genhexkins file: one error naming its line; the command prints file:line.
+#[test]
+fn malformed_genhexkins_file_names_the_line() {
+    let good = controllers::export(&kinecal::io::builtin::model_file("stewart").unwrap(), Controller::LinuxcncHexapod)
+        .unwrap()
+        .text;
+    let target = good
+        .lines()
+        .find(|l| l.starts_with("setp genhexkins.platform.3.y"))
+        .unwrap()
+        .to_string();
+    let line = good.lines().position(|l| l == target).unwrap() + 1;
+    for bad in [
+        "setp genhexkins.platform.3.y x1".to_string(),
+        "setp genhexkins.platform.9.y 1".into(),
+        "setp genhexkins.platform.3.w 1".into(),
+        "net genhexkins.platform.3.y 1".into(),
+        "setp genhexkins.platform.3.y".into(),
+        "setp genhexkins.platform.0.x 1".into(),
+    ] {
+        let text = good.replace(&target, &bad);
+        match controllers::import(&text, Controller::LinuxcncHexapod) {
+            Err(ControllerError::Parse { line: l, message }) => assert_eq!(l, line, "{bad}: {message}"),
+            other => panic!("{bad}: expected a parse error at line {line}, got {other:?}"),
+        }
+    }
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("hex.hal"), good.replace(&target, "setp genhexkins.platform.3.y x1")).unwrap();
+    let err = fails(dir.path(), &["model", "import", "hex.hal", "--format", "linuxcnc-hexapod"]);
+    assert!(err.starts_with(&format!("hex.hal:{line}: ")), "{err}");
+}

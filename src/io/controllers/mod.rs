@@ -95,6 +95,9 @@ pub struct Projection {
     pub difference: PoseDifference,
     /// Error parameters (or geometry) of the model the controller cannot represent, each a line.
     pub not_represented: Vec<String>,
+    /// The largest residual (mm) of the controller's own equations over the least-squares fit
+    /// (strut lengths, carriage heights), where the projection is a fit.
+    pub fit_residual_mm: Option<f64>,
     /// Frames the controller's file has no place for (measurement frame, tool offsets), each a
     /// line saying where they go.
     pub not_written: Vec<String>,

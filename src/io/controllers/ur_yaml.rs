@@ -367,6 +367,7 @@ pub fn export(file: &ModelFile) -> Result<Export, ControllerError> {
         projection: Projection {
             difference,
             not_represented: Vec::new(),
+            fit_residual_mm: None,
             not_written,
         },
     })
