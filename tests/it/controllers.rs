@@ -419,3 +419,144 @@ fn malformed_genhexkins_file_names_the_line() {
     let err = fails(dir.path(), &["model", "import", "hex.hal", "--format", "linuxcnc-hexapod"]);
     assert!(err.starts_with(&format!("hex.hal:{line}: ")), "{err}");
 }
+
+// ---------------------------------------------------------------- Klipper delta
+
+/// A Klipper delta's parameters read here from printer.cfg text: (R, angles °, arms, endstops).
+fn read_klipper(text: &str) -> (f64, [f64; 3], [f64; 3], [f64; 3]) {
+    let (mut r, mut a, mut l, mut e) = (0.0, [0.0; 3], [0.0; 3], [0.0; 3]);
+    let mut tower = 0;
+    for line in text.lines().filter(|l| !l.starts_with('#')) {
+        if let Some(t) = line.strip_prefix("[stepper_") {
+            tower = ["a]", "b]", "c]"].iter().position(|x| *x == t).unwrap();
+        } else if let Some((k, v)) = line.split_once(':') {
+            let v = v.trim();
+            match k {
+                "delta_radius" => r = v.parse().unwrap(),
+                "angle" => a[tower] = v.parse().unwrap(),
+                "arm_length" => l[tower] = v.parse().unwrap(),
+                "position_endstop" => e[tower] = v.parse().unwrap(),
+                _ => {}
+            }
+        }
+    }
+    (r, a, l, e)
+}
+
+/// Klipper's delta forward kinematics, written here by Newton on the three rod equations from
+/// below the towers' centre: the nozzle at carriage heights `h`.
+fn delta_forward(k: &(f64, [f64; 3], [f64; 3], [f64; 3]), h: &[f64; 3]) -> Vector3<f64> {
+    let towers: Vec<Vector3<f64>> = (0..3)
+        .map(|i| {
+            let a = k.1[i].to_radians();
+            Vector3::new(k.0 * a.cos(), k.0 * a.sin(), h[i])
+        })
+        .collect();
+    let mut p = Vector3::new(0.0, 0.0, h.iter().sum::<f64>() / 3.0 - k.2[0]);
+    for _ in 0..100 {
+        let f = Vector3::from_fn(|i, _| (p - towers[i]).norm_squared() - k.2[i] * k.2[i]);
+        let j = Matrix3::from_fn(|i, c| 2.0 * (p - towers[i])[c]);
+        let step = j.lu().solve(&-f).unwrap();
+        p += step;
+        if step.norm() < 1e-13 {
+            break;
+        }
+    }
+    p
+}
+
+/// Errors of exactly the kinds Klipper models (radius, tower angles, arm lengths, endstops) on a
+/// delta from printer.cfg: the projection recovers them to 1e-9 mm (noise-free, as fitted).
+#[test]
+fn klipper_kinds_of_error_are_recovered() {
+    use kinecal::io::controllers::klipper_delta::{from_model, KlipperDelta};
+    let mut rng = ChaCha8Rng::seed_from_u64(50);
+    let mut u = || rand::RngExt::random_range(&mut rng, -1.0..1.0);
+    let truth = KlipperDelta {
+        radius: 140.0 + u(),
+        angle: [210.0 + 0.5 * u(), 330.0 + 0.5 * u(), 90.0 + 0.5 * u()],
+        arm_length: [250.0 + u(), 250.0 + u(), 250.0 + u()],
+        position_endstop: [250.0 + u(), 250.0 + u(), 250.0 + u()],
+    };
+    let model = truth.model_file().unwrap();
+    let (k, origin, residual, lost) = from_model(&model).unwrap();
+    let wrap = |a: f64| (a + 540.0).rem_euclid(360.0) - 180.0;
+    let mut worst = (k.radius - truth.radius).abs();
+    for i in 0..3 {
+        worst = worst
+            .max(wrap(k.angle[i] - truth.angle[i]).to_radians().abs() * truth.radius)
+            .max((k.arm_length[i] - truth.arm_length[i]).abs())
+            .max((k.position_endstop[i] - truth.position_endstop[i]).abs());
+    }
+    eprintln!("Klipper-kind errors: recovered to {worst:.2e} mm (fit residual {residual:.2e} mm)");
+    assert!(worst < 1e-9, "{worst:e} mm: {k:?} vs {truth:?}");
+    assert!(origin[0].abs() < 1e-9 && origin[1].abs() < 1e-9, "{origin:?}");
+    assert!(lost.is_empty());
+    // Round trip byte for byte, also through the model file.
+    let text = controllers::export(&model, Controller::KlipperDelta).unwrap().text;
+    let back = controllers::import(&text, Controller::KlipperDelta).unwrap();
+    assert_eq!(controllers::export(&back, Controller::KlipperDelta).unwrap().text, text);
+    let again = ModelFile::load_str(Path::new("k.toml"), &back.to_toml().unwrap()).unwrap();
+    assert_eq!(controllers::export(&again, Controller::KlipperDelta).unwrap().text, text);
+}
+
+/// The built-in linear delta with random errors in every free parameter (rail tilts and joint
+/// axes among them), calibrated from noise-free tracker positions: the written parameters,
+/// evaluated by the delta forward kinematics written here, leave the printed difference.
+#[test]
+fn calibrated_linear_delta_written_for_klipper_leaves_the_printed_residual() {
+    use kinecal::io::controllers::klipper_delta::from_model;
+    let file = kinecal::io::builtin::model_file("linear-delta").unwrap();
+    let nominal = file.build();
+    let mut rng = ChaCha8Rng::seed_from_u64(51);
+    let (proto, _) = virtual_prototype(&nominal, &file.free_indices().unwrap(), 0.5, 0.1f64.to_radians(), &mut rng);
+    let truth = Framed::new(proto, tracker(), tool());
+    let inputs = file.inputs();
+    let qs = random_configurations(&*nominal, &inputs, 60, &mut rng).unwrap();
+    let data = data_set("ident.csv", &truth, &qs, Kind::Position, None, 1);
+    let cal = calibrate(&file, &data, None, &CalibrationOptions::default()).unwrap();
+    let export = controllers::export(&cal.model_file, Controller::KlipperDelta).unwrap();
+    let printed = export.projection.difference;
+    let k = read_klipper(&export.text);
+    let (_, origin, _, _) = from_model(&cal.model_file).unwrap();
+    let machine = cal.model_file.mechanism.build();
+    let upper: Vec<f64> = inputs.iter().map(|i| i.limits.unwrap().1).collect();
+    let mut worst = 0.0f64;
+    for q in random_configurations(&*machine, &inputs, 200, &mut rng).unwrap() {
+        // Carriage heights in Klipper: the endstop input (upper limit) is the endstop height.
+        let h: [f64; 3] = std::array::from_fn(|i| q[i] - upper[i] + k.3[i] + (k.2[i] * k.2[i] - k.0 * k.0).sqrt());
+        let p = delta_forward(&k, &h) + Vector3::new(origin[0], origin[1], 0.0);
+        worst = worst.max((p - machine.forward(&q).unwrap().translation.vector).norm());
+    }
+    eprintln!(
+        "calibrated linear-delta → klipper-delta: independent FK vs calibrated model {worst:.3e} mm; printed {printed}; {:?}",
+        export.projection.not_represented
+    );
+    assert!(worst <= 1.5 * printed.position_max_mm + 1e-6, "{worst:e} vs printed {printed}");
+    assert!(printed.position_max_mm > 1e-4, "rail tilts are not Klipper's: {printed}");
+    assert!(!export.projection.not_represented.is_empty());
+}
+
+/// Every broken printer.cfg: one error naming its line; the command prints file:line.
+#[test]
+fn malformed_printer_cfg_names_the_line() {
+    let good = controllers::export(&kinecal::io::builtin::model_file("linear-delta").unwrap(), Controller::KlipperDelta)
+        .unwrap()
+        .text;
+    let target = "arm_length: 250.000000";
+    let line = good.lines().position(|l| l == target).unwrap() + 1;
+    for bad in ["arm_length: long", "arm_length: 10", "arm_length 250", "[stepper_a"] {
+        let text = good.replacen(target, bad, 1);
+        match controllers::import(&text, Controller::KlipperDelta) {
+            Err(ControllerError::Parse { line: l, message }) => assert_eq!(l, line, "{bad}: {message}"),
+            other => panic!("{bad}: expected a parse error at line {line}, got {other:?}"),
+        }
+    }
+    let text = good.replace("kinematics: delta", "kinematics: corexy");
+    let kline = good.lines().position(|l| l == "kinematics: delta").unwrap() + 1;
+    assert!(matches!(controllers::import(&text, Controller::KlipperDelta), Err(ControllerError::Parse { line, .. }) if line == kline));
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("printer.cfg"), good.replacen(target, "arm_length: long", 1)).unwrap();
+    let err = fails(dir.path(), &["model", "import", "printer.cfg", "--format", "klipper-delta"]);
+    assert!(err.starts_with(&format!("printer.cfg:{line}: ")), "{err}");
+}
