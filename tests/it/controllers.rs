@@ -560,3 +560,62 @@ fn malformed_printer_cfg_names_the_line() {
     let err = fails(dir.path(), &["model", "import", "printer.cfg", "--format", "klipper-delta"]);
     assert!(err.starts_with(&format!("printer.cfg:{line}: ")), "{err}");
 }
+
+// ---------------------------------------------------------------- mutated files
+
+/// A valid file of each format: (format, text).
+fn controller_fixtures() -> &'static Vec<(Controller, String)> {
+    static F: std::sync::OnceLock<Vec<(Controller, String)>> = std::sync::OnceLock::new();
+    F.get_or_init(|| {
+        let ur = kinecal::io::urdf::import(&crate::urdf::ur5e_urdf(), None, None).unwrap();
+        vec![
+            (Controller::UrYaml, controllers::export(&ur, Controller::UrYaml).unwrap().text),
+            (
+                Controller::LinuxcncHexapod,
+                controllers::export(&kinecal::io::builtin::model_file("stewart").unwrap(), Controller::LinuxcncHexapod)
+                    .unwrap()
+                    .text,
+            ),
+            (
+                Controller::KlipperDelta,
+                controllers::export(&kinecal::io::builtin::model_file("linear-delta").unwrap(), Controller::KlipperDelta)
+                    .unwrap()
+                    .text,
+            ),
+        ]
+    })
+}
+
+/// Import, and export what imports: a value or a typed error within the watchdog, no panic.
+fn controller_answer(c: Controller, text: String) -> Result<(), String> {
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let r = std::panic::catch_unwind(|| {
+            if let Ok(file) = controllers::import(&text, c) {
+                let _ = controllers::export(&file, c);
+            }
+        });
+        let _ = tx.send(r.is_ok());
+    });
+    match rx.recv_timeout(std::time::Duration::from_secs(20)) {
+        Ok(true) => Ok(()),
+        Ok(false) => Err("panicked".into()),
+        Err(_) => Err("no answer within 20 s".into()),
+    }
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig { rng_seed: proptest::test_runner::RngSeed::Fixed(20261129), ..proptest::prelude::ProptestConfig::with_cases(48) })]
+
+    #[test]
+    fn mutated_controller_files_get_an_answer(kind in 0usize..3, at in 0.0..1.0f64, len in 0usize..6,
+        with in proptest::sample::select(vec!["0", "-0", "1e308", "-1e308", "1e-308", "NaN", "inf", "", "x", ":", "[", "\n", "-", "  "])) {
+        let (c, text) = controller_fixtures()[kind].clone();
+        let chars: Vec<char> = text.chars().collect();
+        let i = ((at * chars.len() as f64) as usize).min(chars.len());
+        let j = (i + len).min(chars.len());
+        let mutated = chars[..i].iter().collect::<String>() + with + &chars[j..].iter().collect::<String>();
+        let r = controller_answer(c, mutated);
+        proptest::prop_assert!(r.is_ok(), "{:?}: {} mutated at {at:.3} ({len} chars → {with:?})", r, c.name());
+    }
+}

@@ -2,11 +2,11 @@
 //! per tower `[stepper_a|b|c]` `angle`, `arm_length` and `position_endstop`.
 //!
 //! # Convention (Klipper's `delta.py`)
-//! Tower `i` stands at `(R·cos θ_i, R·sin θ_i)` (`R` = `delta_radius`, `θ_i` = `angle`, degrees;
-//! the effective radius: rod pivots and effector offsets folded in); its carriage at height
-//! `h_i` holds a rod of `arm_length L_i` whose other end is the nozzle: `|p − (R cos θ_i,
-//! R sin θ_i, h_i)| = L_i`, the nozzle below the carriages. Homing puts carriage `i` at `h_i =
-//! position_endstop_i + √(L_i² − R²)`. mm; z = 0 is the bed.
+//! Tower `i` stands at `(R·cos θ_i, R·sin θ_i)` (`R` = `delta_radius`, the effective radius:
+//! rod pivots and effector offsets folded in; `θ_i` = `angle`, degrees, written in [0°, 360°));
+//! its carriage at height `h_i` holds a rod of `arm_length L_i` whose other end is the nozzle:
+//! `|p − (R cos θ_i, R sin θ_i, h_i)| = L_i`, the nozzle below the carriages. Homing puts
+//! carriage `i` at `h_i = position_endstop_i + √(L_i² − R²)`. mm; z = 0 is the bed.
 //!
 //! kinecal's inputs `c1, c2, c3` (in the model's order) are towers a, b, c; an input is the
 //! carriage height Klipper reports for the printer as it was configured when the data were
@@ -77,7 +77,7 @@ impl KlipperDelta {
         let r = |v: f64| -> f64 { fixed(v, DECIMALS).parse().expect("a formatted number parses") };
         KlipperDelta {
             radius: r(self.radius),
-            angle: self.angle.map(r),
+            angle: self.angle.map(|a| angle_text(a).parse().expect("a formatted number parses")),
             arm_length: self.arm_length.map(r),
             position_endstop: self.position_endstop.map(r),
         }
@@ -94,7 +94,7 @@ impl KlipperDelta {
         let _ = writeln!(out, "delta_radius: {}", fixed(self.radius, DECIMALS));
         for (i, t) in TOWERS.iter().enumerate() {
             let _ = writeln!(out, "\n[stepper_{t}]");
-            let _ = writeln!(out, "angle: {}", fixed(self.angle[i], DECIMALS));
+            let _ = writeln!(out, "angle: {}", angle_text(self.angle[i]));
             let _ = writeln!(out, "arm_length: {}", fixed(self.arm_length[i], DECIMALS));
             let _ = writeln!(out, "position_endstop: {}", fixed(self.position_endstop[i], DECIMALS));
         }
@@ -271,6 +271,30 @@ fn unpack(x: &DVector<f64>, upper: &[f64; 3]) -> (KlipperDelta, [f64; 3], [f64; 
     (k, off, [x[10], x[11]])
 }
 
+/// Each carriage input's upper limit: its value at the endstop.
+fn endstop_inputs(inputs: &[crate::model::kind::InputSpec]) -> Result<[f64; 3], ControllerError> {
+    let mut out = [0.0; 3];
+    for (o, i) in out.iter_mut().zip(inputs) {
+        *o = i.limits.map(|(_, hi)| hi).ok_or_else(|| {
+            ControllerError::Unsupported(format!(
+                "carriage input '{}' has no limits: its upper limit is taken as its value at the endstop (give it limits in the model file)",
+                i.name
+            ))
+        })?;
+    }
+    Ok(out)
+}
+
+/// A tower angle as written: degrees in [0, 360).
+fn angle_text(a: f64) -> String {
+    let s = fixed(a.rem_euclid(360.0), DECIMALS);
+    if s == fixed(360.0, DECIMALS) {
+        fixed(0.0, DECIMALS)
+    } else {
+        s
+    }
+}
+
 /// Klipper's parameters of a linear delta model, with the origin `(x0, y0)` (mm, base frame),
 /// the largest carriage-height residual of the per-tower fit and the lines of what is lost.
 pub fn from_model(file: &ModelFile) -> Result<(KlipperDelta, [f64; 2], f64, Vec<String>), ControllerError> {
@@ -283,7 +307,7 @@ pub fn from_model(file: &ModelFile) -> Result<(KlipperDelta, [f64; 2], f64, Vec<
             inputs.len()
         )));
     }
-    let upper: [f64; 3] = std::array::from_fn(|i| inputs[i].limits.map(|(_, hi)| hi).unwrap_or(0.0));
+    let upper = endstop_inputs(&inputs)?;
     let configurations = spread_configurations(&*m, &inputs, 300, super::PROJECTION_SEED + 2)?;
     let points = configurations
         .iter()
@@ -366,7 +390,7 @@ pub fn export(file: &ModelFile) -> Result<Export, ControllerError> {
     let read = KlipperDelta::parse(&text)?;
     let m = file.mechanism.build();
     let inputs = file.mechanism.inputs();
-    let upper: [f64; 3] = std::array::from_fn(|i| inputs[i].limits.map(|(_, hi)| hi).unwrap_or(0.0));
+    let upper = endstop_inputs(&inputs)?;
     let configurations = spread_configurations(&*m, &inputs, super::PROJECTION_POSES, super::PROJECTION_SEED)?;
     let o = Vector3::new(origin[0], origin[1], 0.0);
     let pairs = configurations
