@@ -167,7 +167,8 @@ impl Model {
     /// leaves, as JSON (pose difference, parameters not represented, frames not written).
     fn to_controller(&self, format: &str) -> PyResult<(String, String)> {
         use kinecal::io::controllers::{self, Controller};
-        let c = Controller::parse(format).ok_or_else(|| err(format!("format '{format}': use ur-yaml, linuxcnc-hexapod or klipper-delta")))?;
+        let c =
+            Controller::parse(format).ok_or_else(|| err(format!("format '{format}': use ur-yaml, linuxcnc-hexapod or klipper-delta")))?;
         let e = controllers::export(&self.file, c).map_err(|e| err(e.at(&self.file.name)))?;
         let d = e.projection.difference;
         let json = serde_json::json!({
@@ -185,7 +186,8 @@ impl Model {
     #[pyo3(signature = (text, format, name = "<string>"))]
     fn from_controller(text: &str, format: &str, name: &str) -> PyResult<Model> {
         use kinecal::io::controllers::{self, Controller};
-        let c = Controller::parse(format).ok_or_else(|| err(format!("format '{format}': use ur-yaml, linuxcnc-hexapod or klipper-delta")))?;
+        let c =
+            Controller::parse(format).ok_or_else(|| err(format!("format '{format}': use ur-yaml, linuxcnc-hexapod or klipper-delta")))?;
         controllers::import(text, c).map(Model::of).map_err(|e| err(e.at(name)))
     }
 
