@@ -118,3 +118,61 @@ where
     }
     Ok((x, r))
 }
+
+/// Which parameters of `model` (indices `which`) move its tool point in ways a controller's
+/// parameters cannot: each parameter's column of tool-position changes over `configurations`
+/// (central differences of [`Mechanism::retract`] by `h`), the part of it outside the span of
+/// `controller` (the controller's own columns, rows in the same order: x, y, z per
+/// configuration). Returns `(index, fraction outside, outside)` — the part outside relative to
+/// the column, and its RMS per configuration (mm per unit of the parameter) — for the
+/// parameters whose fraction exceeds `threshold` and whose part outside is above 1e-9 mm per
+/// unit, largest part outside first.
+pub fn unrepresented_positions(
+    model: &dyn Mechanism,
+    which: &[usize],
+    configurations: &[Vec<f64>],
+    controller: &DMatrix<f64>,
+    h: f64,
+    threshold: f64,
+) -> Result<Vec<(usize, f64, f64)>, KinError> {
+    let rows = 3 * configurations.len();
+    let svd = controller.clone().svd(true, false);
+    let u = svd.u.expect("asked for U");
+    let smax = svd.singular_values.max();
+    let basis: Vec<usize> = (0..svd.singular_values.len())
+        .filter(|&k| svd.singular_values[k] > 1e-10 * smax)
+        .collect();
+    let n = model.n_params();
+    let mut out = Vec::new();
+    for &j in which {
+        let mut col = DVector::zeros(rows);
+        for sign in [1.0, -1.0] {
+            let mut m = model.box_clone();
+            let mut d = DVector::zeros(n);
+            d[j] = sign * h;
+            m.retract(&d);
+            for (k, q) in configurations.iter().enumerate() {
+                let p = m.forward(q)?.translation.vector;
+                for c in 0..3 {
+                    col[3 * k + c] += sign * p[c] / (2.0 * h);
+                }
+            }
+        }
+        let norm = col.norm();
+        if norm == 0.0 {
+            continue;
+        }
+        let mut inside = DVector::zeros(rows);
+        for &b in &basis {
+            let ub = u.column(b);
+            inside += ub * ub.dot(&col);
+        }
+        let outside = (&col - inside).norm();
+        let rms = outside / (configurations.len().max(1) as f64).sqrt();
+        if outside / norm > threshold && rms > 1e-9 {
+            out.push((j, outside / norm, rms));
+        }
+    }
+    out.sort_by(|a, b| b.2.total_cmp(&a.2));
+    Ok(out)
+}

@@ -491,7 +491,7 @@ fn klipper_kinds_of_error_are_recovered() {
     eprintln!("Klipper-kind errors: recovered to {worst:.2e} mm (fit residual {residual:.2e} mm)");
     assert!(worst < 1e-9, "{worst:e} mm: {k:?} vs {truth:?}");
     assert!(origin[0].abs() < 1e-9 && origin[1].abs() < 1e-9, "{origin:?}");
-    assert!(lost.is_empty());
+    assert!(!lost.iter().any(|l| l.starts_with("geometry beyond")), "{lost:?}");
     // Round trip byte for byte, also through the model file.
     let text = controllers::export(&model, Controller::KlipperDelta).unwrap().text;
     let back = controllers::import(&text, Controller::KlipperDelta).unwrap();
@@ -534,7 +534,9 @@ fn calibrated_linear_delta_written_for_klipper_leaves_the_printed_residual() {
     );
     assert!(worst <= 1.5 * printed.position_max_mm + 1e-6, "{worst:e} vs printed {printed}");
     assert!(printed.position_max_mm > 1e-4, "rail tilts are not Klipper's: {printed}");
-    assert!(!export.projection.not_represented.is_empty());
+    // The rail tilts are named among what Klipper cannot represent.
+    let named = &export.projection.not_represented;
+    assert!(named.iter().any(|l| l.starts_with("arm1.0-1.wy:")), "{named:?}");
 }
 
 /// Every broken printer.cfg: one error naming its line; the command prints file:line.

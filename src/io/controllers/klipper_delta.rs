@@ -31,7 +31,7 @@
 use super::{fixed, number, strip_comment, ControllerError, Export, Projection};
 use crate::error::KinError;
 use crate::io::model_file::{MechanismSpec, ModelFile};
-use crate::model::projection::{least_squares, spread_configurations, PoseDifference};
+use crate::model::projection::{least_squares, spread_configurations, unrepresented_positions, PoseDifference};
 use crate::model::Mechanism;
 use crate::se3::Pose;
 use nalgebra::{DMatrix, DVector, Vector3};
@@ -377,6 +377,48 @@ pub fn from_model(file: &ModelFile) -> Result<(KlipperDelta, [f64; 2], f64, Vec<
         lost.push(format!(
             "geometry beyond Klipper's towers, arm lengths and endstops (rail tilts, parallelogram and joint-axis errors): nozzle positions off by up to {} mm over the fit",
             fixed(worst, 9)
+        ));
+    }
+    // Which of the model's free parameters: their effect on the nozzle outside the span of
+    // Klipper's parameters, over 100 of the configurations.
+    let subset = &configurations[..configurations.len().min(100)];
+    let sub_points = &points[..subset.len()];
+    let sub_residual = |x: &DVector<f64>| -> Result<DVector<f64>, KinError> {
+        let (k, off, o) = unpack(x, &upper);
+        let mut r = DVector::zeros(3 * sub_points.len());
+        for (n, (p, q)) in sub_points.iter().zip(subset).enumerate() {
+            let h = [q[0] + off[0], q[1] + off[1], q[2] + off[2]];
+            let e = k.forward(&h)? + Vector3::new(o[0], o[1], 0.0) - p;
+            r.fixed_rows_mut::<3>(3 * n).copy_from(&e);
+        }
+        Ok(r)
+    };
+    let mut jk = DMatrix::zeros(3 * subset.len(), x.len());
+    for c in 0..x.len() {
+        let (mut xp, mut xm) = (x.clone(), x.clone());
+        xp[c] += 1e-6;
+        xm[c] -= 1e-6;
+        jk.set_column(c, &((sub_residual(&xp)? - sub_residual(&xm)?) / 2e-6));
+    }
+    // The free parameters (named in the file's own numbering, frames first when it has them)
+    // of the machine itself.
+    let free = file.free_indices().map_err(|e| ControllerError::Unsupported(e.to_string()))?;
+    let all = file.build().params();
+    let params = m.params();
+    let free: Vec<usize> = free
+        .iter()
+        .filter_map(|&i| params.iter().position(|p| p.name == all[i].name))
+        .collect();
+    for (j, fraction, outside) in unrepresented_positions(&*m, &free, subset, &jk, 1e-6, 1e-3)? {
+        let (per, unit) = match params[j].unit {
+            crate::params::Unit::Angle => (outside * 1f64.to_radians(), "°"),
+            _ => (outside, "mm"),
+        };
+        lost.push(format!(
+            "{}: {} mm RMS of nozzle motion per {unit} of error ({} % of its effect) outside Klipper's parameters",
+            params[j].name,
+            fixed(per, 6),
+            fixed(100.0 * fraction, 1)
         ));
     }
     let (k, _, o) = unpack(&x, &upper);
