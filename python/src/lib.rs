@@ -162,6 +162,35 @@ impl Model {
         self.file.to_toml().map_err(err)
     }
 
+    /// The model written for a controller (`format`: "ur-yaml", "linuxcnc-hexapod",
+    /// "klipper-delta"; `kinecal model export --format`): the file's text and what the projection
+    /// leaves, as JSON (pose difference, parameters not represented, frames not written).
+    fn to_controller(&self, format: &str) -> PyResult<(String, String)> {
+        use kinecal::io::controllers::{self, Controller};
+        let c =
+            Controller::parse(format).ok_or_else(|| err(format!("format '{format}': use ur-yaml, linuxcnc-hexapod or klipper-delta")))?;
+        let e = controllers::export(&self.file, c).map_err(|e| err(e.at(&self.file.name)))?;
+        let d = e.projection.difference;
+        let json = serde_json::json!({
+            "poses": d.poses, "position_max_mm": d.position_max_mm, "position_rms_mm": d.position_rms_mm,
+            "rotation_max_rad": d.rotation_max_rad, "rotation_rms_rad": d.rotation_rms_rad,
+            "fit_residual_mm": e.projection.fit_residual_mm,
+            "not_represented": e.projection.not_represented, "not_written": e.projection.not_written,
+        });
+        Ok((e.text, json.to_string()))
+    }
+
+    /// A model from a controller's kinematics file text (`format` as in `to_controller`;
+    /// `name` stands for the file in messages, which give its line).
+    #[staticmethod]
+    #[pyo3(signature = (text, format, name = "<string>"))]
+    fn from_controller(text: &str, format: &str, name: &str) -> PyResult<Model> {
+        use kinecal::io::controllers::{self, Controller};
+        let c =
+            Controller::parse(format).ok_or_else(|| err(format!("format '{format}': use ur-yaml, linuxcnc-hexapod or klipper-delta")))?;
+        controllers::import(text, c).map(Model::of).map_err(|e| err(e.at(name)))
+    }
+
     /// The model's name.
     #[getter]
     fn name(&self) -> String {

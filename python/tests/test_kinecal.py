@@ -49,6 +49,17 @@ def test_model_file_text_round_trip():
     np.testing.assert_allclose(back.forward(q), m.forward(q), atol=1e-9)
 
 
+def test_controller_files_round_trip():
+    m = kinecal.Model.load("stewart")
+    text, projection = m.to_controller("linuxcnc-hexapod")
+    p = json.loads(projection)
+    assert p["position_max_mm"] < 1e-8 and p["not_represented"] == []
+    back = kinecal.Model.from_controller(text, "linuxcnc-hexapod", "hex.hal")
+    assert back.to_controller("linuxcnc-hexapod")[0] == text
+    with pytest.raises(kinecal.KinecalError, match=r"^bad\.hal:6: "):
+        kinecal.Model.from_controller(text.replace("setp genhexkins.base.0.x", "setp genhexkins.base.0.q"), "linuxcnc-hexapod", "bad.hal")
+
+
 def test_noise_free_calibration_recovers_the_prototype():
     m = kinecal.Model.load("irb120")
     truth, data = kinecal.simulate(m, 40, seed=5)

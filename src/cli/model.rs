@@ -1,7 +1,9 @@
-//! `kinecal model list | export NAME | import ROBOT.urdf`: the built-in models, model files in
-//! their forms (local POE, DH, modified DH, URDF), URDF in.
+//! `kinecal model list | export NAME | import FILE`: the built-in models, model files in
+//! their forms (local POE, DH, modified DH, URDF, controllers' kinematics files), URDF and
+//! controllers' files in.
 use clap::{Args, Subcommand, ValueEnum};
 use kinecal::io::builtin;
+use kinecal::io::controllers::{self, Controller};
 use kinecal::io::model_file::{AngleUnit, LengthUnit, ModelFile};
 use kinecal::io::output::Outputs;
 use kinecal::io::urdf;
@@ -19,6 +21,36 @@ pub enum ExportFormat {
     Mdh,
     /// URDF (XML, metres and radians; serial chains only).
     Urdf,
+    /// Universal Robots kinematics YAML (ur_description / ROS driver; six revolute joints).
+    UrYaml,
+    /// LinuxCNC genhexkins HAL parameters (Stewart platforms).
+    LinuxcncHexapod,
+    /// Klipper linear delta printer.cfg sections.
+    KlipperDelta,
+}
+
+impl ExportFormat {
+    fn controller(self) -> Option<Controller> {
+        match self {
+            ExportFormat::UrYaml => Some(Controller::UrYaml),
+            ExportFormat::LinuxcncHexapod => Some(Controller::LinuxcncHexapod),
+            ExportFormat::KlipperDelta => Some(Controller::KlipperDelta),
+            _ => None,
+        }
+    }
+}
+
+/// What `kinecal model import` reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ImportFormat {
+    /// URDF (XML).
+    Urdf,
+    /// Universal Robots kinematics YAML.
+    UrYaml,
+    /// LinuxCNC genhexkins HAL parameters.
+    LinuxcncHexapod,
+    /// Klipper linear delta printer.cfg.
+    KlipperDelta,
 }
 
 /// Arguments of `kinecal model`.
@@ -42,7 +74,9 @@ enum ModelCommand {
         /// Built-in model name (see `kinecal model list`) or a model file.
         name: String,
         /// What to write: toml (the model file), dh / mdh (the model file with a standard or
-        /// modified DH table, where the geometry allows), urdf (for ROS / MoveIt).
+        /// modified DH table, where the geometry allows), urdf (for ROS / MoveIt), or a
+        /// controller's kinematics file: ur-yaml, linuxcnc-hexapod, klipper-delta (the model
+        /// projected onto the controller's parameters; what that leaves is printed).
         #[arg(long, value_enum, default_value_t = ExportFormat::Toml)]
         format: ExportFormat,
         /// With --format dh: Hayati's β for joints whose next axis is nearly parallel (needed for
@@ -62,11 +96,15 @@ enum ModelCommand {
         #[arg(long)]
         force: bool,
     },
-    /// A serial model file from a URDF: the chain from --base to --tip, fixed joints folded
-    /// into the next joint's placement (xacro files: expand them with `xacro` first).
+    /// A model file from a URDF (the chain from --base to --tip, fixed joints folded into the
+    /// next joint's placement; xacro files: expand them with `xacro` first) or from a
+    /// controller's kinematics file (--format ur-yaml, linuxcnc-hexapod, klipper-delta).
     Import {
-        /// The URDF file.
+        /// The URDF or controller file.
         urdf: PathBuf,
+        /// What the file is.
+        #[arg(long, value_enum, default_value_t = ImportFormat::Urdf)]
+        format: ImportFormat,
         /// The chain's base link (default: the root link).
         #[arg(long)]
         base: Option<String>,
@@ -145,6 +183,32 @@ pub fn run(args: ModelArgs) -> anyhow::Result<()> {
             if format == ExportFormat::Urdf && (length.is_some() || angle.is_some()) {
                 anyhow::bail!("--length / --angle: URDF is always in metres and radians");
             }
+            if let Some(controller) = format.controller() {
+                if length.is_some() || angle.is_some() {
+                    anyhow::bail!("--length / --angle: a controller file has its own units (docs/controllers.md)");
+                }
+                let export = controllers::export(&file, controller).map_err(|e| anyhow::anyhow!("{}", e.at(&name)))?;
+                write_out(outputs, out.as_deref(), &export.text)?;
+                let p = &export.projection;
+                let mut report = format!("{}: {}\n", controller.name(), p.difference);
+                if p.not_represented.is_empty() {
+                    report += "  every error parameter of the model is represented\n";
+                } else {
+                    report += "  not represented by the controller's parameters:\n";
+                    for l in &p.not_represented {
+                        report += &format!("    {l}\n");
+                    }
+                }
+                for l in &p.not_written {
+                    report += &format!("  not in the file: {l}\n");
+                }
+                if out.is_some() {
+                    print!("{report}");
+                } else {
+                    eprint!("{report}");
+                }
+                return Ok(());
+            }
             units(&mut file, length.as_deref().unwrap_or("mm"), angle.as_deref().unwrap_or("deg"))?;
             let text = match format {
                 ExportFormat::Toml => file.to_toml().map_err(|e| anyhow::anyhow!("{name}: {e}"))?,
@@ -158,11 +222,15 @@ pub fn run(args: ModelArgs) -> anyhow::Result<()> {
                         .map_err(|e| anyhow::anyhow!("{name}: {e}"))?
                 }
                 ExportFormat::Urdf => urdf::export(&file).map_err(|e| anyhow::anyhow!("{name}: {e}"))?,
+                ExportFormat::UrYaml | ExportFormat::LinuxcncHexapod | ExportFormat::KlipperDelta => {
+                    unreachable!("controller formats are written above")
+                }
             };
             write_out(outputs, out.as_deref(), &text)?;
         }
         ModelCommand::Import {
             urdf: path,
+            format,
             base,
             tip,
             length,
@@ -173,7 +241,19 @@ pub fn run(args: ModelArgs) -> anyhow::Result<()> {
             let mut outputs = Outputs::new(force);
             outputs.input(&path).output_opt(out.as_deref())?;
             let text = kinecal::io::read_text(&path)?;
-            let mut file = urdf::import(&text, base.as_deref(), tip.as_deref()).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+            let controller = match format {
+                ImportFormat::Urdf => None,
+                ImportFormat::UrYaml => Some(Controller::UrYaml),
+                ImportFormat::LinuxcncHexapod => Some(Controller::LinuxcncHexapod),
+                ImportFormat::KlipperDelta => Some(Controller::KlipperDelta),
+            };
+            if controller.is_some() && (base.is_some() || tip.is_some()) {
+                anyhow::bail!("--base / --tip: only with --format urdf");
+            }
+            let mut file = match controller {
+                None => urdf::import(&text, base.as_deref(), tip.as_deref()).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?,
+                Some(c) => controllers::import(&text, c).map_err(|e| anyhow::anyhow!("{}", e.at(&path.display().to_string())))?,
+            };
             units(&mut file, &length, &angle)?;
             let toml = file.to_toml().map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
             write_out(outputs, out.as_deref(), &toml)?;

@@ -1,6 +1,7 @@
 //! Files: numeric CSV tables with line-accurate errors, laser-tracker data sets, model files,
 //! URDF.
 pub mod builtin;
+pub mod controllers;
 pub mod data_file;
 pub mod exports;
 pub mod model_file;

@@ -27,6 +27,7 @@ pub mod joint_terms;
 pub mod kind;
 pub mod limbs;
 pub mod presets;
+pub mod projection;
 
 /// The tool poses at `q` of `m` with parameter `c` retracted by `+h` and by `−h`: the two sides
 /// of a central difference, for the unit tests that check identification Jacobians.

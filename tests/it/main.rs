@@ -7,6 +7,7 @@ mod cli;
 mod closed;
 mod compensate;
 mod contract;
+mod controllers;
 mod design;
 mod dh;
 mod draw_wire;

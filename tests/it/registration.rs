@@ -20,7 +20,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 
 /// The tracker: 2 m away, rotated 120° about an oblique axis.
-fn tracker() -> Pose {
+pub(crate) fn tracker() -> Pose {
     se3::pose_from_parts(
         Vector3::new(2000.0, -700.0, 400.0),
         Vector3::new(1.0, 2.0, -0.5).normalize() * 120f64.to_radians(),
@@ -28,17 +28,17 @@ fn tracker() -> Pose {
 }
 
 /// The measured tool frame, 150 mm from the flange / platform and turned.
-fn tool() -> Pose {
+pub(crate) fn tool() -> Pose {
     se3::pose_from_parts(Vector3::new(90.0, -80.0, 90.0), Vector3::new(0.3, -0.2, 0.5))
 }
 
 #[derive(Clone, Copy, PartialEq)]
-enum Kind {
+pub(crate) enum Kind {
     Pose,
     Position,
 }
 
-fn data_set(name: &str, truth: &dyn Mechanism, qs: &[Vec<f64>], kind: Kind, noise: Option<Noise>, seed: u64) -> DataSet {
+pub(crate) fn data_set(name: &str, truth: &dyn Mechanism, qs: &[Vec<f64>], kind: Kind, noise: Option<Noise>, seed: u64) -> DataSet {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut draw = |s: f64| match noise {
         Some(_) => {
