@@ -16,6 +16,7 @@ pub mod simulate;
 pub mod study;
 pub mod study_t3r1;
 pub mod touch_args;
+pub mod usage;
 pub mod validate;
 
 /// A result that was computed but failed its checks (not converged, implausible, residual far

@@ -4,6 +4,7 @@ mod architecture;
 mod assess;
 mod chain;
 mod cli;
+mod cli_usage;
 mod closed;
 mod compensate;
 mod contract;
