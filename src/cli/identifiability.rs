@@ -94,9 +94,9 @@ pub fn run(a: IdentifiabilityArgs) -> anyhow::Result<()> {
         );
     } else {
         println!(
-            "{}: {} poses, {} free parameters, rank {}, condition number {:.3e}",
+            "{}: {}, {} free parameters, rank {}, condition number {:.3e}",
             file.name,
-            data.len(),
+            super::count(data.len(), "pose"),
             free.len(),
             id.rank,
             id.condition

@@ -228,7 +228,10 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         }
         super::warn_limits(d);
     }
-    let sp = progress::spinner(&format!("identifying {} on {} poses", file.name, data.measurements.len()), a.json);
+    let sp = progress::spinner(
+        &format!("identifying {} on {}", file.name, super::count(data.measurements.len(), "pose")),
+        a.json,
+    );
     let cal = calibrate(&file, &data, validation.as_ref(), &opts)?;
     sp.finish_and_clear();
     let report = &cal.report;
@@ -271,11 +274,11 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         return Ok(());
     }
     println!(
-        "identified {} of {} free parameters of {} from {} poses ({:?}, {} after {} iterations, σ̂₀ = {:.3})",
+        "identified {} of {} free parameters of {} from {} ({:?}, {} after {} iterations, σ̂₀ = {:.3})",
         report.rank,
         report.free,
         file.name,
-        data.measurements.len(),
+        super::count(data.measurements.len(), "pose"),
         opts.method,
         match (report.converged, failed) {
             (false, _) => "NOT converged",
@@ -393,8 +396,8 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         let ids: Vec<String> = cal.blunders.iter().take(50).map(|id| id.to_string()).collect();
         let more = cal.blunders.len().saturating_sub(ids.len());
         println!(
-            "{} poses set aside as blunders (beyond {} robust σ of the per-pose residuals): ids {}{}",
-            cal.blunders.len(),
+            "{} set aside as blunders (beyond {} robust σ of the per-pose residuals): ids {}{}",
+            super::count(cal.blunders.len(), "pose"),
             a.huber / kinecal::calibrate::BLUNDER_WEIGHT,
             ids.join(" "),
             if more > 0 {
@@ -406,7 +409,10 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
     }
     let flagged: usize = report.identification.outliers.len() + report.validation.as_ref().map_or(0, |v| v.outliers.len());
     if flagged > 0 {
-        println!("{flagged} poses flagged as outliers (residual > 3σ; see the report)");
+        println!(
+            "{} flagged as outliers (residual > 3σ; see the report)",
+            super::count(flagged, "pose")
+        );
     }
     println!("{:<10} {:>12} {:>12} unit", "parameter", "value", "std.dev");
     for p in report.params.iter().filter(|p| p.status == ParamStatus::Identified) {

@@ -168,8 +168,10 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
     (aside > 0).then(|| say(format!("{aside} chosen candidates set aside and replaced: the forward kinematics from the home pose reaches another assembly mode there")));
     let (chosen, moves, warm, secs) = (sel.selected.len(), sel.history.len(), sel.warm_up, p.selection_seconds);
     say(format!(
-        "{:?} on {}: {chosen} configurations in {secs:.2} s ({moves} moves, {warm} chosen D-optimally before full rank)",
-        sel.method, sel.criterion
+        "{:?} on {}: {} in {secs:.2} s ({moves} moves, {warm} chosen D-optimally before full rank)",
+        sel.method,
+        sel.criterion,
+        super::count(chosen, "configuration")
     ));
     say(format!("indices (scaled, dimensionless): {}", sel.indices));
     let mut text = Vec::new();

@@ -306,8 +306,8 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
         );
         for w in &written {
             println!(
-                "{} poses, {} measurements, noise {} mm / {} deg → {}",
-                w.poses,
+                "{}, {} measurements, noise {} mm / {} deg → {}",
+                super::count(w.poses, "pose"),
                 format!("{:?}", a.measure).to_lowercase(),
                 a.noise_mm,
                 a.noise_deg,

@@ -19,6 +19,7 @@ mod instruments;
 mod irb120;
 mod joint_terms;
 mod limbs;
+mod mistakes;
 mod mixed;
 mod model_file;
 mod observed;

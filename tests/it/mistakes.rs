@@ -1,0 +1,132 @@
+//! A user's mistakes get one line naming the cause (exit 1), or a line beside the result when it
+//! can go on; small wording a user reads (plurals, what a command wrote).
+use crate::cli::{fails, kinecal, ok};
+use std::fs;
+use std::path::Path;
+
+/// A data file where the model goes (`identify DATA MODEL`): the order, not a TOML message.
+#[test]
+fn a_csv_given_as_the_model_names_the_order() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let said = ok(d, &["simulate", "pm5", "--poses", "1", "--out", "d.csv", "--truth", "t.toml"]);
+    // One pose is "1 pose".
+    assert!(said.contains("1 pose,") && !said.contains("1 poses"), "{said}");
+    let said = ok(d, &["model", "export", "pm5", "--out", "m.toml"]);
+    assert!(said.contains("→ m.toml") && said.contains("pm5"), "{said}");
+    for args in [
+        &["identify", "d.csv", "m.toml", "--out", "c.toml"][..],
+        &["data", "check", "d.csv", "m.toml"][..],
+        &["validate", "d.csv", "m.toml"][..],
+    ] {
+        let e = fails(d, args);
+        assert!(
+            e.contains("d.csv") && e.contains("this is a CSV") && e.contains("MODEL DATA"),
+            "{args:?}: {e}"
+        );
+    }
+    let said = ok(d, &["data", "check", "m.toml", "d.csv"]);
+    assert!(said.contains("1 pose,"), "{said}");
+}
+
+fn sockets() -> Vec<String> {
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mukca-panda");
+    ["back_left", "front_right", "high"]
+        .iter()
+        .flat_map(|p| [0, 1].map(|s| data.join(p).join(format!("socket_{s}.csv")).display().to_string()))
+        .collect()
+}
+
+fn panda(d: &Path) {
+    let urdf = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mukca-panda/panda.urdf");
+    ok(
+        d,
+        &["model", "import", urdf.to_str().unwrap(), "--tip", "ball_link", "-o", "panda.toml"],
+    );
+}
+
+/// `data join --seat`: a file given twice, or a copy of another seat's file, is refused; a seat of
+/// 2 rows beside seats of 30 is a warning; `;`-separated files are refused naming the separator.
+#[test]
+fn data_join_refuses_a_seat_twice_and_warns_on_a_thin_seat() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    panda(d);
+    let s = sockets();
+    fn join<'a>(seats: &[&'a str]) -> Vec<&'a str> {
+        let mut args = vec!["data", "join", "panda.toml", "--angles", "rad", "--out", "x.csv"];
+        for s in seats {
+            args.extend(["--seat", s]);
+        }
+        args
+    }
+    let e = fails(d, &join(&[&s[0], &s[1], &s[0]]));
+    assert!(e.contains("given twice") && e.contains("socket_0.csv"), "{e}");
+    fs::copy(&s[1], d.join("copy.csv")).unwrap();
+    let e = fails(d, &join(&[&s[0], &s[1], "copy.csv"]));
+    assert!(e.contains("copy.csv") && e.contains("the same rows as seat 1"), "{e}");
+    assert!(!d.join("x.csv").exists());
+    // A seat of two rows beside seats of 30.
+    let two: Vec<String> = fs::read_to_string(&s[2]).unwrap().lines().take(2).map(String::from).collect();
+    fs::write(d.join("two.csv"), two.join("\n")).unwrap();
+    let out = kinecal(d, &join(&[&s[0], &s[1], &s[3], &s[4], "two.csv"]));
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    let w: Vec<&str> = err.lines().filter(|l| l.starts_with("warning:")).collect();
+    assert!(w.iter().any(|l| l.contains("seat 4 (2 rows)") && l.contains("median of")), "{err}");
+    fs::remove_file(d.join("x.csv")).unwrap();
+    // `;` between the values: one line naming the separator, for the seat form and the others.
+    let semi = fs::read_to_string(&s[0]).unwrap().replace(',', ";");
+    fs::write(d.join("semi.csv"), semi).unwrap();
+    let e = fails(d, &join(&["semi.csv", &s[1]]));
+    assert!(e.contains("semi.csv:1") && e.contains("separated by ';'"), "{e}");
+    ok(d, &["simulate", "pm5", "--poses", "3", "--out", "p.csv", "--truth", "t.toml"]);
+    let semi = fs::read_to_string(d.join("p.csv")).unwrap().replace(',', ";");
+    fs::write(d.join("psemi.csv"), semi).unwrap();
+    let e = fails(d, &["data", "check", "pm5", "psemi.csv"]);
+    assert!(
+        e.contains("psemi.csv") && e.contains("separated by ';'") && e.contains("comma-separated"),
+        "{e}"
+    );
+}
+
+/// Targets in metres (`x_m`): read as metres, as the data files' docs say, with a line saying so.
+#[test]
+fn targets_in_metres_are_read_as_metres_with_a_line() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    ok(
+        d,
+        &[
+            "simulate", "irb120", "--poses", "3", "--out", "p.csv", "--truth", "t.toml", "--seed", "4",
+        ],
+    );
+    // The simulated poses as targets without inputs, in mm and then in metres.
+    let text = fs::read_to_string(d.join("p.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let keep: Vec<usize> = (0..header.len())
+        .filter(|&k| header[k] == "id" || ["x_mm", "y_mm", "z_mm", "qw", "qx", "qy", "qz"].contains(&header[k]))
+        .collect();
+    let rows: Vec<Vec<String>> = lines
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            keep.iter()
+                .map(|&k| match header[k].ends_with("_mm") {
+                    true => (f[k].parse::<f64>().unwrap() / 1000.0).to_string(),
+                    false => f[k].to_string(),
+                })
+                .collect()
+        })
+        .collect();
+    let head: Vec<String> = keep.iter().map(|&k| header[k].replace("_mm", "_m")).collect();
+    let mut out = head.join(",") + "\n";
+    for r in &rows {
+        out += &(r.join(",") + "\n");
+    }
+    fs::write(d.join("targets.csv"), out).unwrap();
+    let run = kinecal(d, &["compensate", "irb120", "targets.csv", "--out", "cmd.csv"]);
+    let err = String::from_utf8(run.stderr).unwrap();
+    assert_eq!(run.status.code(), Some(0), "{err}");
+    assert!(err.contains("targets.csv: x_m, y_m, z_m read as metres"), "{err}");
+}
