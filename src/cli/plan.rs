@@ -1,4 +1,4 @@
-//! `kinecal plan`: choose measurement configurations (issue #5) and write them as CSV. One call,
+//! `kinecal plan`: choose measurement configurations and write them as CSV. One call,
 //! [`design::plan_sampled`], makes the candidates and chooses among them; this module parses the
 //! arguments (the sampling ones in [`super::sampling`]), shows progress and prints. The mechanism:
 //! `--preset NAME` (built-in), `--model NAME|FILE` (as for `identify`), or neither: a seeded random

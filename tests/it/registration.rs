@@ -375,7 +375,7 @@ fn every_shipped_model_in_a_tracker_frame() {
     }
 }
 
-/// Issue 28, point 5: the linear delta with its frames estimated and the tool 150 mm out is fitted
+/// The linear delta with its frames estimated and the tool 150 mm out is fitted
 /// to round-off like every other machine. Its start (a platform that only translates) hides the
 /// tool offset and three hinge parameters; the fit continues on them where it converged
 /// (`identify`'s refit), and retractions that add up keep that continuation path-independent.
