@@ -2,6 +2,7 @@
 mod any_instruments;
 mod architecture;
 mod assess;
+mod assess_walkthrough;
 mod chain;
 mod cli;
 mod cli_usage;
