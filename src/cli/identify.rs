@@ -168,8 +168,8 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
     let file = ModelFile::load_or_builtin(&a.model)?;
     super::note_held(&file, a.json);
     let inputs = file.data_columns();
-    let data = read_data(&a.data, &inputs, InputColumns::Required)?;
-    let validation = match &a.validation {
+    let mut data = read_data(&a.data, &inputs, InputColumns::Required)?;
+    let mut validation = match &a.validation {
         Some(p) => Some(read_data(p, &inputs, InputColumns::Required)?),
         None => None,
     };
@@ -232,7 +232,23 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         &format!("identifying {} on {}", file.name, super::count(data.measurements.len(), "pose")),
         a.json,
     );
-    let cal = calibrate(&file, &data, validation.as_ref(), &opts)?;
+    let cal = match calibrate(&file, &data, validation.as_ref(), &opts) {
+        // Rows at which the model does not assemble are set aside with a line (as blunders are)
+        // when the rest is enough, and the calibration runs on the rest; any other error stands.
+        Err(e) => {
+            let model = file.build();
+            let mut aside = false;
+            for d in std::iter::once(&mut data).chain(validation.as_mut()) {
+                if let Some(u) = d.set_aside_unassembled(&*model)? {
+                    eprintln!("warning: {}", u.note(d));
+                    aside = true;
+                }
+            }
+            anyhow::ensure!(aside, "{e}");
+            calibrate(&file, &data, validation.as_ref(), &opts)?
+        }
+        Ok(c) => c,
+    };
     sp.finish_and_clear();
     let report = &cal.report;
     let mut calibrated = cal.model_file.clone();

@@ -174,6 +174,13 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         super::count(chosen, "configuration")
     ));
     say(format!("indices (scaled, dimensionless): {}", sel.indices));
+    if let Some(line) = sel
+        .indices
+        .rank_shortfall(&format!("the plan's {}", super::count(chosen, "configuration")))
+    {
+        anyhow::ensure!(args.force, "{line}");
+        eprintln!("warning: {line}");
+    }
     let mut text = Vec::new();
     planned
         .write_csv(&mut text)

@@ -26,7 +26,10 @@ pub struct ValidateArgs {
 pub fn run(a: ValidateArgs) -> anyhow::Result<()> {
     let file = ModelFile::load_or_builtin(&a.model)?;
     let model = file.build();
-    let data = read_data(&a.data, &file.data_columns(), InputColumns::Required)?;
+    let mut data = read_data(&a.data, &file.data_columns(), InputColumns::Required)?;
+    if let Some(u) = data.set_aside_unassembled(&*model)? {
+        eprintln!("warning: {}", u.note(&data));
+    }
     if let Some(note) = data.derived_note() {
         eprintln!("note: {note}");
     }

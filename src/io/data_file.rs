@@ -616,11 +616,13 @@ mod columns;
 mod commands;
 mod limits;
 mod mixed;
+mod unassembled;
 mod write;
 pub use columns::expected_columns;
 use columns::{classify, Slot};
 pub use commands::{read_commands, read_configurations, read_inputs};
 pub use limits::{check as check_limits, BeyondLimits, FAR_BEYOND_RANGE};
+pub use unassembled::Unassembled;
 pub use write::{csv_text, data_text, header_of, input_headers, input_values_for_file, write_csv, write_data};
 
 #[cfg(test)]

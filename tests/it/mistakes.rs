@@ -130,3 +130,86 @@ fn targets_in_metres_are_read_as_metres_with_a_line() {
     assert_eq!(run.status.code(), Some(0), "{err}");
     assert!(err.contains("targets.csv: x_m, y_m, z_m read as metres"), "{err}");
 }
+
+/// A plan that cannot identify the model (12 ballbar rows for 32 identifiable columns) ends with
+/// one line and exit 1, nothing written; `--force` writes it with a warning.
+#[test]
+fn a_rank_deficient_plan_is_refused_unless_forced() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    ok(d, &["model", "export", "pm5", "-o", "pm5.toml"]);
+    let args = [
+        "plan",
+        "--model",
+        "pm5.toml",
+        "--pivots",
+        "0,-30,370;40,-30,380;-30,20,375",
+        "--ballbar-mm",
+        "100",
+        "--tool-mm",
+        "0,0,-50",
+        "-n",
+        "12",
+        "-o",
+        "p.csv",
+    ];
+    let e = fails(d, &args);
+    assert!(
+        e.contains("12 rows determine only") && e.contains("of the 32 identifiable columns") && e.contains("--force"),
+        "{e}"
+    );
+    assert!(!d.join("p.csv").exists());
+    let forced = kinecal(d, &[&args[..], &["--force"]].concat());
+    assert_eq!(forced.status.code(), Some(0));
+    assert!(String::from_utf8_lossy(&forced.stderr).contains("warning: the plan's 12 rows determine only"));
+    assert!(d.join("p.csv").exists());
+}
+
+/// A data row at which the model does not assemble (pm5's first actuator 40 mm off in one row:
+/// its forward kinematics from home does not converge) is set aside with a line naming the file
+/// and line, as a blunder is, and identify, validate and identifiability go on with the rest.
+#[test]
+fn a_row_where_the_model_does_not_assemble_is_set_aside() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    ok(d, &["model", "export", "pm5", "-o", "pm5.toml"]);
+    ok(
+        d,
+        &[
+            "simulate",
+            "pm5.toml",
+            "--poses",
+            "40",
+            "--out",
+            "d.csv",
+            "--truth",
+            "t.toml",
+            "--noise-mm",
+            "0.001",
+            "--noise-deg",
+            "0.001",
+        ],
+    );
+    let text = fs::read_to_string(d.join("d.csv")).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let mut f: Vec<String> = lines[3].split(',').map(String::from).collect();
+    f[1] = (f[1].parse::<f64>().unwrap() + 40.0).to_string();
+    lines[3] = f.join(",");
+    fs::write(d.join("bad.csv"), lines.join("\n") + "\n").unwrap();
+    for args in [
+        &["identify", "pm5.toml", "bad.csv", "--frames", "model", "--out", "c.toml"][..],
+        &["validate", "pm5.toml", "bad.csv"][..],
+        &["identifiability", "pm5.toml", "bad.csv"][..],
+    ] {
+        let out = kinecal(d, args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(0), "{args:?}: {err}");
+        let w: Vec<&str> = err.lines().filter(|l| l.contains("set aside")).collect();
+        assert_eq!(w.len(), 1, "{args:?}: {err}");
+        assert!(
+            w[0].contains("bad.csv: 1 row set aside: the model does not assemble there") && w[0].contains("line 4"),
+            "{args:?}: {err}"
+        );
+    }
+    assert!(ok(d, &["validate", "pm5.toml", "bad.csv"]).contains("(39 poses)"));
+}
