@@ -228,6 +228,9 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         }
         super::warn_limits(d);
     }
+    for w in kinecal::calibrate::checks::plausible_seat_distances(&file, &data, &opts.seat_distances)? {
+        eprintln!("warning: {w}");
+    }
     let sp = progress::spinner(
         &format!("identifying {} on {}", file.name, super::count(data.measurements.len(), "pose")),
         a.json,
@@ -250,6 +253,11 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         Ok(c) => c,
     };
     sp.finish_and_clear();
+    let mut cal = cal;
+    if let Some(w) = kinecal::calibrate::checks::stated_noise(cal.identification.sigma0, cal.identification.noise.position) {
+        eprintln!("warning: {w}");
+        cal.report.flags.push(w);
+    }
     let report = &cal.report;
     let mut calibrated = cal.model_file.clone();
     let failed = report.verdict.status == Status::Failed;

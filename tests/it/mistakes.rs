@@ -213,3 +213,140 @@ fn a_row_where_the_model_does_not_assemble_is_set_aside() {
     }
     assert!(ok(d, &["validate", "pm5.toml", "bad.csv"]).contains("(39 poses)"));
 }
+
+/// Before fitting: positions in metres or inches in `_mm` columns and radians in `_deg` columns
+/// are one line naming the mistake (exit 1); a stated noise 1000× the real one is a warning with
+/// σ̂₀ and the residual beside a calibration that goes on.
+#[test]
+fn wrong_units_and_an_overstated_noise_are_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    ok(
+        d,
+        &[
+            "simulate",
+            "irb120",
+            "--poses",
+            "40",
+            "--out",
+            "i.csv",
+            "--truth",
+            "t.toml",
+            "--noise-mm",
+            "0.005",
+            "--noise-deg",
+            "0.005",
+        ],
+    );
+    let text = fs::read_to_string(d.join("i.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect();
+    let write = |name: &str, f: &dyn Fn(&str, f64) -> f64| {
+        let mut out = header.join(",") + "\n";
+        for r in &rows {
+            out += &(r
+                .iter()
+                .zip(&header)
+                .map(|(v, c)| f(c, *v).to_string())
+                .collect::<Vec<_>>()
+                .join(",")
+                + "\n");
+        }
+        fs::write(d.join(name), out).unwrap();
+    };
+    let xyz = |c: &str| ["x_mm", "y_mm", "z_mm"].contains(&c);
+    write("m.csv", &|c, v| if xyz(c) { v / 1000.0 } else { v });
+    write("in.csv", &|c, v| if xyz(c) { v / 25.4 } else { v });
+    write("rad.csv", &|c, v| if c.ends_with("_deg") { v.to_radians() } else { v });
+    for (file, expect) in [
+        ("m.csv", "about 1/1000 of the model's reach"),
+        ("in.csv", "about 1/25.4 of the model's reach"),
+        ("rad.csv", "they look like radians"),
+    ] {
+        let e = fails(d, &["identify", "irb120", file, "--out", "c.toml"]);
+        assert!(e.starts_with(file) && e.contains(expect), "{file}: {e}");
+    }
+    assert!(fails(d, &["identify", "irb120", "m.csv", "--out", "c.toml"]).contains("metres in the _mm columns"));
+    assert!(fails(d, &["identify", "irb120", "in.csv", "--out", "c.toml"]).contains("inches in the _mm columns"));
+    // 5 mm stated for 5 µm: calibrated, with a warning naming σ̂₀ and the residual.
+    let out = kinecal(
+        d,
+        &[
+            "identify",
+            "irb120",
+            "i.csv",
+            "--out",
+            "c.toml",
+            "--noise-mm",
+            "5",
+            "--noise-deg",
+            "5",
+        ],
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    let w: Vec<&str> = err.lines().filter(|l| l.starts_with("warning: σ̂₀")).collect();
+    assert!(
+        w.len() == 1 && w[0].contains("the stated noise is far too large") && w[0].contains("(5 mm)"),
+        "{err}"
+    );
+    // Stated as it is: no such warning.
+    let out = kinecal(
+        d,
+        &[
+            "identify",
+            "irb120",
+            "i.csv",
+            "--out",
+            "c2.toml",
+            "--noise-mm",
+            "0.005",
+            "--noise-deg",
+            "0.005",
+        ],
+    );
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("far too large"));
+}
+
+/// A known seat distance in metres (0.05 for the Panda's sockets 50 mm apart) is one line naming
+/// the unit and the distance in mm, before fitting.
+#[test]
+fn a_seat_distance_in_metres_is_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    panda(d);
+    let s = sockets();
+    ok(
+        d,
+        &[
+            "data",
+            "join",
+            "panda.toml",
+            "--angles",
+            "rad",
+            "--seat",
+            &s[0],
+            "--seat",
+            &s[1],
+            "--out",
+            "seats.csv",
+        ],
+    );
+    let e = fails(
+        d,
+        &[
+            "identify",
+            "panda.toml",
+            "seats.csv",
+            "--seat-distance",
+            "0:1:0.05",
+            "--out",
+            "c.toml",
+        ],
+    );
+    assert!(
+        e.contains("--seat-distance 0:1:0.05") && e.contains("metres for mm") && e.contains("0:1:50.0000"),
+        "{e}"
+    );
+}
