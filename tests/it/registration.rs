@@ -259,7 +259,10 @@ fn wrong_units_and_wrong_models_are_named() {
         }
     });
     let e = crate::cli::fails(d, &["identify", "m.toml", "metres.csv", "--out", "c.toml"]);
-    assert!(e.contains("are the x,y,z columns in metres?"), "{e}");
+    assert!(
+        e.contains("metres in the _mm columns") && e.contains("1/1000 of the model's reach"),
+        "{e}"
+    );
     // Radians in degree columns.
     write("rad.csv", &header, &|k, x| {
         if (1..7).contains(&k) {
