@@ -1,4 +1,4 @@
-//! Seats, a ballbar and a tracker beside each other with noise (issue 30, docs/instruments.md):
+//! Seats, a ballbar and a tracker beside each other with noise (docs/instruments.md):
 //! IRB 120 virtual prototypes (errors ±0.5 mm / ±0.1° on the model's free parameters, a ball
 //! 120 mm out and off the flange axis), each calibrated through `calibrate()` from 120 rows of
 //!

@@ -1,4 +1,4 @@
-//! A planned set of seat rows beside a random one (issue 30, docs/instruments.md "Planning"):
+//! A planned set of seat rows beside a random one (docs/instruments.md "Planning"):
 //! IRB 120 virtual prototypes (errors ±0.5 mm / ±0.1° on the model's free parameters, the ball
 //! 120 mm out and off the flange axis) calibrated through `calibrate()` from `n` rows of
 //!

@@ -1,4 +1,4 @@
-//! A touch probe with noise (issue 31, docs/instruments.md): IRB 120 virtual prototypes (errors
+//! A touch probe with noise (docs/instruments.md): IRB 120 virtual prototypes (errors
 //! ±0.5 mm / ±0.1° on the model's free parameters, the probe ball 120 mm out and off the flange
 //! axis, radius 1.5 mm), each calibrated through `calibrate()` from 120 rows of
 //!

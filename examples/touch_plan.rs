@@ -1,4 +1,4 @@
-//! A planned set of touches beside a random one (issue 31, docs/instruments.md "Planning where
+//! A planned set of touches beside a random one (docs/instruments.md "Planning where
 //! to touch"): IRB 120 virtual prototypes (errors ±0.5 mm / ±0.1° on the model's free
 //! parameters, the probe ball 120 mm out and off the flange axis, radius 1.5 mm) calibrated
 //! through `calibrate()` from `n` touches, 5 µm, on three reference spheres (25.4 mm) and a

@@ -20,19 +20,25 @@
 //! ```text
 //! AD_P = D̄ − D_c    AD_x = D̄_x − D_cx  (D_xj = |x_1j − x_2j|, D_cx = |x_c1 − x_c2|; y, z alike)
 //! RD_P = ±3·S_D,    S_D = √(Σ (D_j − D̄)² / (n − 1))
+//! AD_a = D̄_a − D_ca  (D_aj = a_1j − a_2j, D_ca = a_c1 − a_c2; b, c alike)
+//! RD_a = ±3·S_Da,   S_Da = √(Σ (D_aj − D̄_a)² / (n − 1))                   (likewise b, c)
 //! ```
 //!
 //! Units: mm and degrees. `a, b, c` are the rotations about x, y, z of the data files'
-//! `roll_deg, pitch_deg, yaw_deg` (`R = Rz(c)·Ry(b)·Rx(a)`). The orientation figures take each
-//! attained orientation against the commanded one as the small rotation `log(R_j·R_cᵀ)` about
-//! the base axes x, y, z: to first order `a_j − a_c, b_j − b_c, c_j − c_c`, the standard's
-//! differences, but free of the angles' singularities (a tool pointing down sits at a pitch of
-//! ±90°, where a and c alone swing by degrees for a rotation of micro-radians) and of the ±180°
-//! seam.
+//! `roll_deg, pitch_deg, yaw_deg` (`R = Rz(c)·Ry(b)·Rx(a)`). The orientation figures do not
+//! subtract angles: each attained orientation is taken against the commanded one as the rotation
+//! vector `e_j = log(R_j·R_cᵀ)` (degrees), whose components are about the **base** axes x, y, z.
+//! `AP_a, AP_b, AP_c` are the components of the mean `ē`, `RP_a,b,c` three sample standard
+//! deviations of each component, and the distance figures use `e_1j − e_2j` for
+//! `D_aj − D_ca`. These are the standard's angle differences only near a zero orientation: at
+//! `(a, b, c) = (180°, 0, 180°)` the component about x is opposite in sign to `ā − a_c`, and at
+//! a yaw of 90° the components about x and y exchange the roles of a and b. They are free of the
+//! angles' singularities (a tool pointing down sits at a pitch of ±90°, where a and c alone swing
+//! by degrees for a rotation of micro-radians) and of the ±180° seam.
 pub mod circle;
 pub mod cube;
 
-pub use circle::{iso230_4, CircleError, CircularTest, Plane};
+pub use circle::{iso230_4, iso230_4_both, BidirectionalTest, CircleError, CircularTest, Plane};
 pub use cube::{iso9283_commands, CubeRequest, Iso9283Plan, PlacementError};
 use nalgebra::Vector3;
 use serde::Serialize;
@@ -154,6 +160,10 @@ pub struct DistanceCharacteristics {
     pub ad_xyz: [f64; 3],
     /// `RD_P = ±3·S_D` (mm).
     pub rd_p: f64,
+    /// `AD_a, AD_b, AD_c` (degrees), when orientations were measured and commanded at both.
+    pub ad_abc: Option<[f64; 3]>,
+    /// `RD_a, RD_b, RD_c = ±3·S_Da …` (degrees), likewise.
+    pub rd_abc: Option<[f64; 3]>,
 }
 
 /// The standard's figures of one test run.
@@ -307,11 +317,7 @@ fn pose_characteristics(c: &TestPose, group: &[&Attained]) -> PoseCharacteristic
             // Each attained orientation against the commanded one, as the small rotation about
             // the base axes x, y, z that takes one to the other: to first order the differences
             // of a, b, c, and free of the singularities of the angles themselves.
-            let rc = rotation(&commanded);
-            let dev: Vec<Vector3<f64>> = angles
-                .iter()
-                .map(|a| crate::se3::so3_log(&(rotation(a) * rc.inverse())).map(f64::to_degrees))
-                .collect();
+            let dev: Vec<Vector3<f64>> = angles.iter().map(|a| orientation_error(a, &commanded)).collect();
             let mean = dev.iter().sum::<Vector3<f64>>() / n;
             let mut rp = [0.0; 3];
             for (k, r) in rp.iter_mut().enumerate() {
@@ -346,10 +352,11 @@ fn distance_characteristics(
         return Err(missing("both must be commanded test poses".into()));
     };
     let second: BTreeMap<i64, &Attained> = groups[&to].iter().map(|a| (a.cycle, *a)).collect();
-    let pairs: Vec<(Vector3<f64>, Vector3<f64>)> = groups[&from]
+    let matched: Vec<(&Attained, &Attained)> = groups[&from]
         .iter()
-        .filter_map(|a| second.get(&a.cycle).map(|b| (a.position, b.position)))
+        .filter_map(|a| second.get(&a.cycle).map(|b| (*a, *b)))
         .collect();
+    let pairs: Vec<(Vector3<f64>, Vector3<f64>)> = matched.iter().map(|(a, b)| (a.position, b.position)).collect();
     if pairs.len() < 2 {
         return Err(missing(format!(
             "{} cycle(s) attained both (the cycle columns must match; at least 2 needed)",
@@ -373,6 +380,62 @@ fn distance_characteristics(
         ad_p: d_mean - dc.norm(),
         ad_xyz,
         rd_p: 3.0 * sample_sd(&d.iter().map(|v| v - d_mean).collect::<Vec<_>>()),
+        ad_abc: orientation_distance(c1, c2, &matched).map(|(ad, _)| ad),
+        rd_abc: orientation_distance(c1, c2, &matched).map(|(_, rd)| rd),
+    })
+}
+
+/// The orientation error `log(R·R_cᵀ)` (degrees, about the base axes) of attained angles.
+fn orientation_error(attained: &[f64; 3], commanded: &[f64; 3]) -> Vector3<f64> {
+    crate::se3::so3_log(&(rotation(attained) * rotation(commanded).inverse())).map(f64::to_degrees)
+}
+
+/// `AD_a,b,c` and `RD_a,b,c` (degrees) of matched cycles, when both test poses have commanded
+/// and attained orientations: `D_aj − D_ca` is `e_1j − e_2j`, the difference of the two
+/// orientation errors (module docs).
+fn orientation_distance(c1: &TestPose, c2: &TestPose, matched: &[(&Attained, &Attained)]) -> Option<([f64; 3], [f64; 3])> {
+    let (ca, cb) = (c1.angles?, c2.angles?);
+    let d: Vec<Vector3<f64>> = matched
+        .iter()
+        .map(|(a, b)| Some(orientation_error(&a.angles?, &ca) - orientation_error(&b.angles?, &cb)))
+        .collect::<Option<_>>()?;
+    let n = d.len() as f64;
+    let mean = d.iter().sum::<Vector3<f64>>() / n;
+    let mut rd = [0.0; 3];
+    for (k, r) in rd.iter_mut().enumerate() {
+        *r = 3.0 * sample_sd(&d.iter().map(|v| v[k] - mean[k]).collect::<Vec<_>>());
+    }
+    Some(([mean.x, mean.y, mean.z], rd))
+}
+
+/// Attained poses no robot reaches that far from its commands: a mean position error beyond
+/// this (mm) is a mistake in the files (another run's file, another frame, another unit), not an
+/// accuracy.
+pub const PLAUSIBLE_MM: f64 = 20.0;
+/// The same for the mean orientation error (degrees).
+pub const PLAUSIBLE_DEG: f64 = 5.0;
+
+/// A line naming the worst test pose when the figures are beyond any plausible accuracy
+/// ([`PLAUSIBLE_MM`], [`PLAUSIBLE_DEG`]): the files do not belong together (another run's
+/// attained file, a frame not registered, metres for mm). `None` when they are plausible.
+pub fn implausible(figures: &Iso9283) -> Option<String> {
+    let worst = figures.poses.iter().max_by(|a, b| a.ap_p.total_cmp(&b.ap_p))?;
+    if worst.ap_p > PLAUSIBLE_MM {
+        return Some(format!(
+            "test pose {} is attained {:.3} mm from where it was commanded (AP_P; {} pose(s) beyond {PLAUSIBLE_MM} mm): no robot is that far off, so the attained file is not of these commands (another run's file, another frame or unit?)",
+            worst.pose,
+            worst.ap_p,
+            figures.poses.iter().filter(|p| p.ap_p > PLAUSIBLE_MM).count()
+        ));
+    }
+    let turn = |p: &PoseCharacteristics| p.ap_abc.map_or(0.0, |a| Vector3::from(a).norm());
+    let worst = figures.poses.iter().max_by(|a, b| turn(a).total_cmp(&turn(b)))?;
+    (turn(worst) > PLAUSIBLE_DEG).then(|| {
+        format!(
+            "test pose {} is attained turned {:.3}° from its commanded orientation: beyond any plausible accuracy ({PLAUSIBLE_DEG}°), so the angles are not of these commands (another convention, radians in _deg columns?)",
+            worst.pose,
+            turn(worst)
+        )
     })
 }
 
@@ -519,6 +582,57 @@ mod tests {
         }
         // P2 and P4 on one diagonal, symmetric about P1.
         assert!((p[1] + p[3] - 2.0 * p[0]).norm() < 1e-12);
+    }
+
+    /// By hand, orientation distance figures (§7.3): P1 commanded at (0, 0, 0)°, attained at
+    /// yaw 1, 2, 3° in cycles 1–3; P2 commanded at yaw 90°, attained at yaw 90.5° in each cycle.
+    /// Rotations about z alone: the errors are (0, 0, 1), (0, 0, 2), (0, 0, 3) and (0, 0, 0.5)
+    /// exactly, so D_cj − D_cc = 0.5, 1.5, 2.5: AD_c = 1.5, S = 1, RD_c = 3; AD_a = AD_b = 0 and
+    /// RD_a = RD_b = 0. Positions 100 mm apart as commanded: AD_P = RD_P = 0.
+    #[test]
+    fn orientation_distance_accuracy_and_repeatability_by_hand() {
+        let with = |pose: i64, cycle: i64, x: f64, yaw: f64| Attained {
+            angles: Some([0.0, 0.0, yaw]),
+            ..at(pose, cycle, x, 0.0, 0.0)
+        };
+        let c = [
+            TestPose {
+                angles: Some([0.0; 3]),
+                ..commanded(1, 0.0, 0.0, 0.0)
+            },
+            TestPose {
+                angles: Some([0.0, 0.0, 90.0]),
+                ..commanded(2, 100.0, 0.0, 0.0)
+            },
+        ];
+        let a: Vec<Attained> = (1..=3).flat_map(|k| [with(1, k, 0.0, k as f64), with(2, k, 100.0, 90.5)]).collect();
+        let r = iso9283(&c, &a, &[(1, 2)]).unwrap();
+        let d = &r.distances[0];
+        let (ad, rd) = (d.ad_abc.unwrap(), d.rd_abc.unwrap());
+        let close = |a: f64, b: f64| (a - b).abs() < 1e-9;
+        assert!(close(ad[0], 0.0) && close(ad[1], 0.0) && close(ad[2], 1.5), "{ad:?}");
+        assert!(close(rd[0], 0.0) && close(rd[1], 0.0) && close(rd[2], 3.0), "{rd:?}");
+        assert!(close(d.ad_p, 0.0) && close(d.rd_p, 0.0));
+        // Pose figures: AP_c of P1 is the mean 2°, RP_c = 3·1; P2's AP_c 0.5°, RP_c 0.
+        assert!(close(r.poses[0].ap_abc.unwrap()[2], 2.0) && close(r.poses[0].rp_abc.unwrap()[2], 3.0));
+        assert!(close(r.poses[1].ap_abc.unwrap()[2], 0.5) && close(r.poses[1].rp_abc.unwrap()[2], 0.0));
+        // Plausible; the same attained file 100 mm off is not, nor 10° off.
+        assert_eq!(implausible(&r), None);
+        let far: Vec<Attained> = a
+            .iter()
+            .map(|x| Attained {
+                position: x.position + Vector3::new(0.0, 100.0, 0.0),
+                ..x.clone()
+            })
+            .collect();
+        let line = implausible(&iso9283(&c, &far, &[]).unwrap()).unwrap();
+        assert!(line.contains("100.000 mm") && line.contains("2 pose(s) beyond 20 mm"), "{line}");
+        let turned: Vec<Attained> = a
+            .iter()
+            .map(|x| with(x.pose, x.cycle, x.position.x, x.angles.unwrap()[2] + 10.0))
+            .collect();
+        let line = implausible(&iso9283(&c, &turned, &[]).unwrap()).unwrap();
+        assert!(line.contains("test pose 1") && line.contains("turned 12.000°"), "{line}");
     }
 
     #[test]

@@ -4,7 +4,7 @@
 //! frame registration ([`crate::register`]) → iterated identification ([`crate::identify`]) →
 //! the calibrated model file (with its `[frames]` and `[provenance]`), the report with its verdict
 //! ([`CalibrationReport`]), from which the command line, the JSON output and the HTML are written.
-mod checks;
+pub mod checks;
 pub mod gauge;
 mod instrument_data;
 mod mixed;
@@ -196,6 +196,8 @@ pub fn calibrate(
     opts: &CalibrationOptions,
 ) -> Result<Calibration, CalibrateError> {
     checks::plausible_angles(model, data)?;
+    checks::plausible_units(model, data)?;
+    checks::plausible_seat_distances(model, data, &opts.seat_distances)?;
     let (raw, raw_validation) = (data, validation);
     let instrument = InstrumentData::of(data, validation, &opts.seat_distances, &opts.validation_seat_distances)?;
     if !opts.validation_seat_distances.is_empty() && instrument.as_ref().is_none_or(|i| i.held_out.is_none()) {

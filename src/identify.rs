@@ -28,8 +28,8 @@
 //! The rank is decided at the start. Where the start is a special geometry (a platform that only
 //! translates, axes exactly parallel) and the converged fit is not exact, the rank is analysed
 //! again where the fit converged, and the fit continued on the larger set when that explains the
-//! data a thousand times better (`identify/refit.rs`; issue 28 point 5 in
-//! docs/parallel-machines.md).
+//! data a thousand times better (`identify/refit.rs`; docs/parallel-machines.md, a platform
+//! that only translates).
 use crate::error::{CalibError, KinError};
 use crate::identifiability::{self, Identifiability};
 use crate::measure::{self, Measurement, Noise};

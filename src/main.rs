@@ -1,6 +1,6 @@
 //! `kinecal`: the command line over the kinecal library. It parses arguments, calls the library,
 //! prints tables or JSON, and turns every error into one line on stderr and a non-zero exit.
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, Parser, Subcommand};
 use std::process::ExitCode;
 
 mod cli;
@@ -86,7 +86,9 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
 
 /// Run one `kinecal` command line given without the program name (the quickstart's steps).
 fn run_line(line: &[String]) -> anyhow::Result<()> {
-    let args = Args::try_parse_from(std::iter::once("kinecal".to_string()).chain(line.iter().cloned()))?;
+    let argv: Vec<String> = std::iter::once("kinecal".to_string()).chain(line.iter().cloned()).collect();
+    let args = Args::try_parse_from(&argv)
+        .map_err(|e| anyhow::anyhow!(cli::usage::fold(&e, &Args::command(), &argv).unwrap_or_else(|| e.to_string())))?;
     dispatch(args.command)
 }
 
@@ -109,7 +111,19 @@ fn main() -> ExitCode {
         libc::mallopt(libc::M_TRIM_THRESHOLD, 512 << 20);
         libc::mallopt(libc::M_TOP_PAD, 16 << 20);
     }
-    match dispatch(Args::parse().command) {
+    let argv: Vec<String> = std::env::args_os().map(|a| a.to_string_lossy().into_owned()).collect();
+    let args = match Args::try_parse_from(&argv) {
+        Ok(args) => args,
+        // A usage error is wrong input (exit 1), on one line; --help and --version exit 0.
+        Err(e) => match cli::usage::fold(&e, &Args::command(), &argv) {
+            None => e.exit(),
+            Some(line) => {
+                eprintln!("kinecal: error: {line}");
+                return ExitCode::from(cli::EXIT_ERROR);
+            }
+        },
+    };
+    match dispatch(args.command) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             // Library errors already include their cause in their message: print the top one only.

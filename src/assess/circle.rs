@@ -10,6 +10,11 @@
 //! c                                                   the path's centre offset from the nominal
 //! ```
 //!
+//! Run in both directions (clockwise and anticlockwise, [`iso230_4_both`]): `G` of each
+//! direction, `G(b)` of both paths together about their common least-squares centre, and the
+//! circular hysteresis `H`, the largest radial difference between the two paths at the same
+//! angle (§3.4), each path's radius interpolated linearly between its measured angles.
+//!
 //! All in mm; angles of the points in degrees from the plane's first axis (x of the `xy` plane, y
 //! of `yz`, z of `zx`) towards its second. A path of the right shape off-centre gives a G of
 //! about zero and F of ± the offset; a path of the wrong shape (an ellipse from unequal axis
@@ -171,6 +176,77 @@ pub fn iso230_4(points: &[[f64; 2]], nominal_radius: f64) -> Result<CircularTest
     })
 }
 
+/// The ISO 230-4 figures of a circle run in both directions (mm): each direction's own, the
+/// bidirectional circular deviation `G(b)` (max − min radius of both paths about their common
+/// least-squares centre) and the circular hysteresis `H` (the largest radial difference between
+/// the two paths at the same angle, about that centre).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct BidirectionalTest {
+    /// The clockwise run alone.
+    pub clockwise: CircularTest,
+    /// The anticlockwise run alone.
+    pub anticlockwise: CircularTest,
+    /// Centre of the least-squares circle of both paths from the nominal centre (mm).
+    pub centre_offset_mm: [f64; 2],
+    /// `G(b)`: max − min radius of both paths about their common least-squares centre (mm).
+    pub circular_deviation_g_both_mm: f64,
+    /// `H`: the largest radial difference between the two paths at the same angle (mm).
+    pub circular_hysteresis_h_mm: f64,
+}
+
+/// Each point's angle (rad, in [−π, π)) and radius about `c`, sorted by angle.
+fn polar_about(points: &[[f64; 2]], c: &Vector2<f64>) -> Vec<(f64, f64)> {
+    let mut p: Vec<(f64, f64)> = points
+        .iter()
+        .map(|[u, v]| {
+            let d = Vector2::new(*u, *v) - c;
+            (d.y.atan2(d.x), d.norm())
+        })
+        .collect();
+    p.sort_by(|a, b| a.0.total_cmp(&b.0));
+    p
+}
+
+/// The radius of a path (sorted by angle) at angle `t`, linear between its neighbours, around
+/// the seam at ±π.
+fn radius_at(path: &[(f64, f64)], t: f64) -> f64 {
+    let tau = std::f64::consts::TAU;
+    let k = path.partition_point(|(a, _)| *a < t);
+    let (lo, hi) = match k {
+        0 => ((path[path.len() - 1].0 - tau, path[path.len() - 1].1), path[0]),
+        k if k == path.len() => (path[k - 1], (path[0].0 + tau, path[0].1)),
+        k => (path[k - 1], path[k]),
+    };
+    if (hi.0 - lo.0).abs() < 1e-15 {
+        return lo.1;
+    }
+    lo.1 + (hi.1 - lo.1) * (t - lo.0) / (hi.0 - lo.0)
+}
+
+/// ISO 230-4 for a clockwise and an anticlockwise run of the same nominal circle (points about
+/// the nominal centre, mm): [`BidirectionalTest`].
+pub fn iso230_4_both(clockwise: &[[f64; 2]], anticlockwise: &[[f64; 2]], nominal_radius: f64) -> Result<BidirectionalTest, CircleError> {
+    let cw = iso230_4(clockwise, nominal_radius)?;
+    let ccw = iso230_4(anticlockwise, nominal_radius)?;
+    let all: Vec<[f64; 2]> = clockwise.iter().chain(anticlockwise).copied().collect();
+    let (c, _) = least_squares_circle(&all)?;
+    let (a, b) = (polar_about(clockwise, &c), polar_about(anticlockwise, &c));
+    let radii = a.iter().chain(&b).map(|p| p.1);
+    let (lo, hi) = radii.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), r| (lo.min(r), hi.max(r)));
+    let h = a
+        .iter()
+        .map(|(t, r)| (r - radius_at(&b, *t)).abs())
+        .chain(b.iter().map(|(t, r)| (r - radius_at(&a, *t)).abs()))
+        .fold(0.0, f64::max);
+    Ok(BidirectionalTest {
+        clockwise: cw,
+        anticlockwise: ccw,
+        centre_offset_mm: [c.x, c.y],
+        circular_deviation_g_both_mm: hi - lo,
+        circular_hysteresis_h_mm: h,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -248,6 +324,39 @@ mod tests {
             t.radial_deviation_f_min_mm
         );
         assert!((t.lsq_radius_mm - 150.015).abs() < 1e-3, "{}", t.lsq_radius_mm);
+    }
+
+    /// By hand, both directions: the clockwise path a circle of radius 100.01 about the nominal
+    /// centre, the anticlockwise one of radius 99.99, both measured at the same eight angles.
+    /// Each alone is a perfect circle (G 0); together their least-squares centre is the nominal
+    /// one by symmetry, G(b) = 100.01 − 99.99 = 0.02 and H = 0.02 at every angle. The
+    /// anticlockwise path turned by 22.5° (measured between the clockwise angles) gives the same
+    /// H: radii are interpolated along each path.
+    #[test]
+    fn both_directions_by_hand() {
+        let ring = |r: f64, turn: f64| -> Vec<[f64; 2]> {
+            (0..8)
+                .map(|k| {
+                    let a = (k as f64 * 45.0 + turn).to_radians();
+                    [r * a.cos(), r * a.sin()]
+                })
+                .collect()
+        };
+        for turn in [0.0, 22.5] {
+            let t = iso230_4_both(&ring(100.01, 0.0), &ring(99.99, turn), 100.0).unwrap();
+            assert!(
+                t.clockwise.circular_deviation_g_mm < 1e-9 && t.anticlockwise.circular_deviation_g_mm < 1e-9,
+                "{t:?}"
+            );
+            assert!(t.centre_offset_mm.iter().all(|v| v.abs() < 1e-9), "{t:?}");
+            assert!((t.circular_deviation_g_both_mm - 0.02).abs() < 1e-9, "{t:?}");
+            assert!((t.circular_hysteresis_h_mm - 0.02).abs() < 1e-9, "{t:?}");
+        }
+        // The same path both ways: no hysteresis, G(b) the path's own G.
+        let path = [[100.01, 0.0], [0.0, 99.99], [-100.01, 0.0], [0.0, -99.99]];
+        let t = iso230_4_both(&path, &path, 100.0).unwrap();
+        assert!(t.circular_hysteresis_h_mm < 1e-12, "{t:?}");
+        assert!((t.circular_deviation_g_both_mm - 0.02).abs() < 1e-9, "{t:?}");
     }
 
     #[test]

@@ -1,5 +1,7 @@
 //! Plausibility checks of the data against the model before anything is fitted: mistakes a
-//! file can hold that would otherwise come out as a wrong calibration.
+//! file can hold that would otherwise come out as a wrong calibration: the units of the joint
+//! values and of the measured positions, known seat distances, and (after the fit) a stated noise
+//! far larger than the residual.
 use crate::io::data_file::DataSet;
 use crate::io::model_file::ModelFile;
 use crate::io::IoError;
@@ -35,4 +37,215 @@ pub fn plausible_angles(model: &ModelFile, data: &DataSet) -> Result<(), IoError
         });
     }
     Ok(())
+}
+
+/// Unit factors a mistaken file shows: metres or inches for millimetres (and back).
+const LENGTH_FACTORS: [(f64, &str); 4] = [
+    (1000.0, "metres"),
+    (0.001, "micrometres"),
+    (25.4, "inches"),
+    (1.0 / 25.4, "tenths of a millimetre"),
+];
+
+/// Which of `LENGTH_FACTORS` a ratio is, within 15 %.
+fn length_factor(ratio: f64) -> Option<(f64, &'static str)> {
+    LENGTH_FACTORS
+        .into_iter()
+        .find(|(f, _)| ratio.is_finite() && ratio > 0.0 && (ratio / f).ln().abs() < 0.15)
+}
+
+/// Median of positive values (0 when empty).
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(0.0)
+}
+
+/// Up to `n` rows evenly spread over the rows `rows`.
+fn spread(rows: &[usize], n: usize) -> Vec<usize> {
+    let step = rows.len().div_ceil(n).max(1);
+    rows.iter().step_by(step).copied().collect()
+}
+
+/// The nominal tool positions at rows `rows` of `data` with the inputs of unit `unit` multiplied
+/// by `factor` (`None` for a row where the model does not assemble).
+fn tool_points(
+    model: &dyn crate::Mechanism,
+    inputs: &[crate::io::model_file::InputSpec],
+    data: &DataSet,
+    rows: &[usize],
+    scale: Option<(Unit, f64)>,
+) -> Vec<Option<nalgebra::Vector3<f64>>> {
+    rows.iter()
+        .map(|&i| {
+            let mut q = data.measurements[i].q.clone();
+            if let Some((unit, f)) = scale {
+                for (v, s) in q.iter_mut().zip(inputs) {
+                    if s.unit == unit && s.approach_of.is_none() {
+                        *v *= f;
+                    }
+                }
+            }
+            model.forward(&q).ok().map(|p| p.translation.vector)
+        })
+        .collect()
+}
+
+/// Wrong units in the data, judged before fitting from what no frame changes: the distances
+/// between measured positions against the nominal model's distances between its tool points.
+/// Positions about 1000× or 25.4× off the model's (metres or inches in `_mm` columns), and joint
+/// values that fit the model far better read in another unit (radians in `_deg` columns, metres
+/// in `_mm` ones) are one line naming the likely mistake with the figures. Data without measured
+/// positions (seats, distances, touches) pass.
+pub fn plausible_units(model: &ModelFile, data: &DataSet) -> Result<(), IoError> {
+    use crate::measure::Observation;
+    let rows: Vec<usize> = (0..data.measurements.len())
+        .filter(|&i| matches!(data.measurements[i].obs, Observation::Pose(_) | Observation::Position(_)))
+        .collect();
+    if rows.len() < 8 {
+        return Ok(());
+    }
+    let rows = spread(&rows, 40);
+    let measured: Vec<nalgebra::Vector3<f64>> = rows
+        .iter()
+        .map(|&i| match &data.measurements[i].obs {
+            Observation::Pose(p) => p.translation.vector,
+            Observation::Position(v) => *v,
+            _ => nalgebra::Vector3::zeros(),
+        })
+        .collect();
+    let mech = model.build();
+    let inputs = model.inputs();
+    // Distances between every pair of the rows that assemble; the RMS difference and the
+    // medians of both.
+    let compare = |points: &[Option<nalgebra::Vector3<f64>>]| -> Option<(f64, f64, f64)> {
+        let ok = points.iter().filter(|p| p.is_some()).count();
+        if 2 * ok < points.len() {
+            return None;
+        }
+        let (mut diff, mut dm, mut dn) = (Vec::new(), Vec::new(), Vec::new());
+        for a in 0..points.len() {
+            for b in a + 1..points.len() {
+                if let (Some(p), Some(q)) = (points[a], points[b]) {
+                    let (m, n) = ((measured[a] - measured[b]).norm(), (p - q).norm());
+                    diff.push((m - n).powi(2));
+                    dm.push(m);
+                    dn.push(n);
+                }
+            }
+        }
+        let rms = (diff.iter().sum::<f64>() / diff.len().max(1) as f64).sqrt();
+        Some((rms, median(dm), median(dn)))
+    };
+    let Some((stated, measured_median, model_median)) = compare(&tool_points(&*mech, &inputs, data, &rows, None)) else {
+        return Ok(());
+    };
+    if stated <= 0.05 * model_median.max(1.0) {
+        return Ok(());
+    }
+    if let Some((f, what)) = length_factor(model_median / measured_median.max(1e-300)) {
+        return Err(IoError::Invalid {
+            path: data.path.clone(),
+            message: format!(
+                "the measured positions are about {} the model's reach (median distance between poses {measured_median:.4} mm measured, {model_median:.1} mm by the nominal model): {what} in the _mm columns? ({})",
+                if f >= 1.0 { format!("1/{f} of") } else { format!("{}×", 1.0 / f) },
+                if f == 1000.0 { "name them x_m, y_m, z_m, or convert them to mm" } else { "convert them to mm" }
+            ),
+        });
+    }
+    let has = |u: Unit| inputs.iter().any(|i| i.unit == u && i.approach_of.is_none() && !i.observed);
+    let mut hypotheses: Vec<(Unit, f64, String)> = Vec::new();
+    if has(Unit::Angle) {
+        hypotheses.push((
+            Unit::Angle,
+            180.0 / std::f64::consts::PI,
+            "the angle columns hold radians where they say degrees (name them _rad)".into(),
+        ));
+        hypotheses.push((
+            Unit::Angle,
+            std::f64::consts::PI / 180.0,
+            "the angle columns hold degrees where they say radians (name them _deg)".into(),
+        ));
+    }
+    if has(Unit::Length) {
+        for (f, what) in LENGTH_FACTORS {
+            hypotheses.push((Unit::Length, f, format!("the length inputs hold {what} where they say mm")));
+        }
+    }
+    let best = hypotheses
+        .iter()
+        .filter_map(|(u, f, what)| compare(&tool_points(&*mech, &inputs, data, &rows, Some((*u, *f)))).map(|c| (c.0, what)))
+        .min_by(|a, b| a.0.total_cmp(&b.0));
+    if let Some((rms, what)) = best {
+        if rms < 0.2 * stated && stated > 5.0 {
+            return Err(IoError::Invalid {
+                path: data.path.clone(),
+                message: format!(
+                    "the joint values fit the nominal model far better in another unit: {what} (distances between poses {rms:.3} mm RMS from the model's, against {stated:.3} mm as stated)"
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Known distances between seats against the nominal model's distance between the seats'
+/// centres (the mean of its tool points over each seat's rows): a distance about 1000× or 25.4×
+/// off is an error naming the unit; one more than twice or less than half the nominal one is a
+/// warning (seats paired across placements, numbers swapped), returned as lines.
+pub fn plausible_seat_distances(
+    model: &ModelFile,
+    data: &DataSet,
+    distances: &[crate::instrument::SeatDistance],
+) -> Result<Vec<String>, IoError> {
+    use crate::measure::Observation;
+    let mut warnings = Vec::new();
+    if distances.is_empty() {
+        return Ok(warnings);
+    }
+    let mech = model.build();
+    let centre = |seat: usize| -> Option<nalgebra::Vector3<f64>> {
+        let points: Vec<nalgebra::Vector3<f64>> = data
+            .measurements
+            .iter()
+            .filter(|m| matches!(m.obs, Observation::Seat(k) if k == seat))
+            .filter_map(|m| mech.forward(&m.q).ok().map(|p| p.translation.vector))
+            .collect();
+        (!points.is_empty()).then(|| points.iter().sum::<nalgebra::Vector3<f64>>() / points.len() as f64)
+    };
+    for d in distances {
+        let (Some(a), Some(b)) = (centre(d.a), centre(d.b)) else { continue };
+        let nominal = (a - b).norm();
+        if nominal < 1.0 {
+            continue;
+        }
+        let ratio = nominal / d.length;
+        if let Some((f, what)) = length_factor(ratio) {
+            return Err(IoError::Invalid {
+                path: data.path.clone(),
+                message: format!(
+                    "--seat-distance {}:{}:{}: the nominal model puts seats {} and {} {nominal:.1} mm apart, {f:.4}× the stated {} mm: {what} for mm? (give it in mm: {}:{}:{:.4})",
+                    d.a, d.b, d.length, d.a, d.b, d.length, d.a, d.b, d.length * f
+                ),
+            });
+        }
+        if !(0.5..=2.0).contains(&ratio) {
+            warnings.push(format!(
+                "--seat-distance {}:{}:{}: the nominal model puts seats {} and {} {nominal:.1} mm apart: seats paired across placements, or their numbers swapped?",
+                d.a, d.b, d.length, d.a, d.b
+            ));
+        }
+    }
+    Ok(warnings)
+}
+
+/// A stated noise the residual shows to be far too large: σ̂₀ below 0.1 while the data do hold
+/// noise (a residual above 0.1 µm RMS: noise-free data pass), e.g. 5 mm stated for 5 µm. A
+/// warning line with the figures; the fit itself stands.
+pub fn stated_noise(sigma0: f64, noise_mm: f64) -> Option<String> {
+    let residual = sigma0 * noise_mm;
+    (sigma0 < 0.1 && residual > 1e-4).then(|| {
+        format!(
+            "σ̂₀ = {sigma0:.4}: the residual ({residual:.4} mm RMS) is a small fraction of the stated noise ({noise_mm} mm): the stated noise is far too large (mm where µm were meant?), so the standard deviations and the checks against the noise are too lax; state the instrument's noise"
+        )
+    })
 }

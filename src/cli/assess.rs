@@ -3,7 +3,7 @@
 //! `--circle FILE --radius-mm R`: an ISO 230-4 circular test; `--report` an HTML page of both.
 use anyhow::Context;
 use clap::Args;
-use kinecal::assess::{iso230_4, iso9283, AssessError, CircularTest, Iso9283, Plane};
+use kinecal::assess::{iso230_4, iso230_4_both, iso9283, AssessError, BidirectionalTest, CircularTest, Iso9283, Plane};
 use kinecal::io::output::Outputs;
 use kinecal::io::test_poses::{read_attained, read_circle, read_commanded};
 use std::path::{Path, PathBuf};
@@ -27,6 +27,10 @@ pub struct AssessArgs {
     /// or measured points x_mm,y_mm,z_mm.
     #[arg(long)]
     pub circle: Option<PathBuf>,
+    /// The anticlockwise run of the same circle (same columns): `--circle` is then the clockwise
+    /// run, and the figures of both directions are added (G each way, G(b) and the hysteresis H).
+    #[arg(long, requires = "circle")]
+    pub circle_ccw: Option<PathBuf>,
     /// The circle's nominal radius (mm).
     #[arg(long, requires = "circle", allow_hyphen_values = true)]
     pub radius_mm: Option<f64>,
@@ -39,7 +43,9 @@ pub struct AssessArgs {
     /// Write an HTML report (the standard's tables, the circle's polar plot).
     #[arg(long)]
     pub report: Option<PathBuf>,
-    /// Replace an existing report.
+    /// Replace an existing report; assess attained poses even when they are beyond any plausible
+    /// accuracy (more than 20 mm or 5° from their commands on average: usually files that do not
+    /// belong together).
     #[arg(long)]
     pub force: bool,
     /// Print JSON instead of text.
@@ -67,19 +73,45 @@ fn circle(a: &AssessArgs) -> anyhow::Result<Option<CircularTest>> {
     ))
 }
 
+/// The circle run both ways, when `--circle-ccw` is given.
+fn both_ways(a: &AssessArgs) -> anyhow::Result<Option<BidirectionalTest>> {
+    let (Some(cw), Some(ccw), Some(radius)) = (&a.circle, &a.circle_ccw, a.radius_mm) else {
+        return Ok(None);
+    };
+    let centre = a.centre_mm.into();
+    let (p, q) = (
+        read_circle(cw, a.plane, &centre, radius)?,
+        read_circle(ccw, a.plane, &centre, radius)?,
+    );
+    Ok(Some(
+        iso230_4_both(&p, &q, radius).map_err(|e| anyhow::anyhow!("{} / {}: {e}", cw.display(), ccw.display()))?,
+    ))
+}
+
 /// The figures of one attained file, its mistakes named with the file and line (a pose commanded
 /// twice with the commanded file).
-fn assess_file(commanded: (&Path, &[kinecal::assess::TestPose]), path: &Path, distances: &[(i64, i64)]) -> anyhow::Result<Iso9283> {
+fn assess_file(
+    commanded: (&Path, &[kinecal::assess::TestPose]),
+    path: &Path,
+    distances: &[(i64, i64)],
+    force: bool,
+) -> anyhow::Result<Iso9283> {
     let attained = read_attained(path)?;
     let (commanded_path, commanded) = commanded;
-    iso9283(commanded, &attained, distances).map_err(|e| match e {
+    let figures = iso9283(commanded, &attained, distances).map_err(|e| match e {
         AssessError::UnknownPose { pose, line, known } => anyhow::anyhow!(
             "{}:{line}: test pose {pose} is not among the commanded poses ({known}): check the pose column or the commanded file",
             path.display()
         ),
         e @ AssessError::DuplicateCommand { .. } => anyhow::anyhow!("{}: {e}", commanded_path.display()),
         e => anyhow::anyhow!("{}: {e}", path.display()),
-    })
+    })?;
+    if !force {
+        if let Some(why) = kinecal::assess::implausible(&figures) {
+            anyhow::bail!("{}: {why}; --force assesses it anyway", path.display());
+        }
+    }
+    Ok(figures)
 }
 
 /// Run the command.
@@ -105,7 +137,14 @@ pub fn run(a: AssessArgs) -> anyhow::Result<()> {
         _ => {}
     }
     let mut outputs = Outputs::new(a.force);
-    for p in a.commanded.iter().chain(&a.attained).chain(&a.after).chain(&a.circle) {
+    for p in a
+        .commanded
+        .iter()
+        .chain(&a.attained)
+        .chain(&a.after)
+        .chain(&a.circle)
+        .chain(&a.circle_ccw)
+    {
         outputs.input(p);
     }
     if let Some(r) = &a.report {
@@ -116,12 +155,13 @@ pub fn run(a: AssessArgs) -> anyhow::Result<()> {
             let commanded = read_commanded(c)?;
             std::iter::once(first)
                 .chain(a.after.as_ref())
-                .map(|p| Ok((p.display().to_string(), assess_file((c, &commanded), p, &distances)?)))
+                .map(|p| Ok((p.display().to_string(), assess_file((c, &commanded), p, &distances, a.force)?)))
                 .collect::<anyhow::Result<_>>()?
         }
         _ => Vec::new(),
     };
     let circular = circle(&a)?;
+    let both = both_ways(&a)?;
     let circle_name = a.circle.as_ref().map(|p| p.display().to_string()).unwrap_or_default();
     if let Some(r) = &a.report {
         let title = format!(
@@ -138,7 +178,10 @@ pub fn run(a: AssessArgs) -> anyhow::Result<()> {
     }
     if a.json {
         let mut v: Vec<_> = runs.iter().map(|(f, r)| serde_json::json!({"attained": f, "iso9283": r})).collect();
-        v.extend(circular.iter().map(|t| serde_json::json!({"circle": circle_name, "iso230_4": t})));
+        match &both {
+            Some(b) => v.push(serde_json::json!({"circle": circle_name, "circle_ccw": a.circle_ccw, "iso230_4_both": b})),
+            None => v.extend(circular.iter().map(|t| serde_json::json!({"circle": circle_name, "iso230_4": t}))),
+        }
         println!("{}", serde_json::to_string_pretty(&v)?);
         return Ok(());
     }
@@ -147,6 +190,24 @@ pub fn run(a: AssessArgs) -> anyhow::Result<()> {
             "ISO 230-4 circular test {circle_name} ({} plane, R {} mm, {} points): G {:.4} mm, F_max {:+.4} mm, F_min {:+.4} mm, centre offset ({:.4}, {:.4}) mm, least-squares radius {:.4} mm",
             format!("{:?}", a.plane).to_lowercase(), t.nominal_radius_mm, t.points, t.circular_deviation_g_mm, t.radial_deviation_f_max_mm, t.radial_deviation_f_min_mm,
             t.centre_offset_mm[0], t.centre_offset_mm[1], t.lsq_radius_mm
+        );
+    }
+    if let (Some(b), Some(ccw)) = (&both, &a.circle_ccw) {
+        let t = &b.anticlockwise;
+        println!(
+            "anticlockwise run {} ({} points): G {:.4} mm, F_max {:+.4} mm, F_min {:+.4} mm, centre offset ({:.4}, {:.4}) mm",
+            ccw.display(),
+            t.points,
+            t.circular_deviation_g_mm,
+            t.radial_deviation_f_max_mm,
+            t.radial_deviation_f_min_mm,
+            t.centre_offset_mm[0],
+            t.centre_offset_mm[1]
+        );
+        println!(
+            "both directions: G clockwise {:.4} mm, G anticlockwise {:.4} mm, G(b) {:.4} mm, hysteresis H {:.4} mm (common centre offset ({:.4}, {:.4}) mm)",
+            b.clockwise.circular_deviation_g_mm, t.circular_deviation_g_mm, b.circular_deviation_g_both_mm, b.circular_hysteresis_h_mm,
+            b.centre_offset_mm[0], b.centre_offset_mm[1]
         );
     }
     if let Some(r) = &a.report {
@@ -179,8 +240,15 @@ pub fn run(a: AssessArgs) -> anyhow::Result<()> {
             );
         }
         for d in &r.distances {
+            let angles = match (d.ad_abc, d.rd_abc) {
+                (Some(ad), Some(rd)) => format!(
+                    "; AD_a,b,c {:.4}/{:.4}/{:.4} deg, RD_a,b,c ±{:.4}/{:.4}/{:.4} deg",
+                    ad[0], ad[1], ad[2], rd[0], rd[1], rd[2]
+                ),
+                _ => String::new(),
+            };
             println!(
-                "distance P{}–P{} ({:.3} mm commanded, {} cycles): AD_P {:.4} (AD_x {:.4}, AD_y {:.4}, AD_z {:.4}), RD_P ±{:.4}",
+                "distance P{}–P{} ({:.3} mm commanded, {} cycles): AD_P {:.4} (AD_x {:.4}, AD_y {:.4}, AD_z {:.4}), RD_P ±{:.4}{angles}",
                 d.from, d.to, d.commanded_mm, d.cycles, d.ad_p, d.ad_xyz[0], d.ad_xyz[1], d.ad_xyz[2], d.rd_p
             );
         }

@@ -55,6 +55,9 @@ pub fn run(a: CompensateArgs) -> anyhow::Result<()> {
     let inputs = file.inputs();
     let data = read_data(&a.targets, &file.data_columns(), InputColumns::Optional)?;
     super::warn_limits(&data);
+    if let Some(note) = kinecal::io::data_file::si_units_note(&a.targets) {
+        eprintln!("note: {note}");
+    }
     let targets = target_poses(&data.measurements).map_err(|i| {
         anyhow::anyhow!(
             "{}:{}: a target needs an orientation (qw,qx,qy,qz or roll,pitch,yaw), not only a position",

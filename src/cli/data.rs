@@ -128,7 +128,11 @@ fn summary(d: &DataSet, json: bool) -> anyhow::Result<()> {
                 "artifacts": artifacts, "beyond_limits": d.beyond_limits}))?
         );
     } else {
-        println!("{}: {} poses, measured: {format}", d.path.display(), d.measurements.len());
+        println!(
+            "{}: {}, measured: {format}",
+            d.path.display(),
+            super::count(d.measurements.len(), "pose")
+        );
         if !artifacts.is_empty() {
             let each: Vec<String> = artifacts.iter().map(ToString::to_string).collect();
             println!("{}", each.join(", "));
@@ -150,7 +154,7 @@ fn summary(d: &DataSet, json: bool) -> anyhow::Result<()> {
 /// that `--json` stays one document on stdout).
 fn print_join(j: &JoinedExports, json: bool) {
     if !j.dropped.is_empty() {
-        eprintln!("{} poses dropped:", j.dropped.len());
+        eprintln!("{} dropped:", super::count(j.dropped.len(), "pose"));
         for (id, why) in j.dropped.iter().take(20) {
             eprintln!("  id {id}: {why}");
         }
@@ -206,13 +210,13 @@ pub fn run(args: DataArgs) -> anyhow::Result<()> {
             }
             outputs.commit()?;
             println!(
-                "{}: {} poses → {} ({} poses) and {} ({} poses)",
+                "{}: {} → {} ({}) and {} ({})",
                 data.display(),
-                d.ids.len(),
+                super::count(d.ids.len(), "pose"),
                 out.display(),
-                a.ids.len(),
+                super::count(a.ids.len(), "pose"),
                 rest.display(),
-                b.ids.len()
+                super::count(b.ids.len(), "pose")
             );
             Ok(())
         }
@@ -243,11 +247,35 @@ pub fn run(args: DataArgs) -> anyhow::Result<()> {
                 outputs.input(p);
             }
             outputs.output(&out)?;
+            // One file in two places (the same seat twice, the inputs as the measurements).
+            let given: Vec<&PathBuf> = inputs
+                .iter()
+                .chain(&measurements)
+                .chain(&joints)
+                .chain(&reflector)
+                .chain(&reference)
+                .chain(&seat)
+                .collect();
+            let canonical: Vec<PathBuf> = given.iter().map(|p| p.canonicalize().unwrap_or_else(|_| p.to_path_buf())).collect();
+            for (j, c) in canonical.iter().enumerate() {
+                if canonical[..j].contains(c) {
+                    anyhow::bail!(
+                        "{}: given twice: each file once (data join --help says which goes where)",
+                        given[j].display()
+                    );
+                }
+            }
             let file = ModelFile::load_or_builtin(&model)?;
             let angle_unit = AngleUnit::parse(&angles).unwrap_or(AngleUnit::Deg);
             let length_unit = LengthUnit::parse(&units).unwrap_or(LengthUnit::Mm);
             let (d, reflectors) = match (inputs, measurements, joints) {
-                _ if !seat.is_empty() => (join_seat_exports(&seat, angle_unit, length_unit, &file.data_columns())?, None),
+                _ if !seat.is_empty() => {
+                    let d = join_seat_exports(&seat, angle_unit, length_unit, &file.data_columns())?;
+                    if let Some(w) = kinecal::io::seat_exports::uneven_seats(&d) {
+                        eprintln!("warning: {w}");
+                    }
+                    (d, None)
+                }
                 (Some(i), Some(m), None) => (join_files(&i, &m, &file.data_columns())?, None),
                 (None, None, Some(joints)) => {
                     let files = ExportFiles {

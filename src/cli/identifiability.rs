@@ -48,8 +48,11 @@ pub fn run(a: IdentifiabilityArgs) -> anyhow::Result<()> {
     let mut instrument = false;
     let data: Vec<Measurement> = match &a.data {
         Some(p) => {
-            let set = read_data(p, &file.data_columns(), InputColumns::Required)?;
+            let mut set = read_data(p, &file.data_columns(), InputColumns::Required)?;
             super::warn_limits(&set);
+            if let Some(u) = set.set_aside_unassembled(&*model)? {
+                eprintln!("warning: {}", u.note(&set));
+            }
             // Instrument data: the model the fit uses (tool-point offset, seats and pivots).
             match kinecal::calibrate::instrument_model(&file, &set, &a.seat_distances)? {
                 Some((start, f, measurements)) => {
@@ -94,9 +97,9 @@ pub fn run(a: IdentifiabilityArgs) -> anyhow::Result<()> {
         );
     } else {
         println!(
-            "{}: {} poses, {} free parameters, rank {}, condition number {:.3e}",
+            "{}: {}, {} free parameters, rank {}, condition number {:.3e}",
             file.name,
-            data.len(),
+            super::count(data.len(), "pose"),
             free.len(),
             id.rank,
             id.condition

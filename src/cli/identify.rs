@@ -168,8 +168,8 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
     let file = ModelFile::load_or_builtin(&a.model)?;
     super::note_held(&file, a.json);
     let inputs = file.data_columns();
-    let data = read_data(&a.data, &inputs, InputColumns::Required)?;
-    let validation = match &a.validation {
+    let mut data = read_data(&a.data, &inputs, InputColumns::Required)?;
+    let mut validation = match &a.validation {
         Some(p) => Some(read_data(p, &inputs, InputColumns::Required)?),
         None => None,
     };
@@ -228,9 +228,36 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         }
         super::warn_limits(d);
     }
-    let sp = progress::spinner(&format!("identifying {} on {} poses", file.name, data.measurements.len()), a.json);
-    let cal = calibrate(&file, &data, validation.as_ref(), &opts)?;
+    for w in kinecal::calibrate::checks::plausible_seat_distances(&file, &data, &opts.seat_distances)? {
+        eprintln!("warning: {w}");
+    }
+    let sp = progress::spinner(
+        &format!("identifying {} on {}", file.name, super::count(data.measurements.len(), "pose")),
+        a.json,
+    );
+    let cal = match calibrate(&file, &data, validation.as_ref(), &opts) {
+        // Rows at which the model does not assemble are set aside with a line (as blunders are)
+        // when the rest is enough, and the calibration runs on the rest; any other error stands.
+        Err(e) => {
+            let model = file.build();
+            let mut aside = false;
+            for d in std::iter::once(&mut data).chain(validation.as_mut()) {
+                if let Some(u) = d.set_aside_unassembled(&*model)? {
+                    eprintln!("warning: {}", u.note(d));
+                    aside = true;
+                }
+            }
+            anyhow::ensure!(aside, "{e}");
+            calibrate(&file, &data, validation.as_ref(), &opts)?
+        }
+        Ok(c) => c,
+    };
     sp.finish_and_clear();
+    let mut cal = cal;
+    if let Some(w) = kinecal::calibrate::checks::stated_noise(cal.identification.sigma0, cal.identification.noise.position) {
+        eprintln!("warning: {w}");
+        cal.report.flags.push(w);
+    }
     let report = &cal.report;
     let mut calibrated = cal.model_file.clone();
     let failed = report.verdict.status == Status::Failed;
@@ -271,11 +298,11 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         return Ok(());
     }
     println!(
-        "identified {} of {} free parameters of {} from {} poses ({:?}, {} after {} iterations, σ̂₀ = {:.3})",
+        "identified {} of {} free parameters of {} from {} ({:?}, {} after {} iterations, σ̂₀ = {:.3})",
         report.rank,
         report.free,
         file.name,
-        data.measurements.len(),
+        super::count(data.measurements.len(), "pose"),
         opts.method,
         match (report.converged, failed) {
             (false, _) => "NOT converged",
@@ -408,8 +435,8 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         let ids: Vec<String> = cal.blunders.iter().take(50).map(|id| id.to_string()).collect();
         let more = cal.blunders.len().saturating_sub(ids.len());
         println!(
-            "{} poses set aside as blunders (beyond {} robust σ of the per-pose residuals): ids {}{}",
-            cal.blunders.len(),
+            "{} set aside as blunders (beyond {} robust σ of the per-pose residuals): ids {}{}",
+            super::count(cal.blunders.len(), "pose"),
             a.huber / kinecal::calibrate::BLUNDER_WEIGHT,
             ids.join(" "),
             if more > 0 {
@@ -421,7 +448,10 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
     }
     let flagged: usize = report.identification.outliers.len() + report.validation.as_ref().map_or(0, |v| v.outliers.len());
     if flagged > 0 {
-        println!("{flagged} poses flagged as outliers (residual > 3σ; see the report)");
+        println!(
+            "{} flagged as outliers (residual > 3σ; see the report)",
+            super::count(flagged, "pose")
+        );
     }
     println!("{:<10} {:>12} {:>12} unit", "parameter", "value", "std.dev");
     for p in report.params.iter().filter(|p| p.status == ParamStatus::Identified) {

@@ -254,6 +254,13 @@ fn write_plan(
     measure: &str,
 ) -> anyhow::Result<()> {
     let sel = &plan.selection;
+    if let Some(line) = sel
+        .indices
+        .rank_shortfall(&format!("the plan's {}", super::count(plan.rows.len(), "row")))
+    {
+        anyhow::ensure!(args.force, "{line}");
+        eprintln!("warning: {line}");
+    }
     let mut text = format!(
         "# kinecal plan: {:?} on {}, {what} from {} candidates, {} repair moves\n# {}\n# identifiable columns: {}\n# measure on a virtual prototype: kinecal simulate {} --at {} {measure} --tool-mm X,Y,Z …\n",
         sel.method,
@@ -265,8 +272,14 @@ fn write_plan(
         args.model.as_deref().unwrap_or(&file.name),
         args.output.display()
     );
-    let ids: Vec<i64> = (0..plan.rows.len() as i64).collect();
-    text += &data_text(&args.output, &file.data_columns(), &ids, &plan.rows, None)?;
+    // Rows at which the nominal model does not assemble (its forward kinematics from home does
+    // not converge) are left out of the plan, with a line.
+    let mut rows = kinecal::io::data_file::DataSet::from_measurements(&args.output.display().to_string(), plan.rows.clone());
+    if let Some(u) = rows.set_aside_unassembled(&*file.build())? {
+        eprintln!("warning: {} (left out of the plan)", u.note(&rows));
+    }
+    let ids: Vec<i64> = (0..rows.measurements.len() as i64).collect();
+    text += &data_text(&args.output, &file.data_columns(), &ids, &rows.measurements, None)?;
     outputs.stage(&args.output, text.as_bytes())?;
     outputs.commit()?;
     Ok(())

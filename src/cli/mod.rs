@@ -16,6 +16,7 @@ pub mod simulate;
 pub mod study;
 pub mod study_t3r1;
 pub mod touch_args;
+pub mod usage;
 pub mod validate;
 
 /// A result that was computed but failed its checks (not converged, implausible, residual far
@@ -86,4 +87,12 @@ pub fn utc_now() -> String {
     let m = if mp < 10 { mp + 3 } else { mp - 9 };
     let y = yoe + era * 400 + i64::from(m <= 2);
     format!("{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}Z", rem / 3600, rem % 3600 / 60, rem % 60)
+}
+
+/// `n` and a noun, singular for one: `count(1, "pose")` is "1 pose", `count(3, "pose")` "3 poses".
+pub fn count(n: usize, noun: &str) -> String {
+    match n {
+        1 => format!("1 {noun}"),
+        _ => format!("{n} {noun}s"),
+    }
 }

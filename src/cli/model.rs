@@ -227,6 +227,15 @@ pub fn run(args: ModelArgs) -> anyhow::Result<()> {
                 }
             };
             write_out(outputs, out.as_deref(), &text)?;
+            if let Some(o) = &out {
+                println!(
+                    "{} ({}) as {} → {}",
+                    file.name,
+                    super::count(file.build().input_names().len(), "input"),
+                    format!("{format:?}").to_lowercase(),
+                    o.display()
+                );
+            }
         }
         ModelCommand::Import {
             urdf: path,

@@ -1,4 +1,4 @@
-//! `kinecal plan`: choose measurement configurations (issue #5) and write them as CSV. One call,
+//! `kinecal plan`: choose measurement configurations and write them as CSV. One call,
 //! [`design::plan_sampled`], makes the candidates and chooses among them; this module parses the
 //! arguments (the sampling ones in [`super::sampling`]), shows progress and prints. The mechanism:
 //! `--preset NAME` (built-in), `--model NAME|FILE` (as for `identify`), or neither: a seeded random
@@ -168,10 +168,19 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
     (aside > 0).then(|| say(format!("{aside} chosen candidates set aside and replaced: the forward kinematics from the home pose reaches another assembly mode there")));
     let (chosen, moves, warm, secs) = (sel.selected.len(), sel.history.len(), sel.warm_up, p.selection_seconds);
     say(format!(
-        "{:?} on {}: {chosen} configurations in {secs:.2} s ({moves} moves, {warm} chosen D-optimally before full rank)",
-        sel.method, sel.criterion
+        "{:?} on {}: {} in {secs:.2} s ({moves} moves, {warm} chosen D-optimally before full rank)",
+        sel.method,
+        sel.criterion,
+        super::count(chosen, "configuration")
     ));
     say(format!("indices (scaled, dimensionless): {}", sel.indices));
+    if let Some(line) = sel
+        .indices
+        .rank_shortfall(&format!("the plan's {}", super::count(chosen, "configuration")))
+    {
+        anyhow::ensure!(args.force, "{line}");
+        eprintln!("warning: {line}");
+    }
     let mut text = Vec::new();
     planned
         .write_csv(&mut text)

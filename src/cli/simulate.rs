@@ -306,8 +306,8 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<()> {
         );
         for w in &written {
             println!(
-                "{} poses, {} measurements, noise {} mm / {} deg → {}",
-                w.poses,
+                "{}, {} measurements, noise {} mm / {} deg → {}",
+                super::count(w.poses, "pose"),
                 format!("{:?}", a.measure).to_lowercase(),
                 a.noise_mm,
                 a.noise_deg,
@@ -554,7 +554,11 @@ fn planned(
     seed: u64,
 ) -> anyhow::Result<Vec<kinecal::measure::Measurement>> {
     use kinecal::io::data_file::{read_data, InputColumns};
-    let plan = read_data(at, &file.data_columns(), InputColumns::Required)?;
+    let mut plan = read_data(at, &file.data_columns(), InputColumns::Required)?;
+    // Planned rows at which the prototype does not assemble are not measured (a line says which).
+    if let Some(u) = plan.set_aside_unassembled(truth)? {
+        eprintln!("warning: {} (not measured)", u.note(&plan));
+    }
     let kind = if seats { "seat" } else { "pivot" };
     anyhow::ensure!(
         plan.measurements

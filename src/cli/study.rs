@@ -22,7 +22,7 @@ pub enum Study {
     /// 20 verification configurations, noise-free and noisy, exact and first-order compensation,
     /// Monte-Carlo.
     Pm5(StudyArgs),
-    /// Issue #5's evidence: Monte-Carlo on the 5-DOF machine comparing identification on planned
+    /// Does planning matter: Monte-Carlo on the 5-DOF machine comparing identification on planned
     /// configuration sets (greedy/SFFS/exchange on O2 and D) with fresh random sets of the same
     /// size: verification error after exact compensation, mean and 95th percentile.
     Pm5Design(DesignArgs),
@@ -76,7 +76,7 @@ pub struct StudyArgs {
     /// Parasitic-constraint model of truth and identified model.
     #[arg(long, value_enum, default_value_t = ParasiticArg::Physical)]
     pub parasitic: ParasiticArg,
-    /// Sub-loop parameters dW′ keeps: l2l3 (dl2 dl3 dg4, issue #3's advice) or l4l5 (the paper's).
+    /// Sub-loop parameters dW′ keeps: l2l3 (dl2 dl3 dg4, the default) or l4l5 (the paper's).
     #[arg(long, value_enum, default_value_t = SubLoopArg::L2l3)]
     pub sub_loop: SubLoopArg,
     /// Identification configurations: random (fresh per trial, default) or optimised (one set
@@ -106,7 +106,7 @@ pub struct StudyArgs {
 pub enum ConfigurationsArg {
     /// Random in the workspace, fresh per trial.
     Random,
-    /// Planned (issue #5), the same set in every trial.
+    /// Planned, the same set in every trial.
     Optimised,
 }
 
@@ -346,7 +346,7 @@ fn print(study: &Pm5Study, secs: f64) {
         "  paper (one trial, its 30 optimised configurations): {:.3} mm, {:.3}°",
         p.after_noisy.0, p.after_noisy.1
     );
-    println!("  independent reference (issue #3, 30 random configurations, 100 draws): 0.021 mm, 0.011° tool axis");
+    println!("  independent reference (computed apart from kinecal, 30 random configurations, 100 draws): 0.021 mm, 0.011° tool axis");
     println!();
     println!("notes: the full rotation includes the rotation about the tool axis, a parasitic motion the machine");
     println!("cannot command; the tool axis is the controllable part. With noise and dW′ keeping dl2 dl3 dg4, dl2/dl3");

@@ -26,7 +26,10 @@ pub struct ValidateArgs {
 pub fn run(a: ValidateArgs) -> anyhow::Result<()> {
     let file = ModelFile::load_or_builtin(&a.model)?;
     let model = file.build();
-    let data = read_data(&a.data, &file.data_columns(), InputColumns::Required)?;
+    let mut data = read_data(&a.data, &file.data_columns(), InputColumns::Required)?;
+    if let Some(u) = data.set_aside_unassembled(&*model)? {
+        eprintln!("warning: {}", u.note(&data));
+    }
     if let Some(note) = data.derived_note() {
         eprintln!("note: {note}");
     }
@@ -54,7 +57,13 @@ pub fn run(a: ValidateArgs) -> anyhow::Result<()> {
                 "per_pose": errors, "outliers": flagged, "observed_joints": joints}))?
         );
     } else {
-        println!("{} on {} ({} poses): {}", file.name, a.data.display(), stats.poses, stats);
+        println!(
+            "{} on {} ({}): {}",
+            file.name,
+            a.data.display(),
+            super::count(stats.poses, "pose"),
+            stats
+        );
         if !joints.is_empty() {
             let per: Vec<String> = joints
                 .iter()
@@ -71,8 +80,8 @@ pub fn run(a: ValidateArgs) -> anyhow::Result<()> {
         worst.sort_by(|a, b| b.score.total_cmp(&a.score));
         if !worst.is_empty() {
             println!(
-                "{} poses with a residual component beyond 3σ (by chance 1–2 % of poses are); the worst:",
-                worst.len()
+                "{} with a residual component beyond 3σ (by chance 1–2 % of poses are); the worst:",
+                super::count(worst.len(), "pose")
             );
         }
         for o in worst.iter().take(SHOWN) {

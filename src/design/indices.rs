@@ -111,6 +111,28 @@ pub struct ObservabilityIndices {
 }
 
 impl ObservabilityIndices {
+    /// The number of columns the set determines: all `k` when it has full rank (a finite
+    /// `log det`), else the singular values above `1e-12·σ_max`.
+    pub fn rank(&self) -> usize {
+        if self.log_det.is_finite() {
+            return self.singular_values.len();
+        }
+        let smax = self.singular_values.first().copied().unwrap_or(0.0);
+        self.singular_values.iter().filter(|v| **v > 1e-12 * smax && **v > 0.0).count()
+    }
+
+    /// One line when the set cannot identify its `k` columns (rank below `k`), naming the
+    /// rows, the rank and the remedy; `None` at full rank.
+    pub fn rank_shortfall(&self, what: &str) -> Option<String> {
+        let k = self.singular_values.len();
+        let rank = self.rank();
+        (!self.log_det.is_finite() || rank < k).then(|| {
+            format!(
+                "{what} determine only {rank} of the {k} identifiable columns (log det −∞): it cannot identify the model; plan more rows (-n), or --force to write it anyway"
+            )
+        })
+    }
+
     /// Indices from the `k` singular values (any order; missing ones count as 0 when fewer than
     /// `k` are given) of an `rows × k` Jacobian.
     pub fn from_singular_values(sv: &[f64], k: usize, rows: usize) -> Self {

@@ -1,4 +1,4 @@
-//! Planning for an instrument without a tracker (issue 30, docs/instruments.md "Planning"): the
+//! Planning for an instrument without a tracker (docs/instruments.md "Planning"): the
 //! orientations to measure at each seat, or the directions about each ballbar pivot.
 //!
 //! 1. **Candidates** ([`instrument_candidates`]) from the *nominal* model with the nominal ball

@@ -1,4 +1,4 @@
-//! Planning where to touch (issue 31): which configurations a touch probe should touch each
+//! Planning where to touch: which configurations a touch probe should touch each
 //! reference sphere, unknown plane or datum-cube face from, as [`super::instrument`] plans the
 //! orientations at seats.
 //!

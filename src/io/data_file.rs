@@ -309,6 +309,25 @@ pub(crate) fn split_observed(columns: &[InputSpec]) -> (&[InputSpec], &[InputSpe
     columns.split_at(columns.iter().take_while(|c| !c.observed).count())
 }
 
+/// A line saying which columns of the data file at `path` are in metres or radians (`x_m`,
+/// `yaw_rad`: read and converted to mm and rad, as the column docs above say), so that a file
+/// written in metres by mistake is seen; `None` when every column is in mm and degrees.
+pub fn si_units_note(path: &Path) -> Option<String> {
+    let text = super::read_text(path).ok()?;
+    let header = text.lines().map(str::trim).find(|l| !l.is_empty() && !l.starts_with('#'))?;
+    let cols: Vec<&str> = header.split(',').map(str::trim).collect();
+    let metres: Vec<&str> = cols.iter().copied().filter(|c| c.ends_with("_m") && !c.ends_with("_mm")).collect();
+    let radians: Vec<&str> = cols.iter().copied().filter(|c| c.ends_with("_rad")).collect();
+    let mut parts = Vec::new();
+    if !metres.is_empty() {
+        parts.push(format!("{} read as metres (× 1000 to mm)", metres.join(", ")));
+    }
+    if !radians.is_empty() {
+        parts.push(format!("{} read as radians", radians.join(", ")));
+    }
+    (!parts.is_empty()).then(|| format!("{}: {}", path.display(), parts.join("; ")))
+}
+
 /// [`read_data`] on a table already read.
 pub fn data_from_table(table: &Table, columns: &[InputSpec], input_columns: InputColumns) -> Result<DataSet, IoError> {
     let path = &table.path;
@@ -597,11 +616,13 @@ mod columns;
 mod commands;
 mod limits;
 mod mixed;
+mod unassembled;
 mod write;
 pub use columns::expected_columns;
 use columns::{classify, Slot};
 pub use commands::{read_commands, read_configurations, read_inputs};
 pub use limits::{check as check_limits, BeyondLimits, FAR_BEYOND_RANGE};
+pub use unassembled::Unassembled;
 pub use write::{csv_text, data_text, header_of, input_headers, input_values_for_file, write_csv, write_data};
 
 #[cfg(test)]

@@ -148,6 +148,19 @@ pub enum IoError {
     },
 }
 
+/// The separator a CSV line uses when it is not ',': `;` (a spreadsheet in a locale with decimal
+/// commas) or tabs. `None` for a line with commas, or a single field.
+pub(crate) fn other_separator(line: &str) -> Option<String> {
+    let sep = [(';', "';'"), ('\t', "tabs")]
+        .into_iter()
+        .find(|(c, _)| !line.contains(',') && line.contains(*c))?;
+    Some(format!(
+        "fields separated by {} (`{}`): kinecal reads comma-separated files (replace the separator by ',' and any decimal commas by points)",
+        sep.1,
+        line.trim().chars().take(60).collect::<String>()
+    ))
+}
+
 /// Read a text file the way users' tools write them: a UTF-8 byte-order mark (Excel's
 /// "CSV UTF-8") is dropped, and bytes that are not UTF-8 are an error naming the line and what to
 /// do, instead of a confusing message about the first column.

@@ -479,7 +479,13 @@ impl ModelFile {
     /// [`ModelFile::load`] on text in memory (`path` is only used in messages).
     pub fn load_str(path: &Path, text: &str) -> Result<ModelFile, IoError> {
         let ctx = Ctx { path, text };
-        let probe: Probe = toml::from_str(text).map_err(|e| ctx.toml_error(&e))?;
+        let probe: Probe = toml::from_str(text).map_err(|e| match looks_like_csv(text) {
+            true => IoError::Invalid {
+                path: path.to_path_buf(),
+                message: "this is a CSV (a data file), not a model file: the order is MODEL DATA".into(),
+            },
+            false => ctx.toml_error(&e),
+        })?;
         ctx.check_array_lengths()?;
         let kind = probe.mechanism.and_then(|m| m.kind).ok_or_else(|| IoError::Invalid {
             path: path.to_path_buf(),
@@ -634,6 +640,15 @@ struct RawSerial {
 struct Ctx<'a> {
     path: &'a Path,
     text: &'a str,
+}
+
+/// Whether text that TOML could not read is a CSV table: its first line (not a comment) holds
+/// commas, no `=` and no `[`.
+fn looks_like_csv(text: &str) -> bool {
+    text.lines()
+        .map(str::trim)
+        .find(|l| !l.is_empty() && !l.starts_with('#'))
+        .is_some_and(|l| l.contains(',') && !l.contains('=') && !l.starts_with('['))
 }
 
 #[cfg(test)]

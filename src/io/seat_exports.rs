@@ -35,6 +35,17 @@ pub fn join_seat_exports(seats: &[PathBuf], angles: AngleUnit, lengths: LengthUn
             Unit::Dimensionless => Some(1.0),
         })
         .collect();
+    // A file given twice would count its seat twice, under two numbers.
+    let canonical: Vec<PathBuf> = seats.iter().map(|p| p.canonicalize().unwrap_or_else(|_| p.clone())).collect();
+    for (j, c) in canonical.iter().enumerate() {
+        if let Some(i) = canonical[..j].iter().position(|d| d == c) {
+            return Err(IoError::Invalid {
+                path: seats[j].clone(),
+                message: format!("given twice (seats {i} and {j}): give each seat's export once, seat k as the k-th --seat"),
+            });
+        }
+    }
+    let mut texts: Vec<String> = Vec::new();
     let mut measurements = Vec::new();
     let mut lines = Vec::new();
     // Where each file's rows start.
@@ -45,11 +56,28 @@ pub fn join_seat_exports(seats: &[PathBuf], angles: AngleUnit, lengths: LengthUn
             path: path.clone(),
             source,
         })?;
+        if let Some(i) = texts.iter().position(|t| t.trim() == text.trim() && !t.trim().is_empty()) {
+            return Err(IoError::Invalid {
+                path: path.clone(),
+                message: format!(
+                    "the same rows as seat {i}'s export ({}): the same file given twice?",
+                    seats[i].display()
+                ),
+            });
+        }
+        texts.push(text.clone());
         let before = measurements.len();
         for (n, raw) in text.lines().enumerate() {
             let line = raw.split('#').next().unwrap_or("").trim();
             if line.is_empty() {
                 continue;
+            }
+            if line.contains(';') {
+                return Err(IoError::AtLine {
+                    path: path.clone(),
+                    line: n + 1,
+                    message: super::other_separator(line).unwrap_or_default(),
+                });
             }
             let fields: Vec<&str> = line
                 .split(|c: char| c == ',' || c.is_whitespace())
@@ -117,8 +145,9 @@ pub fn join_seat_exports(seats: &[PathBuf], angles: AngleUnit, lengths: LengthUn
             return Err(IoError::Invalid {
                 path: path.clone(),
                 message: format!(
-                    "{} configurations: a seat needs at least {} (the ball placed in it from several orientations)",
+                    "{} configuration{}: a seat needs at least {} (the ball placed in it from several orientations)",
                     measurements.len() - before,
+                    if measurements.len() - before == 1 { "" } else { "s" },
                     crate::instrument::MIN_SEAT_ROWS
                 ),
             });
@@ -153,4 +182,33 @@ pub fn join_seat_exports(seats: &[PathBuf], angles: AngleUnit, lengths: LengthUn
     }
     set.beyond_limits = check_limits(&set.path, &columns[..n_inputs], &factors, &qs, &set.lines, &set.ids)?;
     Ok(set)
+}
+
+/// A warning when some seat has far fewer rows than the others (a seat of 2 rows beside seats of
+/// 30: a truncated export, or a file of another seat's leftovers): the seats, their rows and the
+/// median. `None` when the seats are even, or are too few rows to tell.
+pub fn uneven_seats(set: &DataSet) -> Option<String> {
+    let mut rows: std::collections::BTreeMap<usize, usize> = std::collections::BTreeMap::new();
+    for m in &set.measurements {
+        if let Observation::Seat(k) = m.obs {
+            *rows.entry(k).or_default() += 1;
+        }
+    }
+    let mut counts: Vec<usize> = rows.values().copied().collect();
+    counts.sort_unstable();
+    let median = *counts.get(counts.len() / 2)?;
+    if rows.len() < 3 || median < 10 {
+        return None;
+    }
+    let thin: Vec<String> = rows
+        .iter()
+        .filter(|(_, &n)| n * 5 < median)
+        .map(|(k, n)| format!("seat {k} ({n} rows)"))
+        .collect();
+    (!thin.is_empty()).then(|| {
+        format!(
+            "{} beside a median of {median} rows per seat: a truncated export or another seat's leftovers? (a seat needs rows from several orientations to place it)",
+            thin.join(", ")
+        )
+    })
 }

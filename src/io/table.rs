@@ -76,6 +76,12 @@ fn parse(path: &Path, text: &str, gaps: bool) -> Result<Table, IoError> {
         path: path.to_path_buf(),
         expected: "(any)".into(),
     })?;
+    if let Some(message) = super::other_separator(header) {
+        return Err(IoError::Invalid {
+            path: path.to_path_buf(),
+            message,
+        });
+    }
     let columns: Vec<String> = header.split(',').map(|s| s.trim().to_string()).collect();
     let mut rows = Vec::new();
     let mut line_numbers = Vec::new();

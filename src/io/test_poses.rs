@@ -1,7 +1,7 @@
 //! ISO 9283 test files ([`crate::assess`]): the commanded test poses and the attained poses.
 //!
 //! Commanded: `pose,x_mm,y_mm,z_mm` and optionally `roll_deg,pitch_deg,yaw_deg` (the rotations
-//! `a, b, c` about x, y, z), one row per test pose. Attained: `pose,cycle,x_mm,y_mm,z_mm` and
+//! `a, b, c` about x, y, z; each column may be `_rad` instead), one row per test pose. Attained: `pose,cycle,x_mm,y_mm,z_mm` and
 //! optionally the same three angles, one row per pose reached; both in the same frame (the
 //! robot's base, as a registered tracker gives them). [`attained_text`] writes an attained file,
 //! [`test_poses_text`] the test poses of `kinecal plan --iso9283`; [`read_circle`] reads an
@@ -13,18 +13,64 @@ use crate::model::kind::InputSpec;
 use nalgebra::Vector3;
 use std::path::Path;
 
-const ANGLES: [&str; 3] = ["roll_deg", "pitch_deg", "yaw_deg"];
+const ANGLES: [&str; 3] = ["roll", "pitch", "yaw"];
 
-/// The angle columns of a table: all three, or none.
-fn angle_columns(t: &Table) -> Result<Option<[usize; 3]>, IoError> {
-    let found: Vec<Option<usize>> = ANGLES.iter().map(|n| t.columns.iter().position(|c| c == n)).collect();
+/// Column names that say an orientation in a form these files do not hold (a quaternion, other
+/// angle names), refused rather than silently left out.
+const OTHER_ORIENTATION: [&str; 12] = ["qw", "qx", "qy", "qz", "rx", "ry", "rz", "a", "b", "c", "w", "p"];
+
+/// The angle columns of a table, each `roll|pitch|yaw` with `_deg` or `_rad` (read as
+/// degrees), with the factor to degrees: all three, or none. Orientation columns of any other
+/// form are an error naming them.
+fn angle_columns(t: &Table) -> Result<Option<[(usize, f64); 3]>, IoError> {
+    let invalid = |message: String| IoError::Invalid {
+        path: t.path.clone(),
+        message,
+    };
+    let mut found: [Option<(usize, f64)>; 3] = [None; 3];
+    for (k, name) in ANGLES.iter().enumerate() {
+        for (suffix, factor) in [("deg", 1.0), ("rad", 180.0 / std::f64::consts::PI)] {
+            if let Some(i) = t.columns.iter().position(|c| *c == format!("{name}_{suffix}")) {
+                if found[k].is_some() {
+                    return Err(invalid(format!("{name} is given twice ({name}_deg and {name}_rad): keep one")));
+                }
+                found[k] = Some((i, factor));
+            }
+        }
+    }
+    let other: Vec<&str> = t
+        .columns
+        .iter()
+        .map(String::as_str)
+        .filter(|c| {
+            let lower = c.to_ascii_lowercase();
+            let stem = lower.trim_end_matches("_deg").trim_end_matches("_rad");
+            let read = ANGLES.iter().any(|a| [format!("{a}_deg"), format!("{a}_rad")].contains(&lower));
+            !read && (OTHER_ORIENTATION.contains(&stem) || ANGLES.contains(&stem))
+        })
+        .collect();
+    if !other.is_empty() {
+        return Err(invalid(format!(
+            "orientation columns {} are not read: the orientation is roll_deg, pitch_deg, yaw_deg (or _rad; R = Rz(yaw)·Ry(pitch)·Rx(roll)); convert them, or leave them out to assess positions only",
+            other.join(", ")
+        )));
+    }
     match found.iter().filter(|f| f.is_some()).count() {
         0 => Ok(None),
-        3 => Ok(Some([found[0].unwrap_or(0), found[1].unwrap_or(0), found[2].unwrap_or(0)])),
-        _ => Err(IoError::Invalid {
-            path: t.path.clone(),
-            message: "the orientation needs all three columns roll_deg, pitch_deg, yaw_deg, or none of them".into(),
-        }),
+        3 => Ok(Some([
+            found[0].unwrap_or_default(),
+            found[1].unwrap_or_default(),
+            found[2].unwrap_or_default(),
+        ])),
+        _ => Err(invalid(format!(
+            "the orientation needs all three columns roll, pitch, yaw (each _deg or _rad), or none of them; found {}",
+            found
+                .iter()
+                .flatten()
+                .map(|(i, _)| t.columns[*i].as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ))),
     }
 }
 
@@ -42,11 +88,11 @@ fn id(t: &Table, row: usize, col: usize, name: &str) -> Result<i64, IoError> {
 }
 
 /// Position and angles of a row.
-fn pose_of(t: &Table, row: usize, xyz: [usize; 3], angles: Option<[usize; 3]>) -> (Vector3<f64>, Option<[f64; 3]>) {
+fn pose_of(t: &Table, row: usize, xyz: [usize; 3], angles: Option<[(usize, f64); 3]>) -> (Vector3<f64>, Option<[f64; 3]>) {
     let r = &t.rows[row];
     (
         Vector3::new(r[xyz[0]], r[xyz[1]], r[xyz[2]]),
-        angles.map(|a| [r[a[0]], r[a[1]], r[a[2]]]),
+        angles.map(|a| a.map(|(i, f)| r[i] * f)),
     )
 }
 

@@ -24,7 +24,7 @@
 //! * Noise-free, the iterated identification recovers the pose map exactly: after exact
 //!   compensation the position and tool-axis errors are at round-off (≈1e-12 mm, 1e-12°). The
 //!   full rotation error keeps the uncommandable rotation about the tool axis.
-//! * With noise and dW′ keeping `dl2, dl3, dg4` (the default, issue #3's advice), `dl2, dl3`
+//! * With noise and dW′ keeping `dl2, dl3, dg4` (the default), `dl2, dl3`
 //!   (`dl6, dl7`) are poorly determined (standard deviations of 10–20 mm: their Jacobian
 //!   `∂(A, B)/∂(l2, l3)` of `L22² = A − B·g4²` has determinant `∝ (l2 + l5)² − l3²`), so the
 //!   identified dW′ can be millimetres away from the truth along a direction the poses hardly
@@ -80,7 +80,7 @@ pub struct StudyOptions {
 /// Which two of the five sub-loop parameters (`dl2…dl5, dg4`, likewise for limb 3) dW′ drops.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
 pub enum SubLoopChoice {
-    /// Keep `dl2, dl3, dg4`, drop `dl4, dl5` (issue #3's advice; [`pm5::natural_priority`]).
+    /// Keep `dl2, dl3, dg4`, drop `dl4, dl5` ([`pm5::natural_priority`]).
     #[default]
     KeepL2L3,
     /// Keep `dl4, dl5, dg4`, drop `dl2, dl3` (the paper's dW′; [`pm5::paper_priority`]).
@@ -425,7 +425,7 @@ pub fn pm5_study(opts: &StudyOptions) -> Result<Pm5Study, CalibError> {
     })
 }
 
-/// Options of [`pm5_plan`]: measurement planning (issue #5) on the 5-DOF preset.
+/// Options of [`pm5_plan`]: measurement planning on the 5-DOF preset.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct PlanOptions {
     /// Halton samples of the prescribed workspace (before filtering).

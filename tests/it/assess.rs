@@ -59,7 +59,7 @@ fn assess_names_each_mistake_on_one_line() {
         (&["assess", "--commanded", "c.csv", "nocycle.csv"], "missing column 'cycle'"),
         (
             &["assess", "--commanded", "c.csv", "half.csv"],
-            "all three columns roll_deg, pitch_deg, yaw_deg",
+            "all three columns roll, pitch, yaw (each _deg or _rad), or none of them; found roll_deg",
         ),
         (
             &["assess", "--commanded", "c.csv", "frac.csv"],
@@ -72,6 +72,120 @@ fn assess_names_each_mistake_on_one_line() {
         assert!(e.contains(expect), "{args:?}: {e}");
         assert_eq!(e.trim_end().lines().count(), 1, "{args:?}: {e}");
     }
+}
+
+/// The orientation by hand through the command (the library's example): P1 commanded at 0°,
+/// attained at yaw 1, 2, 3°; P2 commanded at yaw 90°, attained at 90.5°: AD_c 1.5°, RD_c 3°.
+/// The same file with the angles in radians (`*_rad`) gives the same figures; a quaternion or a
+/// single angle column is refused naming the columns; an attained file 100 mm off is refused
+/// unless --force.
+#[test]
+fn assess_orientation_distances_radians_and_implausible_files() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let write = |name: &str, text: &str| std::fs::write(d.join(name), text).unwrap();
+    write(
+        "c.csv",
+        "pose,x_mm,y_mm,z_mm,roll_deg,pitch_deg,yaw_deg\n1,0,0,0,0,0,0\n2,100,0,0,0,0,90\n",
+    );
+    let rows = |to: &dyn Fn(f64) -> f64, dy: f64| {
+        (1..=3)
+            .map(|k| format!("1,{k},0,{dy},0,0,0,{}\n2,{k},100,{dy},0,0,0,{}\n", to(k as f64), to(90.5)))
+            .collect::<String>()
+    };
+    write(
+        "deg.csv",
+        &format!("pose,cycle,x_mm,y_mm,z_mm,roll_deg,pitch_deg,yaw_deg\n{}", rows(&|v| v, 0.0)),
+    );
+    write(
+        "rad.csv",
+        &format!(
+            "pose,cycle,x_mm,y_mm,z_mm,roll_rad,pitch_rad,yaw_rad\n{}",
+            rows(&f64::to_radians, 0.0)
+        ),
+    );
+    for file in ["deg.csv", "rad.csv"] {
+        let v = json(d, &["assess", "--commanded", "c.csv", file, "--distance", "1:2"]);
+        let dist = &v[0]["iso9283"]["distances"][0];
+        let (ad, rd) = (&dist["ad_abc"], &dist["rd_abc"]);
+        let close = |x: &serde_json::Value, e: f64| (x.as_f64().unwrap() - e).abs() < 1e-9;
+        assert!(close(&ad[0], 0.0) && close(&ad[1], 0.0) && close(&ad[2], 1.5), "{file}: {dist}");
+        assert!(close(&rd[0], 0.0) && close(&rd[1], 0.0) && close(&rd[2], 3.0), "{file}: {dist}");
+        let p1 = &v[0]["iso9283"]["poses"][0];
+        assert!(close(&p1["ap_abc"][2], 2.0), "{file}: {p1}");
+    }
+    let text = ok(d, &["assess", "--commanded", "c.csv", "deg.csv", "--distance", "1:2"]);
+    assert!(
+        text.contains("AD_a,b,c 0.0000/0.0000/1.5000 deg, RD_a,b,c ±0.0000/0.0000/3.0000 deg"),
+        "{text}"
+    );
+    // Orientation columns it does not read.
+    write("quat.csv", "pose,cycle,x_mm,y_mm,z_mm,qw,qx,qy,qz\n1,1,0,0,0,1,0,0,0\n");
+    let e = fails(d, &["assess", "--commanded", "c.csv", "quat.csv"]);
+    assert!(e.contains("quat.csv") && e.contains("qw, qx, qy, qz are not read"), "{e}");
+    write("yaw.csv", "pose,cycle,x_mm,y_mm,z_mm,yaw_rad\n1,1,0,0,0,0\n");
+    let e = fails(d, &["assess", "--commanded", "c.csv", "yaw.csv"]);
+    assert!(e.contains("yaw.csv") && e.contains("found yaw_rad"), "{e}");
+    // Attained 100 mm from the commands: not an accuracy.
+    write(
+        "far.csv",
+        &format!("pose,cycle,x_mm,y_mm,z_mm,roll_deg,pitch_deg,yaw_deg\n{}", rows(&|v| v, 100.0)),
+    );
+    let e = fails(d, &["assess", "--commanded", "c.csv", "far.csv"]);
+    assert!(
+        e.contains("far.csv") && e.contains("100.000 mm from where it was commanded") && e.contains("--force"),
+        "{e}"
+    );
+    let text = ok(d, &["assess", "--commanded", "c.csv", "far.csv", "--force"]);
+    assert!(text.contains("100.0000"), "{text}");
+    // Radians in _deg columns: turned far beyond any accuracy.
+    write(
+        "radindeg.csv",
+        &format!(
+            "pose,cycle,x_mm,y_mm,z_mm,roll_deg,pitch_deg,yaw_deg\n{}",
+            rows(&f64::to_radians, 0.0)
+        ),
+    );
+    let e = fails(d, &["assess", "--commanded", "c.csv", "radindeg.csv"]);
+    assert!(
+        e.contains("radindeg.csv") && e.contains("turned") && e.contains("radians in _deg columns"),
+        "{e}"
+    );
+}
+
+/// A circle run both ways through the command: clockwise a circle of radius 100.01 about the
+/// nominal centre, anticlockwise 99.99, at the same eight angles: G 0 each way, G(b) 0.02,
+/// H 0.02 (the library's hand-worked example).
+#[test]
+fn assess_circle_both_directions_by_hand() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let ring = |r: f64, order: &[usize]| {
+        let mut text = String::from("angle_deg,radius_mm\n");
+        for &k in order {
+            text += &format!("{},{r}\n", k as f64 * 45.0);
+        }
+        text
+    };
+    let up: Vec<usize> = (0..8).collect();
+    let down: Vec<usize> = (0..8).rev().collect();
+    std::fs::write(d.join("cw.csv"), ring(100.01, &down)).unwrap();
+    std::fs::write(d.join("ccw.csv"), ring(99.99, &up)).unwrap();
+    let v = json(
+        d,
+        &["assess", "--circle", "cw.csv", "--circle-ccw", "ccw.csv", "--radius-mm", "100"],
+    );
+    let b = &v[0]["iso230_4_both"];
+    let close = |x: &serde_json::Value, e: f64| (x.as_f64().unwrap() - e).abs() < 1e-9;
+    assert!(close(&b["clockwise"]["circular_deviation_g_mm"], 0.0), "{b}");
+    assert!(close(&b["anticlockwise"]["circular_deviation_g_mm"], 0.0), "{b}");
+    assert!(close(&b["circular_deviation_g_both_mm"], 0.02), "{b}");
+    assert!(close(&b["circular_hysteresis_h_mm"], 0.02), "{b}");
+    let text = ok(
+        d,
+        &["assess", "--circle", "cw.csv", "--circle-ccw", "ccw.csv", "--radius-mm", "100"],
+    );
+    assert!(text.contains("G(b) 0.0200 mm, hysteresis H 0.0200 mm"), "{text}");
 }
 
 /// The whole ISO 9283 test through the commands, on a pm5 virtual prototype: calibrate, then

@@ -100,7 +100,7 @@ fn model_inputs(path: &Path) -> Vec<kinecal::model::kind::InputSpec> {
     ModelFile::load(path).unwrap().inputs()
 }
 
-/// Issue 28 (3): pm5 with the paper's parasitic constraint, calibrated from tracker data with the
+/// pm5 with the paper's parasitic constraint, calibrated from tracker data with the
 /// frames estimated, compensated the nominal model's targets: each was "unreachable" (the inner
 /// inverse met the platform's position and axis, and the rotation about the axis the calibrated
 /// constraint gives, off the nominal's, moved the offset tool by 8.5e-5 to 1.2e-1 mm).

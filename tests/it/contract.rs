@@ -142,7 +142,7 @@ const KINDS: &[Kind] = &[
         // (rank): equivalent at first order only, the fit stops at 5.9e-6 mm (without frames
         // it is exact, above). docs/parallel-machines.md.
         framed_floor_mm: 1e-5,
-        // The same trap with the base not placed and the tool offset free (issue 28, point 5):
+        // The same trap with the base not placed and the tool offset free (a platform that only translates):
         // distances stop at 9.7e-3 mm. docs/instruments.md.
         instrument_floor_mm: 2e-2,
     },
@@ -178,7 +178,7 @@ const KINDS: &[Kind] = &[
         // As the linear delta: with the frames estimated, the base frame stands in for rail
         // placements at first order only; the fit stops at 4.6e-6 mm (exact without frames).
         framed_floor_mm: 1e-5,
-        // The same trap with the base not placed and the tool offset free (issue 28, point 5):
+        // The same trap with the base not placed and the tool offset free (a platform that only translates):
         // seats stop at 5.7e-2 mm. docs/instruments.md.
         instrument_floor_mm: 1e-1,
     },
@@ -388,7 +388,7 @@ fn a_known_pose_as_the_start_changes_nothing_framed_or_not() {
     }
 }
 
-/// The instrument kinds (issue 30), one line each, on every kind a model file describes: a
+/// The instrument kinds, one line each, on every kind a model file describes: a
 /// virtual prototype (±0.5 mm / ±0.1° on the file's free parameters) carrying a ball 120 mm off
 /// its tool frame, measured noise-free by the instrument, calibrated through `calibrate` with
 /// default options; the held-out tool points agree with the truth's once the rigid motion no

@@ -1,4 +1,4 @@
-//! A draw-wire sensor's unknown zero (issue 30): distances read relative to an unknown zero per
+//! A draw-wire sensor's unknown zero: distances read relative to an unknown zero per
 //! pivot (`reading_mm`), the zeros estimated with the geometry.
 use crate::instruments::points_of;
 use kinecal::calibrate::{calibrate, CalibrationOptions};

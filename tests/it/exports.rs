@@ -294,7 +294,7 @@ fn seat_exports_join_into_one_seat_file() {
             "x.csv",
         ],
     );
-    assert!(e.contains("one.csv: 1 configurations: a seat needs at least 2"), "{e}");
+    assert!(e.contains("one.csv: 1 configuration: a seat needs at least 2"), "{e}");
     assert!(!d.join("x.csv").exists());
 }
 

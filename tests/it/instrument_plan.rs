@@ -1,4 +1,4 @@
-//! Planning for an instrument without a tracker (issue 30): a plan of seat or ballbar rows on
+//! Planning for an instrument without a tracker: a plan of seat or ballbar rows on
 //! the nominal model has the rows asked for, each point its minimum, is deterministic, and is at
 //! least as good by its criterion as random rows; the command line plans, measures the plan on a
 //! virtual prototype (`simulate --at`) and identifies it back noise-free.

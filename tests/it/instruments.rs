@@ -1,4 +1,4 @@
-//! Instruments without a tracker (issue 30): seats and ballbar distances through the general
+//! Instruments without a tracker: seats and ballbar distances through the general
 //! `calibrate`, noise-free, recover the machine up to what the instrument cannot see.
 use kinecal::calibrate::{calibrate, CalibrationOptions};
 use kinecal::instrument::simulate::{distance_rows, middle_of_limits, seat_rows, Placement, DEFAULT_BALLBAR_RANGE_MM};

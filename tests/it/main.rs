@@ -2,8 +2,10 @@
 mod any_instruments;
 mod architecture;
 mod assess;
+mod assess_walkthrough;
 mod chain;
 mod cli;
+mod cli_usage;
 mod closed;
 mod compensate;
 mod contract;
@@ -19,6 +21,7 @@ mod instruments;
 mod irb120;
 mod joint_terms;
 mod limbs;
+mod mistakes;
 mod mixed;
 mod model_file;
 mod observed;

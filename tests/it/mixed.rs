@@ -1,4 +1,4 @@
-//! Mixed instruments (issue 31): tracker rows beside seat rows, distances beside seats, in one
+//! Mixed instruments: tracker rows beside seat rows, distances beside seats, in one
 //! fit, each kind weighted by its own σ. Noise-free, held-out tool points are the truth's to
 //! round-off (the tracker places the base: no rigid motion removed when it is in the set); with
 //! noise the held-out 3-D error of the mixed set is printed beside each kind alone

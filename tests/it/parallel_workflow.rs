@@ -140,7 +140,7 @@ fn pm5_model_file_through_the_whole_workflow() {
     let header = std::fs::read_to_string(d.join("ident.csv")).unwrap();
     assert!(header.starts_with("id,g1_mm,g2_mm,g3_mm,g4_mm,g5_mm,x_mm,y_mm,z_mm,qw,qx,qy,qz\n"));
 
-    // Identifiability: the physical model's rank 32 of 44 (issue #3), on the data and on random poses.
+    // Identifiability: the physical model's rank 32 of 44, on the data and on random poses.
     for args in [
         &["identifiability", "pm5.toml", "ident.csv"][..],
         &["identifiability", "pm5.toml", "--poses", "40"],

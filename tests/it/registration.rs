@@ -267,7 +267,10 @@ fn wrong_units_and_wrong_models_are_named() {
         }
     });
     let e = crate::cli::fails(d, &["identify", "m.toml", "metres.csv", "--out", "c.toml"]);
-    assert!(e.contains("are the x,y,z columns in metres?"), "{e}");
+    assert!(
+        e.contains("metres in the _mm columns") && e.contains("1/1000 of the model's reach"),
+        "{e}"
+    );
     // Radians in degree columns.
     write("rad.csv", &header, &|k, x| {
         if (1..7).contains(&k) {
@@ -383,7 +386,7 @@ fn every_shipped_model_in_a_tracker_frame() {
     }
 }
 
-/// Issue 28, point 5: the linear delta with its frames estimated and the tool 150 mm out is fitted
+/// The linear delta with its frames estimated and the tool 150 mm out is fitted
 /// to round-off like every other machine. Its start (a platform that only translates) hides the
 /// tool offset and three hinge parameters; the fit continues on them where it converged
 /// (`identify`'s refit), and retractions that add up keep that continuation path-independent.

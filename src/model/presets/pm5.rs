@@ -51,12 +51,11 @@
 //!   x/z or rotation about z is exactly a shift of the rails and joints `b_i`, `φ_i`).
 //!
 //! Of the five sub-loop parameters only three combinations act (`L22² = A − B·(g4 + dg4)²`), so
-//! two are redundant; keeping `dl2, dl3, dg4` ([`natural_priority`], the default, issue #3's
-//! advice) stays representable for any true geometry while `l2 + l5 ≠ l3`
+//! two are redundant; keeping `dl2, dl3, dg4` ([`natural_priority`], the default) stays representable for any true geometry while `l2 + l5 ≠ l3`
 //! (`det ∂(A,B)/∂(l2,l3) ∝ (l2 + l5)² − l3²`).
 //!
 //! # Geometry (Table 1 of the paper did not survive)
-//! Values from issue #3, checked there for reachability over the whole workspace (actuator
+//! Values chosen for this preset, checked for reachability over the whole workspace (actuator
 //! Jacobian condition ≤ 5.4, no sign change of its determinant), and kept here:
 //! rails through the base origin at height `h` with `φ = 90°, 45°, 135°`; `b_i = (0, 0, h)`,
 //! `h = 100 mm`; `c1 = (0, 2d/3, 0)`, `c2 = (d, −d/3, 0)`, `c3 = (−d, −d/3, 0)`, `d = 150 mm` (the
@@ -416,7 +415,7 @@ pub fn paper_priority() -> Vec<usize> {
 }
 
 /// The paper's order of dW (0…43): with it the sub-loops keep `dl2, dl3, dg4` (`dl6, dl7, dg5`)
-/// and drop `dl4, dl5` (`dl8, dl9`), the choice issue #3 recommends for iterated identification.
+/// and drop `dl4, dl5` (`dl8, dl9`), the choice recommended for iterated identification.
 pub fn natural_priority() -> Vec<usize> {
     (0..44).collect()
 }
