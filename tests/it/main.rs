@@ -11,6 +11,7 @@ mod design;
 mod dh;
 mod draw_wire;
 mod exports;
+mod filter;
 mod fuzz;
 mod identify;
 mod instrument_plan;
