@@ -19,13 +19,15 @@
 //! not used: both models are built with [`ModelFile::build_in_base_frame`].
 //!
 //! Program formats (each a module): CSV targets ([`csv`], `kinecal compensate`'s TARGETS
-//! format) and ABB RAPID modules ([`rapid`]). Every byte outside the numbers that change is
+//! format), ABB RAPID modules ([`rapid`]) and URScript ([`urscript`]). Every byte outside the numbers that change is
 //! kept ([`rewrite`]). [`filter_program`] is the one call of `kinecal filter`.
 pub mod branch;
 pub mod csv;
+mod lex;
 pub mod rapid;
 pub mod rewrite;
 mod solve;
+pub mod urscript;
 
 use crate::io::model_file::{MechanismSpec, ModelFile};
 use crate::io::IoError;
@@ -77,6 +79,9 @@ pub enum Format {
     Csv,
     /// An ABB RAPID module (`.mod`, `.modx`, `.prg`).
     Rapid,
+    /// A URScript program (`.script`, `.urscript`).
+    #[serde(rename = "urscript")]
+    UrScript,
 }
 
 impl Format {
@@ -86,6 +91,7 @@ impl Format {
         match ext.as_str() {
             "csv" => Some(Format::Csv),
             "mod" | "modx" | "prg" => Some(Format::Rapid),
+            "script" | "urscript" => Some(Format::UrScript),
             _ => None,
         }
     }
@@ -93,12 +99,13 @@ impl Format {
 
 impl std::str::FromStr for Format {
     type Err = String;
-    /// `csv` or `rapid`.
+    /// `csv`, `rapid` or `urscript`.
     fn from_str(s: &str) -> Result<Self, String> {
         match s.to_ascii_lowercase().as_str() {
             "csv" => Ok(Format::Csv),
             "rapid" => Ok(Format::Rapid),
-            o => Err(format!("unknown program format '{o}' (csv or rapid)")),
+            "urscript" => Ok(Format::UrScript),
+            o => Err(format!("unknown program format '{o}' (csv, rapid or urscript)")),
         }
     }
 }
@@ -349,6 +356,7 @@ pub fn filter_program(
     match format {
         Format::Csv => csv::filter_csv(path, text, models, opts),
         Format::Rapid => rapid::filter_rapid(path, text, models, opts),
+        Format::UrScript => urscript::filter_urscript(path, text, models, opts),
     }
 }
 

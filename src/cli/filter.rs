@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 pub struct FilterArgs {
     /// Calibrated model file.
     pub calibrated: String,
-    /// The program: CSV targets (.csv) or an ABB RAPID module (.mod, .modx, .prg).
+    /// The program: CSV targets (.csv), an ABB RAPID module (.mod, .modx, .prg) or URScript (.script, .urscript).
     pub program: PathBuf,
     /// The nominal model the controller computes with (file or built-in name).
     #[arg(long)]
@@ -19,7 +19,7 @@ pub struct FilterArgs {
     /// The filtered program to write (never one of the inputs).
     #[arg(long, short)]
     pub out: PathBuf,
-    /// The program's format when its extension does not say: csv or rapid.
+    /// The program's format when its extension does not say: csv, rapid or urscript.
     #[arg(long)]
     pub format: Option<Format>,
     /// CSV targets: the tool they are given for, in the flange (the mechanism's tool frame):
@@ -64,7 +64,7 @@ pub fn run(a: FilterArgs) -> anyhow::Result<()> {
         Some(f) => f,
         None => Format::from_path(&a.program).ok_or_else(|| {
             anyhow::anyhow!(
-                "{}: unknown program format (extension .csv, .mod, .modx or .prg, or --format csv|rapid)",
+                "{}: unknown program format (extension .csv, .mod, .modx, .prg, .script or .urscript, or --format csv|rapid|urscript)",
                 a.program.display()
             )
         })?,

@@ -15,13 +15,11 @@
 //! (`MoveAbsJ`), targets computed at run time (`Offs(p10, …)`, `RelTool`, `CRobT()`), arrays of
 //! robtargets, and declarations no move uses. Refused: a stationary tool (`robhold` FALSE), a
 //! work object held by the robot or moved by a mechanical unit.
-mod lex;
-
 use super::branch::ArmConfiguration;
+use super::lex::{lex, value, Kind, Tok, Value};
 use super::rewrite::{apply, number_edit, Edit};
 use super::{correct_located, FilterError, FilterModels, FilterOptions, FilteredProgram, Format, Target};
 use crate::se3::Pose;
-use lex::{lex, value, Kind, Tok, Value};
 use nalgebra::{Quaternion, Translation3, UnitQuaternion};
 use std::collections::HashMap;
 use std::path::Path;
@@ -244,7 +242,7 @@ pub fn filter_rapid(path: &Path, text: &str, models: &FilterModels, opts: &Filte
         line,
         message,
     };
-    let toks = lex(text).map_err(parse_err)?;
+    let toks = lex(text, b'!').map_err(parse_err)?;
     let src = |t: &Tok| &text[t.range.clone()];
     let mut decls: HashMap<(String, String), Decl> = HashMap::new();
     let mut robtarget_order: Vec<String> = Vec::new();

@@ -12,6 +12,7 @@ mod dh;
 mod draw_wire;
 mod exports;
 mod filter;
+mod filter_urscript;
 mod fuzz;
 mod identify;
 mod instrument_plan;

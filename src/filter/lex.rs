@@ -1,5 +1,6 @@
-//! RAPID tokens and aggregates (`[[x, y, z], [q1, q2, q3, q4], …]`), with their byte ranges and
-//! lines. Comments (`!` to the end of the line) and strings are skipped whole.
+//! Tokens of a robot language and its bracketed aggregates (`[[x, y, z], [q1, q2, q3, q4], …]`),
+//! with their byte ranges and lines. Comments (from the language's comment character to the end
+//! of the line: `!` in RAPID, `#` in URScript) are skipped; strings are one token.
 use std::ops::Range;
 
 /// A token's kind.
@@ -27,7 +28,7 @@ impl Tok {
 }
 
 /// The tokens of `text`; an error is (line, message).
-pub(crate) fn lex(text: &str) -> Result<Vec<Tok>, (usize, String)> {
+pub(crate) fn lex(text: &str, comment: u8) -> Result<Vec<Tok>, (usize, String)> {
     let b = text.as_bytes();
     let mut out = Vec::new();
     let (mut i, mut line) = (0, 1);
@@ -40,18 +41,18 @@ pub(crate) fn lex(text: &str) -> Result<Vec<Tok>, (usize, String)> {
                 i += 1;
             }
             _ if c.is_ascii_whitespace() => i += 1,
-            b'!' => {
+            _ if c == comment => {
                 while i < b.len() && b[i] != b'\n' {
                     i += 1;
                 }
             }
-            b'"' => {
+            b'"' | b'\'' => {
                 i += 1;
                 loop {
                     match b.get(i) {
-                        None | Some(b'\n') => return Err((line, "a string without its closing '\"'".into())),
-                        Some(b'"') if b.get(i + 1) == Some(&b'"') => i += 2,
-                        Some(b'"') => {
+                        None | Some(b'\n') => return Err((line, format!("a string without its closing {}", c as char))),
+                        Some(&q) if q == c && b.get(i + 1) == Some(&c) => i += 2,
+                        Some(&q) if q == c => {
                             i += 1;
                             break;
                         }
@@ -209,7 +210,7 @@ mod tests {
     #[test]
     fn tokens_and_aggregates() {
         let text = "CONST robtarget p:=[[1,-2.5,3E+2],[1,0,0,0]]; ! a \"comment\n s:=\"a\"\"b\";";
-        let toks = lex(text).unwrap();
+        let toks = lex(text, b'!').unwrap();
         assert_eq!(toks.iter().filter(|t| t.kind == Kind::Str).count(), 1);
         let at = toks.iter().position(|t| t.kind == Kind::Assign).unwrap();
         let mut i = at + 1;
@@ -222,6 +223,6 @@ mod tests {
             .collect();
         assert_eq!(nums, vec![1.0, -2.5, 300.0]);
         assert_eq!(toks.last().unwrap().line, 2);
-        assert!(lex("s:=\"open\n").is_err());
+        assert!(lex("s:=\"open\n", b'!').is_err());
     }
 }
