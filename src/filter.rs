@@ -19,10 +19,11 @@
 //! not used: both models are built with [`ModelFile::build_in_base_frame`].
 //!
 //! Program formats (each a module): CSV targets ([`csv`], `kinecal compensate`'s TARGETS
-//! format), ABB RAPID modules ([`rapid`]) and URScript ([`urscript`]). Every byte outside the numbers that change is
+//! format), ABB RAPID modules ([`rapid`]), KUKA KRL ([`krl`]) and URScript ([`urscript`]). Every byte outside the numbers that change is
 //! kept ([`rewrite`]). [`filter_program`] is the one call of `kinecal filter`.
 pub mod branch;
 pub mod csv;
+pub mod krl;
 mod lex;
 pub mod rapid;
 pub mod rewrite;
@@ -35,7 +36,7 @@ use crate::model::kind::InputSpec;
 use crate::model::Mechanism;
 use crate::se3::Pose;
 use crate::validate::commanded_error;
-use branch::{ArmBranches, ArmConfiguration};
+use branch::{ArmBranches, ArmConfiguration, Configuration, StatusTurn};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -82,6 +83,8 @@ pub enum Format {
     /// A URScript program (`.script`, `.urscript`).
     #[serde(rename = "urscript")]
     UrScript,
+    /// A KUKA KRL program (`.src`, with its `.dat`).
+    Krl,
 }
 
 impl Format {
@@ -92,6 +95,7 @@ impl Format {
             "csv" => Some(Format::Csv),
             "mod" | "modx" | "prg" => Some(Format::Rapid),
             "script" | "urscript" => Some(Format::UrScript),
+            "src" => Some(Format::Krl),
             _ => None,
         }
     }
@@ -99,13 +103,14 @@ impl Format {
 
 impl std::str::FromStr for Format {
     type Err = String;
-    /// `csv`, `rapid` or `urscript`.
+    /// `csv`, `rapid`, `urscript` or `krl`.
     fn from_str(s: &str) -> Result<Self, String> {
         match s.to_ascii_lowercase().as_str() {
             "csv" => Ok(Format::Csv),
             "rapid" => Ok(Format::Rapid),
             "urscript" => Ok(Format::UrScript),
-            o => Err(format!("unknown program format '{o}' (csv, rapid or urscript)")),
+            "krl" => Ok(Format::Krl),
+            o => Err(format!("unknown program format '{o}' (csv, rapid, urscript or krl)")),
         }
     }
 }
@@ -164,7 +169,7 @@ pub struct Target {
     /// The tool in the mechanism's tool frame (the flange).
     pub tool: Pose,
     /// The configuration the program states (a 6R arm), if any.
-    pub configuration: Option<ArmConfiguration>,
+    pub configuration: Option<Configuration>,
     /// Joint values to start the nominal inverse kinematics from, if the program gives them.
     pub seed: Option<Vec<f64>>,
 }
@@ -178,8 +183,10 @@ pub struct Corrected {
     pub nominal_q: Vec<f64>,
     /// What the calibrated model needs, and the nominal controller commands for `pose`.
     pub q: Vec<f64>,
-    /// The configuration `q` is on (a 6R arm).
+    /// The configuration `q` is on (a 6R arm): ABB's configuration data.
     pub configuration: Option<ArmConfiguration>,
+    /// The same as KUKA's Status and Turn.
+    pub status_turn: Option<StatusTurn>,
     /// Predicted error at the target without the filter (mm, rad; the commanded task's).
     pub before: (f64, f64),
     /// Predicted error with it: the calibrated model at the nominal controller's solution for
@@ -227,20 +234,18 @@ fn correct_one(
     let mut seeds: Vec<Vec<f64>> = Vec::new();
     seeds.extend(t.seed.iter().cloned());
     let conf_seeds = match (stated, branches) {
-        (Some(c), Some(b)) => b.seeds(&c, starts),
+        (Some(c), Some(b)) => b.seeds_for(&c, starts),
         _ => Vec::new(),
     };
-    let reference: Vec<f64> = conf_seeds
-        .first()
-        .cloned()
-        .or_else(|| t.seed.clone())
-        .or(previous.map(<[f64]>::to_vec))
-        .unwrap_or_default();
+    let reference: Vec<f64> = match (stated, branches) {
+        (Some(c), Some(b)) => b.reference(&c),
+        _ => t.seed.clone().or(previous.map(<[f64]>::to_vec)).unwrap_or_default(),
+    };
     seeds.extend(previous.map(<[f64]>::to_vec));
     seeds.extend(conf_seeds);
     seeds.extend(starts.iter().cloned());
     let on_stated = |q: &[f64]| match (stated, branches) {
-        (Some(c), Some(b)) => b.of(q).is_ok_and(|k| k == c),
+        (Some(c), Some(b)) => b.matches(q, &c),
         _ => true,
     };
     let nominal_q = solve::solve(nom, inputs, &t.pose, &seeds, &reference, &on_stated).map_err(|e| match e {
@@ -267,11 +272,16 @@ fn correct_one(
     })?;
     let pose = nom.forward(&q).map_err(|e| e.to_string())?;
     let configuration = branches.and_then(|b| b.of(&q).ok());
+    let status_turn = branches.and_then(|b| b.status_turn(&q).ok());
+    let written = match (stated, branches) {
+        (Some(c), Some(b)) => b.configuration(&q, &c).ok(),
+        _ => None,
+    };
     let task = cal.task();
     let before = commanded_error(task, &t.pose, &cal.forward(&nominal_q).map_err(|e| e.to_string())?);
     // The nominal controller sent the corrected target on its configuration.
-    let on_corrected = |x: &[f64]| match (configuration, branches) {
-        (Some(c), Some(b)) => b.of(x).is_ok_and(|k| k == c),
+    let on_corrected = |x: &[f64]| match (written, branches) {
+        (Some(c), Some(b)) => b.matches(x, &c),
         _ => true,
     };
     let mut back_seeds = vec![q.clone()];
@@ -284,6 +294,7 @@ fn correct_one(
         nominal_q,
         q,
         configuration,
+        status_turn,
         before,
         after,
     })
@@ -294,8 +305,13 @@ fn correct_one(
 pub struct FilterOptions {
     /// Keep going past targets that cannot be corrected (they are left as they are and listed).
     pub force: bool,
-    /// The program's tool where the format has none (CSV targets): in the mechanism's tool frame.
+    /// The program's tool where the format has none (CSV targets), or before the program sets
+    /// one (KRL): in the mechanism's tool frame.
     pub tool: Pose,
+    /// KRL: `TOOL_DATA[n]` the files do not assign (the flange frame).
+    pub tool_data: Vec<(u32, Pose)>,
+    /// KRL: `BASE_DATA[n]` the files do not assign (the robot's base frame).
+    pub base_data: Vec<(u32, Pose)>,
 }
 
 impl Default for FilterOptions {
@@ -303,6 +319,8 @@ impl Default for FilterOptions {
         FilterOptions {
             force: false,
             tool: Pose::identity(),
+            tool_data: Vec::new(),
+            base_data: Vec::new(),
         }
     }
 }
@@ -333,6 +351,8 @@ pub struct TargetReport {
 pub struct FilteredProgram {
     /// The program's new text.
     pub text: String,
+    /// The new text of its companion file (a KRL program's `.dat`), if it has one.
+    pub companion: Option<String>,
     /// Its format.
     pub format: Format,
     /// The targets corrected, in the order of the program.
@@ -345,15 +365,18 @@ pub struct FilteredProgram {
     pub notes: Vec<String>,
 }
 
-/// Filter a program's text (`path` names it in messages) in `format`.
+/// Filter a program's text (`path` names it in messages) in `format`; `companion` is the file
+/// that goes with it (a KRL `.src`'s `.dat`: path and text), if any.
 pub fn filter_program(
     path: &Path,
     text: &str,
+    companion: Option<(&Path, &str)>,
     format: Format,
     models: &FilterModels,
     opts: &FilterOptions,
 ) -> Result<FilteredProgram, FilterError> {
     match format {
+        Format::Krl => krl::filter_krl(path, text, companion, models, opts),
         Format::Csv => csv::filter_csv(path, text, models, opts),
         Format::Rapid => rapid::filter_rapid(path, text, models, opts),
         Format::UrScript => urscript::filter_urscript(path, text, models, opts),
@@ -370,18 +393,17 @@ pub(crate) struct Located {
     pub uncorrected: Vec<String>,
 }
 
-/// Corrections of a program's targets, each with its line and name: the reports of those
+/// Corrections of a program's targets, each with its file, line and name: the reports of those
 /// corrected, and the lines of those that were not (an error unless `force`).
 pub(crate) fn correct_located(
-    path: &Path,
     models: &FilterModels,
     targets: &[Target],
-    located: &[(usize, String)],
+    located: &[(PathBuf, usize, String)],
     force: bool,
 ) -> Result<Located, FilterError> {
     let results = correct(models, targets);
     let (mut kept, mut reports, mut uncorrected) = (Vec::new(), Vec::new(), Vec::new());
-    for ((r, t), (line, name)) in results.into_iter().zip(targets).zip(located) {
+    for ((r, t), (path, line, name)) in results.into_iter().zip(targets).zip(located) {
         match r {
             Ok(c) => {
                 let e = crate::se3::pose_error(&c.pose, &t.pose);
@@ -401,7 +423,7 @@ pub(crate) fn correct_located(
                 let message = format!("{name}: {message}");
                 if !force {
                     return Err(FilterError::Target {
-                        path: path.to_path_buf(),
+                        path: path.clone(),
                         line: *line,
                         message,
                     });

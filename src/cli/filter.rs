@@ -11,7 +11,9 @@ use std::path::{Path, PathBuf};
 pub struct FilterArgs {
     /// Calibrated model file.
     pub calibrated: String,
-    /// The program: CSV targets (.csv), an ABB RAPID module (.mod, .modx, .prg) or URScript (.script, .urscript).
+    /// The program: CSV targets (.csv), an ABB RAPID module (.mod, .modx, .prg), a KUKA KRL
+    /// program (.src; its .dat beside it is filtered too and written beside OUT) or URScript
+    /// (.script, .urscript).
     pub program: PathBuf,
     /// The nominal model the controller computes with (file or built-in name).
     #[arg(long)]
@@ -19,13 +21,21 @@ pub struct FilterArgs {
     /// The filtered program to write (never one of the inputs).
     #[arg(long, short)]
     pub out: PathBuf,
-    /// The program's format when its extension does not say: csv, rapid or urscript.
+    /// The program's format when its extension does not say: csv, rapid, urscript or krl.
     #[arg(long)]
     pub format: Option<Format>,
     /// CSV targets: the tool they are given for, in the flange (the mechanism's tool frame):
     /// X,Y,Z,ROLL,PITCH,YAW in mm and degrees, R = Rz(yaw)·Ry(pitch)·Rx(roll). Default: the flange.
     #[arg(long, value_name = "X,Y,Z,ROLL,PITCH,YAW", allow_hyphen_values = true)]
     pub tool: Option<String>,
+    /// KRL: a TOOL_DATA[N] the program's files do not assign, N=X,Y,Z,A,B,C (mm; A, B, C about
+    /// Z, Y', X'' in degrees), in the flange frame; repeat for several.
+    #[arg(long, value_name = "N=X,Y,Z,A,B,C", allow_hyphen_values = true)]
+    pub tool_data: Vec<String>,
+    /// KRL: a BASE_DATA[N] the program's files do not assign, N=X,Y,Z,A,B,C, in the robot's base
+    /// frame; repeat for several.
+    #[arg(long, value_name = "N=X,Y,Z,A,B,C", allow_hyphen_values = true)]
+    pub base_data: Vec<String>,
     /// Replace an existing output; leave targets that cannot be corrected as they are (listed)
     /// instead of writing nothing; use a model marked failed.
     #[arg(long)]
@@ -52,6 +62,21 @@ pub fn parse_tool(s: &str) -> anyhow::Result<kinecal::se3::Pose> {
     ))
 }
 
+/// `N=X,Y,Z,A,B,C` (KUKA: mm, degrees about Z, Y', X'').
+fn parse_indexed(option: &str, s: &str) -> anyhow::Result<(u32, kinecal::se3::Pose)> {
+    let bad = || anyhow::anyhow!("{option} '{s}': expected N=X,Y,Z,A,B,C (an index, mm, degrees)");
+    let (n, rest) = s.split_once('=').ok_or_else(bad)?;
+    let n: u32 = n.trim().parse().map_err(|_| bad())?;
+    let v: Vec<f64> = rest
+        .split(',')
+        .map(|x| x.trim().parse::<f64>().ok().filter(|v| v.is_finite()))
+        .collect::<Option<Vec<_>>>()
+        .filter(|v| v.len() == 6)
+        .ok_or_else(bad)?;
+    // A, B, C = yaw, pitch, roll.
+    Ok((n, parse_tool(&format!("{},{},{},{},{},{}", v[0], v[1], v[2], v[5], v[4], v[3]))?))
+}
+
 /// Run the command.
 pub fn run(a: FilterArgs) -> anyhow::Result<()> {
     let mut outputs = Outputs::new(a.force);
@@ -64,11 +89,26 @@ pub fn run(a: FilterArgs) -> anyhow::Result<()> {
         Some(f) => f,
         None => Format::from_path(&a.program).ok_or_else(|| {
             anyhow::anyhow!(
-                "{}: unknown program format (extension .csv, .mod, .modx, .prg, .script or .urscript, or --format csv|rapid|urscript)",
+                "{}: unknown program format (extension .csv, .mod, .modx, .prg, .src, .script or .urscript, or --format csv|rapid|krl|urscript)",
                 a.program.display()
             )
         })?,
     };
+    // A KRL program's .dat beside it is read and written beside the output.
+    let dat = (format == Format::Krl)
+        .then(|| a.program.with_extension("dat"))
+        .filter(|p| p.exists());
+    let dat_out = dat.as_ref().map(|_| a.out.with_extension("dat"));
+    let mut outputs = Outputs::new(a.force);
+    outputs
+        .input(Path::new(&a.calibrated))
+        .input(&a.program)
+        .input(Path::new(&a.nominal));
+    if let Some(d) = &dat {
+        outputs.input(d);
+    }
+    outputs.output(&a.out)?;
+    outputs.output_opt(dat_out.as_deref())?;
     let cal = ModelFile::load_or_builtin(&a.calibrated)?;
     if let Some(p) = cal.provenance.as_ref().filter(|p| p.status == "failed") {
         anyhow::ensure!(
@@ -87,9 +127,20 @@ pub fn run(a: FilterArgs) -> anyhow::Result<()> {
     if let Some(t) = &a.tool {
         opts.tool = parse_tool(t)?;
     }
+    for t in &a.tool_data {
+        opts.tool_data.push(parse_indexed("--tool-data", t)?);
+    }
+    for t in &a.base_data {
+        opts.base_data.push(parse_indexed("--base-data", t)?);
+    }
     let text = kinecal::io::read_text(&a.program)?;
-    let filtered = filter_program(&a.program, &text, format, &models, &opts)?;
+    let dat_text = dat.as_deref().map(kinecal::io::read_text).transpose()?;
+    let companion = dat.as_deref().zip(dat_text.as_deref());
+    let filtered = filter_program(&a.program, &text, companion, format, &models, &opts)?;
     outputs.stage(&a.out, filtered.text.as_bytes())?;
+    if let (Some(p), Some(t)) = (&dat_out, &filtered.companion) {
+        outputs.stage(p, t.as_bytes())?;
+    }
     outputs.commit()?;
     let worst = |f: fn(&kinecal::filter::TargetReport) -> f64| filtered.targets.iter().map(f).fold(0.0f64, f64::max);
     let (before_mm, before_deg) = (worst(|t| t.before_mm), worst(|t| t.before_deg));

@@ -13,7 +13,7 @@ use crate::error::KinError;
 use crate::model::chain::{JointKind, SerialChain};
 use nalgebra::Vector3;
 use serde::Serialize;
-use std::f64::consts::FRAC_PI_2;
+use std::f64::consts::{FRAC_PI_2, PI};
 
 /// An arm configuration: ABB's `confdata` `[cf1, cf4, cf6, cfx]`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -31,6 +31,41 @@ pub struct ArmConfiguration {
 impl std::fmt::Display for ArmConfiguration {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "[{},{},{},{}]", self.cf1, self.cf4, self.cf6, self.cfx)
+    }
+}
+
+/// KUKA's Status and Turn of a 6R arm's joint values: Status bit 0 the wrist centre behind
+/// axis 1, bit 1 behind the lower arm, bit 2 axis 5 negative (the branch bits of
+/// [`ArmConfiguration::cfx`] in another order); Turn bit `k` axis `k + 1` negative.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct StatusTurn {
+    /// Status.
+    pub s: i32,
+    /// Turn.
+    pub t: i32,
+}
+
+impl std::fmt::Display for StatusTurn {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "S {}, T {}", self.s, self.t)
+    }
+}
+
+/// A configuration a program states.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum Configuration {
+    /// ABB's `confdata`.
+    Abb(ArmConfiguration),
+    /// KUKA's Status and Turn.
+    Kuka(StatusTurn),
+}
+
+impl std::fmt::Display for Configuration {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Configuration::Abb(c) => c.fmt(f),
+            Configuration::Kuka(c) => c.fmt(f),
+        }
     }
 }
 
@@ -97,6 +132,59 @@ impl ArmBranches {
         })
     }
 
+    /// KUKA's Status and Turn of joint values `q` (rad).
+    pub fn status_turn(&self, q: &[f64]) -> Result<StatusTurn, KinError> {
+        let c = self.of(q)?;
+        let s = (c.cfx >> 2) & 1 | ((c.cfx >> 1) & 1) << 1 | (c.cfx & 1) << 2;
+        let t = q.iter().enumerate().map(|(k, v)| ((*v < 0.0) as i32) << k).sum();
+        Ok(StatusTurn { s, t })
+    }
+
+    /// The configuration of `q` in the flavour of `like`.
+    pub fn configuration(&self, q: &[f64], like: &Configuration) -> Result<Configuration, KinError> {
+        Ok(match like {
+            Configuration::Abb(_) => Configuration::Abb(self.of(q)?),
+            Configuration::Kuka(_) => Configuration::Kuka(self.status_turn(q)?),
+        })
+    }
+
+    /// Whether `q` is on the configuration `c`.
+    pub fn matches(&self, q: &[f64], c: &Configuration) -> bool {
+        self.configuration(q, c).is_ok_and(|k| k == *c)
+    }
+
+    /// The joint values whose nearest whole-turn equivalents lie on `c` where the limits allow:
+    /// the quadrants' middles (ABB), or ±180° on the side each Turn bit says (KUKA).
+    pub fn reference(&self, c: &Configuration) -> Vec<f64> {
+        let mid = |k: i32| (k as f64 + 0.5) * FRAC_PI_2;
+        match c {
+            Configuration::Abb(a) => vec![mid(a.cf1), 0.0, 0.0, mid(a.cf4), 0.0, mid(a.cf6)],
+            Configuration::Kuka(k) => (0..6).map(|j| if (k.t >> j) & 1 == 1 { -PI } else { PI }).collect(),
+        }
+    }
+
+    /// Starting points for the inverse kinematics on a stated configuration.
+    pub fn seeds_for(&self, c: &Configuration, starts: &[Vec<f64>]) -> Vec<Vec<f64>> {
+        match c {
+            Configuration::Abb(a) => self.seeds(a, starts),
+            Configuration::Kuka(k) => {
+                // Each axis on the side its Turn bit says; the branch bits from the fixed values.
+                let sign = |j: usize| if (k.t >> j) & 1 == 1 { -1.0 } else { 1.0 };
+                let fixed = [
+                    [0.8, 0.0, 0.0, 0.8, 0.8, 0.8],
+                    [0.8, 0.5, 0.5, 0.8, 0.8, 0.8],
+                    [0.8, 1.2, 2.0, 0.8, 0.8, 0.8],
+                ];
+                fixed
+                    .iter()
+                    .map(|f| f.to_vec())
+                    .chain(starts.iter().filter(|s| s.len() == 6).cloned())
+                    .map(|s| s.iter().enumerate().map(|(j, v)| sign(j) * v.abs()).collect())
+                    .collect()
+            }
+        }
+    }
+
     /// Starting points for the inverse kinematics on `c`: axes 1, 4 and 6 at their quadrants'
     /// middles and axis 5 on its side, the other axes from a few fixed values and from `starts`.
     pub fn seeds(&self, c: &ArmConfiguration, starts: &[Vec<f64>]) -> Vec<Vec<f64>> {
@@ -138,5 +226,7 @@ mod tests {
         assert_eq!(c([10.0, 40.0, -100.0, 10.0, 30.0, 10.0]), "[0,0,0,2]");
         // The upper arm tilted far back with the forearm up: the wrist behind axis 1.
         assert_eq!(c([10.0, -60.0, -20.0, 10.0, 30.0, 10.0]), "[0,0,0,4]");
+        let st = b.status_turn(&d([-10.0, -60.0, -20.0, 10.0, -30.0, 10.0])).unwrap();
+        assert_eq!((st.s, st.t), (0b101, 0b10111));
     }
 }

@@ -77,17 +77,17 @@ pub fn filter_csv(path: &Path, text: &str, models: &FilterModels, opts: &FilterO
             seed: data.has_inputs.then(|| m.q.clone()),
         })
         .collect();
-    let located: Vec<(usize, String)> = data
+    let located: Vec<(std::path::PathBuf, usize, String)> = data
         .lines
         .iter()
         .zip(&data.ids)
-        .map(|(l, id)| (*l, format!("target {id}")))
+        .map(|(l, id)| (path.to_path_buf(), *l, format!("target {id}")))
         .collect();
     let super::Located {
         corrected,
         reports,
         uncorrected,
-    } = correct_located(path, models, &targets, &located, opts.force)?;
+    } = correct_located(models, &targets, &located, opts.force)?;
     let lines = line_ranges(text);
     let mut edits: Vec<Edit> = Vec::new();
     for ((c, line), original) in corrected.iter().zip(&data.lines).zip(&poses) {
@@ -121,6 +121,7 @@ pub fn filter_csv(path: &Path, text: &str, models: &FilterModels, opts: &FilterO
     }
     Ok(FilteredProgram {
         text: apply(text, &edits),
+        companion: None,
         format: Format::Csv,
         targets: reports,
         uncorrected,

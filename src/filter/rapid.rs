@@ -15,7 +15,7 @@
 //! (`MoveAbsJ`), targets computed at run time (`Offs(p10, …)`, `RelTool`, `CRobT()`), arrays of
 //! robtargets, and declarations no move uses. Refused: a stationary tool (`robhold` FALSE), a
 //! work object held by the robot or moved by a mechanical unit.
-use super::branch::ArmConfiguration;
+use super::branch::{ArmConfiguration, Configuration};
 use super::lex::{lex, value, Kind, Tok, Value};
 use super::rewrite::{apply, number_edit, Edit};
 use super::{correct_located, FilterError, FilterModels, FilterOptions, FilteredProgram, Format, Target};
@@ -448,16 +448,17 @@ pub fn filter_rapid(path: &Path, text: &str, models: &FilterModels, opts: &Filte
         .map(|(r, tool, wobj, _, _)| Target {
             pose: wobj * r.pose,
             tool: *tool,
-            configuration: Some(r.conf),
+            configuration: Some(Configuration::Abb(r.conf)),
             seed: None,
         })
         .collect();
-    let located: Vec<(usize, String)> = items.iter().map(|(_, _, _, l, n)| (*l, n.clone())).collect();
+    let located: Vec<(std::path::PathBuf, usize, String)> =
+        items.iter().map(|(_, _, _, l, n)| (path.to_path_buf(), *l, n.clone())).collect();
     let super::Located {
         corrected,
         reports,
         uncorrected,
-    } = correct_located(path, models, &targets, &located, opts.force)?;
+    } = correct_located(models, &targets, &located, opts.force)?;
     let mut edits: Vec<Edit> = Vec::new();
     for (c, (r, _, wobj, _, _)) in corrected.iter().zip(&items) {
         let Some(c) = c else { continue };
@@ -492,6 +493,7 @@ pub fn filter_rapid(path: &Path, text: &str, models: &FilterModels, opts: &Filte
     }
     Ok(FilteredProgram {
         text: apply(text, &edits),
+        companion: None,
         format: Format::Rapid,
         targets: reports,
         uncorrected,

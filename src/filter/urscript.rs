@@ -218,12 +218,15 @@ pub fn filter_urscript(path: &Path, text: &str, models: &FilterModels, opts: &Fi
             seed,
         })
         .collect();
-    let located: Vec<(usize, String)> = order.iter().map(|&k| (literals[k].line, "pose".to_string())).collect();
+    let located: Vec<(std::path::PathBuf, usize, String)> = order
+        .iter()
+        .map(|&k| (path.to_path_buf(), literals[k].line, "pose".to_string()))
+        .collect();
     let super::Located {
         corrected,
         reports,
         uncorrected,
-    } = correct_located(path, models, &targets, &located, opts.force)?;
+    } = correct_located(models, &targets, &located, opts.force)?;
     let mut edits: Vec<Edit> = Vec::new();
     for (c, &k) in corrected.iter().zip(&order) {
         let Some(c) = c else { continue };
@@ -236,6 +239,7 @@ pub fn filter_urscript(path: &Path, text: &str, models: &FilterModels, opts: &Fi
     }
     Ok(FilteredProgram {
         text: apply(text, &edits),
+        companion: None,
         format: Format::UrScript,
         targets: reports,
         uncorrected,
