@@ -40,6 +40,23 @@ fn cells(line: &str, start: usize) -> Vec<(Range<usize>, &str)> {
     out
 }
 
+/// Roll, pitch, yaw of `r` (`R = Rz(yaw)·Ry(pitch)·Rx(roll)`) nearest the angles `old`: at
+/// gimbal lock (pitch ±90°), where only the difference or sum of roll and yaw counts, the roll
+/// as written and the yaw that goes with it.
+fn rpy_near(r: &UnitQuaternion<f64>, old: [f64; 3]) -> [f64; 3] {
+    let a = se3::rpy(r);
+    if (a[1].abs() - std::f64::consts::FRAC_PI_2).abs() > 1e-6 {
+        return a;
+    }
+    let gap = |x: &[f64; 3]| se3::so3_log(&(UnitQuaternion::from_euler_angles(x[0], x[1], x[2]).inverse() * r)).norm();
+    [1.0, -1.0]
+        .iter()
+        .map(|s| [old[0], a[1], a[2] + s * (old[0] - a[0])])
+        .min_by(|x, y| gap(x).total_cmp(&gap(y)))
+        .filter(|x| gap(x) < 1e-9)
+        .unwrap_or(a)
+}
+
 /// Filter a CSV targets file.
 pub fn filter_csv(path: &Path, text: &str, models: &FilterModels, opts: &FilterOptions) -> Result<FilteredProgram, FilterError> {
     let table = parse_table(path, text)?;
@@ -109,7 +126,11 @@ pub fn filter_csv(path: &Path, text: &str, models: &FilterModels, opts: &FilterO
                 edits.extend(number_edit(t, r.clone(), v, 7));
             }
         } else if rpy.len() == 3 {
-            let a = se3::rpy(&UnitQuaternion::from_quaternion(c.pose.rotation.into_inner()));
+            let old: Vec<f64> = rpy
+                .iter()
+                .map(|(ci, f, _)| cells[*ci].1.parse::<f64>().unwrap_or(0.0) / f)
+                .collect();
+            let a = rpy_near(&c.pose.rotation, [old[0], old[1], old[2]]);
             for ((ci, f, d), v) in rpy.iter().zip(a) {
                 let (r, t) = &cells[*ci];
                 // The whole-turn equivalent nearest the angle as written.
