@@ -19,10 +19,12 @@
 //! not used: both models are built with [`ModelFile::build_in_base_frame`].
 //!
 //! Program formats (each a module): CSV targets ([`csv`], `kinecal compensate`'s TARGETS
-//! format), ABB RAPID modules ([`rapid`]), KUKA KRL ([`krl`]) and URScript ([`urscript`]). Every byte outside the numbers that change is
+//! format), ABB RAPID modules ([`rapid`]), KUKA KRL ([`krl`]), URScript ([`urscript`]) and
+//! G-code for machines commanding their tool position (and axis) ([`gcode`]). Every byte outside the numbers that change is
 //! kept ([`rewrite`]). [`filter_program`] is the one call of `kinecal filter`.
 pub mod branch;
 pub mod csv;
+pub mod gcode;
 pub mod krl;
 mod lex;
 pub mod rapid;
@@ -85,6 +87,8 @@ pub enum Format {
     UrScript,
     /// A KUKA KRL program (`.src`, with its `.dat`).
     Krl,
+    /// G-code (`.nc`, `.ngc`, `.gcode`).
+    Gcode,
 }
 
 impl Format {
@@ -96,6 +100,7 @@ impl Format {
             "mod" | "modx" | "prg" => Some(Format::Rapid),
             "script" | "urscript" => Some(Format::UrScript),
             "src" => Some(Format::Krl),
+            "nc" | "ngc" | "gcode" => Some(Format::Gcode),
             _ => None,
         }
     }
@@ -103,14 +108,15 @@ impl Format {
 
 impl std::str::FromStr for Format {
     type Err = String;
-    /// `csv`, `rapid`, `urscript` or `krl`.
+    /// `csv`, `rapid`, `urscript`, `krl` or `gcode`.
     fn from_str(s: &str) -> Result<Self, String> {
         match s.to_ascii_lowercase().as_str() {
             "csv" => Ok(Format::Csv),
             "rapid" => Ok(Format::Rapid),
             "urscript" => Ok(Format::UrScript),
             "krl" => Ok(Format::Krl),
-            o => Err(format!("unknown program format '{o}' (csv, rapid, urscript or krl)")),
+            "gcode" => Ok(Format::Gcode),
+            o => Err(format!("unknown program format '{o}' (csv, rapid, urscript, krl or gcode)")),
         }
     }
 }
@@ -148,6 +154,11 @@ impl FilterModels {
             inputs,
             branches,
         })
+    }
+
+    /// What the machine commands (the calibrated model's task).
+    pub fn task(&self) -> crate::model::Task {
+        self.calibrated.build().task()
     }
 
     /// The arm configuration of joint values `q` (a 6R arm; `None` for other mechanisms).
@@ -377,6 +388,7 @@ pub fn filter_program(
 ) -> Result<FilteredProgram, FilterError> {
     match format {
         Format::Krl => krl::filter_krl(path, text, companion, models, opts),
+        Format::Gcode => gcode::filter_gcode(path, text, models, opts),
         Format::Csv => csv::filter_csv(path, text, models, opts),
         Format::Rapid => rapid::filter_rapid(path, text, models, opts),
         Format::UrScript => urscript::filter_urscript(path, text, models, opts),

@@ -12,8 +12,9 @@ pub struct FilterArgs {
     /// Calibrated model file.
     pub calibrated: String,
     /// The program: CSV targets (.csv), an ABB RAPID module (.mod, .modx, .prg), a KUKA KRL
-    /// program (.src; its .dat beside it is filtered too and written beside OUT) or URScript
-    /// (.script, .urscript).
+    /// program (.src; its .dat beside it is filtered too and written beside OUT), URScript
+    /// (.script, .urscript) or G-code (.nc, .ngc, .gcode: G0/G1 X Y Z, and A B about x then y
+    /// where the machine commands its tool axis).
     pub program: PathBuf,
     /// The nominal model the controller computes with (file or built-in name).
     #[arg(long)]
@@ -21,7 +22,7 @@ pub struct FilterArgs {
     /// The filtered program to write (never one of the inputs).
     #[arg(long, short)]
     pub out: PathBuf,
-    /// The program's format when its extension does not say: csv, rapid, urscript or krl.
+    /// The program's format when its extension does not say: csv, rapid, urscript, krl or gcode.
     #[arg(long)]
     pub format: Option<Format>,
     /// CSV targets: the tool they are given for, in the flange (the mechanism's tool frame):
@@ -89,7 +90,7 @@ pub fn run(a: FilterArgs) -> anyhow::Result<()> {
         Some(f) => f,
         None => Format::from_path(&a.program).ok_or_else(|| {
             anyhow::anyhow!(
-                "{}: unknown program format (extension .csv, .mod, .modx, .prg, .src, .script or .urscript, or --format csv|rapid|krl|urscript)",
+                "{}: unknown program format (extension .csv, .mod, .modx, .prg, .src, .script, .urscript, .nc, .ngc or .gcode, or --format csv|rapid|krl|urscript|gcode)",
                 a.program.display()
             )
         })?,

@@ -12,6 +12,7 @@ mod dh;
 mod draw_wire;
 mod exports;
 mod filter;
+mod filter_gcode;
 mod filter_krl;
 mod filter_urscript;
 mod fuzz;
