@@ -23,7 +23,7 @@ pub struct CompensationError {
 
 /// Add whole turns to each revolute input so that it is as close as possible to `reference`
 /// (the seed, or 0) while inside its limits when the limits allow it.
-fn wrap_near(inputs: &[InputSpec], q: &mut [f64], reference: &[f64]) {
+pub(crate) fn wrap_near(inputs: &[InputSpec], q: &mut [f64], reference: &[f64]) {
     for (k, (i, v)) in inputs.iter().zip(q.iter_mut()).enumerate() {
         if i.unit != Unit::Angle {
             continue;
@@ -46,7 +46,7 @@ fn wrap_near(inputs: &[InputSpec], q: &mut [f64], reference: &[f64]) {
     }
 }
 
-fn check_limits(inputs: &[InputSpec], q: &[f64]) -> Result<(), KinError> {
+pub(crate) fn check_limits(inputs: &[InputSpec], q: &[f64]) -> Result<(), KinError> {
     for (i, v) in inputs.iter().zip(q) {
         if let Some((lo, hi)) = i.limits {
             if *v < lo - 1e-9 || *v > hi + 1e-9 {
@@ -66,6 +66,15 @@ fn check_limits(inputs: &[InputSpec], q: &[f64]) -> Result<(), KinError> {
 
 /// Number of random fall-back starting points of [`compensate`]'s inverse kinematics.
 pub const COMPENSATION_STARTS: usize = 24;
+
+/// The zero configuration, then `n` pseudo-random points within the limits (a fixed seed, so
+/// results do not change from run to run): [`compensate`]'s fall-back starting points.
+pub(crate) fn fixed_starts(inputs: &[InputSpec], n: usize) -> Vec<Vec<f64>> {
+    let mut starts: Vec<Vec<f64>> = vec![vec![0.0; inputs.len()]];
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0x6b696e65);
+    starts.extend(random_inputs(inputs, n, &mut rng));
+    starts
+}
 
 /// One target's inverse kinematics from each of `starts` in turn (their approach-direction
 /// inputs set to `approach`) until one reaches the target within the limits; on failure the
@@ -139,9 +148,7 @@ pub fn compensate<M: Mechanism + ?Sized>(
     let mut out: Vec<Vec<f64>> = Vec::with_capacity(targets.len());
     // Deterministic fall-back starting points: the zero configuration, then random points
     // within the limits (a fixed seed, so results do not change from run to run).
-    let mut fixed_starts: Vec<Vec<f64>> = vec![vec![0.0; n]];
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0x6b696e65);
-    fixed_starts.extend(random_inputs(inputs, COMPENSATION_STARTS, &mut rng));
+    let fixed_starts = fixed_starts(inputs, COMPENSATION_STARTS);
     // Approach-direction inputs (a model with lost motion): given by the seed (the commands'
     // order), else those of moving from the previous solution to this one (a fixed point: solve
     // with the previous approach, then again if the motion turns out to come from the other side).

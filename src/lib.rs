@@ -48,6 +48,7 @@ pub mod calibrate;
 pub mod compensate;
 pub mod design;
 pub mod error;
+pub mod filter;
 pub mod identifiability;
 pub mod identify;
 pub mod instrument;

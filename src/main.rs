@@ -43,6 +43,9 @@ enum Command {
     Validate(cli::validate::ValidateArgs),
     /// Target poses → actuator commands through the calibrated model's inverse kinematics.
     Compensate(cli::compensate::CompensateArgs),
+    /// A program's targets corrected for a controller that keeps its nominal kinematics (CSV
+    /// targets, ABB RAPID): T' = FK_nominal(IK_calibrated(T)) on the program's configuration.
+    Filter(Box<cli::filter::FilterArgs>),
     /// ISO 9283 pose accuracy and repeatability (and distance accuracy) of measured test runs at
     /// commanded test poses, before and after calibration side by side.
     Assess(cli::assess::AssessArgs),
@@ -77,6 +80,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Identify(a) => cli::identify::run(a),
         Command::Validate(a) => cli::validate::run(a),
         Command::Compensate(a) => cli::compensate::run(a),
+        Command::Filter(a) => cli::filter::run(*a),
         Command::Assess(a) => cli::assess::run(a),
         Command::Plan(a) if a.iso.iso9283 => cli::plan::model(&a).and_then(|(f, _)| cli::iso_plan::run(&a, f)),
         Command::Plan(a) if a.instrument.active() => cli::plan::model(&a).and_then(|(f, _)| cli::instrument_plan::run(&a, f)),

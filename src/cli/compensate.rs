@@ -26,6 +26,15 @@ pub struct CompensateArgs {
     /// the same solution branch (elbow, wrist) as the commands the nominal controller would send.
     #[arg(long)]
     pub nominal: Option<String>,
+    /// The targets are in the mechanism's base frame (a robot's base frame, as its programs are),
+    /// not in the calibration's measurement frame, and the tool is the mechanism's own (the
+    /// flange) or --tool's, not the instrument's reflector or probe.
+    #[arg(long)]
+    pub base_frame: bool,
+    /// The tool the targets are given for, in the flange (the mechanism's tool frame):
+    /// X,Y,Z,ROLL,PITCH,YAW in mm and degrees, R = Rz(yaw)·Ry(pitch)·Rx(roll). Implies --base-frame.
+    #[arg(long, value_name = "X,Y,Z,ROLL,PITCH,YAW", allow_hyphen_values = true)]
+    pub tool: Option<String>,
     /// Print JSON instead of text.
     #[arg(long)]
     pub json: bool,
@@ -51,7 +60,11 @@ pub fn run(a: CompensateArgs) -> anyhow::Result<()> {
             p.reasons.first().map_or("see its [provenance]", String::as_str)
         );
     }
-    let model = file.build();
+    let tool = a.tool.as_deref().map(super::filter::parse_tool).transpose()?;
+    let in_base = a.base_frame || tool.is_some();
+    let tool = tool.unwrap_or_else(se3::Pose::identity);
+    let build = |f: &ModelFile| if in_base { f.build_in_base_frame(&tool) } else { f.build() };
+    let model = build(&file);
     let inputs = file.inputs();
     let data = read_data(&a.targets, &file.data_columns(), InputColumns::Optional)?;
     super::warn_limits(&data);
@@ -83,7 +96,7 @@ pub fn run(a: CompensateArgs) -> anyhow::Result<()> {
             a.model
         );
         let pb = progress::bar(targets.len(), "nominal IK", a.json);
-        let q0 = compensate(&*nominal_file.build(), &inputs, &targets, None, &|_| pb.inc(1)).map_err(|e| locate(e, "nominal model: "))?;
+        let q0 = compensate(&*build(&nominal_file), &inputs, &targets, None, &|_| pb.inc(1)).map_err(|e| locate(e, "nominal model: "))?;
         pb.finish_and_clear();
         seeds = Some(q0);
     }

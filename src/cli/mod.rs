@@ -2,6 +2,7 @@
 pub mod assess;
 pub mod compensate;
 pub mod data;
+pub mod filter;
 pub mod identifiability;
 pub mod identify;
 pub mod instrument_plan;

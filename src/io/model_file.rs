@@ -331,6 +331,14 @@ impl ModelFile {
         }
     }
 
+    /// The mechanism in its own base frame carrying `tool` (a program's tool, in the mechanism's
+    /// tool frame: a robot arm's flange): what a controller's programs are written in. The
+    /// file's `[frames]` (where a tracker stood, and its reflector or probe) belong to the
+    /// instrument and are left out.
+    pub fn build_in_base_frame(&self, tool: &Pose) -> Box<dyn Mechanism> {
+        Box::new(Framed::new(self.mechanism.build(), Pose::identity(), *tool))
+    }
+
     /// Inputs with units and limits.
     pub fn inputs(&self) -> Vec<InputSpec> {
         self.mechanism.inputs()
