@@ -14,7 +14,8 @@
 //!
 //! Each is calibrated through `calibrate()` with default options (the known 50 mm between the
 //! two sockets of a placement) one-to-many (one placement identifies, every other judges) and
-//! all-but-one (each placement held out in turn). Held-out figure: each socket's spread of the
+//! all-but-one (each placement held out in turn), the held-out placements given as the
+//! validation data (as `identify --validation` does). Held-out figure: each socket's spread of the
 //! calibrated model's ball points about their own fitted centre (what `kinecal validate` prints
 //! for seats), RMS over the held-out placements, against the nominal model's.
 //!
@@ -187,6 +188,7 @@ struct Judged {
     status: Status,
     converged: bool,
     weak: Vec<String>,
+    cause: Option<String>,
     beyond: usize,
 }
 
@@ -197,10 +199,12 @@ fn spread(model: &dyn Mechanism, rows: &[Measurement]) -> (f64, usize) {
     (h.seat_rms_mm().unwrap().powi(2) * n as f64, n)
 }
 
-fn run(arm: &ArmData, ident: &[usize], judged: &[usize], noise_mm: f64) -> Judged {
+/// The placements `which` of `arm` in one file, placement k's sockets as seats 2k and 2k + 1,
+/// with their known distances.
+fn joined(arm: &ArmData, which: &[usize]) -> (DataSet, Vec<SeatDistance>) {
     let mut rows = Vec::new();
     let mut distances = Vec::new();
-    for (k, &p) in ident.iter().enumerate() {
+    for (k, &p) in which.iter().enumerate() {
         let (r, d) = &arm.placements[p];
         rows.extend(r.iter().map(|m| Measurement {
             obs: match &m.obs {
@@ -215,16 +219,24 @@ fn run(arm: &ArmData, ident: &[usize], judged: &[usize], noise_mm: f64) -> Judge
             length: *d,
         });
     }
-    let data = DataSet::from_measurements(arm.name, rows);
+    (DataSet::from_measurements(arm.name, rows), distances)
+}
+
+/// Calibrated on the placements `ident`, the placements `judged` given as the validation data
+/// (as `identify --validation` does: the verdict judges them).
+fn run(arm: &ArmData, ident: &[usize], judged: &[usize], noise_mm: f64) -> Judged {
+    let (data, distances) = joined(arm, ident);
+    let (validation, validation_distances) = joined(arm, judged);
     let opts = CalibrationOptions {
         noise: Noise {
             position: if noise_mm > 0.0 { noise_mm } else { 1e-6 },
             ..Noise::default()
         },
         seat_distances: distances,
+        validation_seat_distances: validation_distances,
         ..CalibrationOptions::default()
     };
-    let cal = calibrate(&arm.nominal, &data, None, &opts).unwrap_or_else(|e| panic!("{}: {e}", arm.name));
+    let cal = calibrate(&arm.nominal, &data, Some(&validation), &opts).unwrap_or_else(|e| panic!("{}: {e}", arm.name));
     let fitted = cal.model_file.build();
     let nominal = arm.nominal.build();
     let (mut before, mut after, mut n) = (0.0, 0.0, 0);
@@ -243,6 +255,7 @@ fn run(arm: &ArmData, ident: &[usize], judged: &[usize], noise_mm: f64) -> Judge
         status: r.verdict.status,
         converged: r.converged,
         weak: r.weak.clone(),
+        cause: r.weak_cause.clone(),
         beyond: r.tolerance_check.as_ref().map_or(0, |t| t.beyond.len()),
     }
 }
@@ -302,6 +315,7 @@ fn main() {
             let mut worst_after: f64 = 0.0;
             let mut failed = 0;
             let mut weak = std::collections::BTreeSet::new();
+            let mut causes = std::collections::BTreeSet::new();
             for (ident, judged) in runs {
                 let j = run(arm, &ident, &judged, noise_mm);
                 println!(
@@ -325,8 +339,12 @@ fn main() {
                 worst_after = worst_after.max(j.after);
                 failed += usize::from(j.status == Status::Failed || !j.converged);
                 weak.extend(j.weak);
+                causes.extend(j.cause);
             }
             println!("  {what}: worst held-out spread {worst_after:.3e} mm, {failed} failed; held as weak somewhere: {weak:?}");
+            for c in causes {
+                println!("    likely cause: {c}");
+            }
         }
     }
 }

@@ -297,7 +297,16 @@ pub fn calibrate(
     let names = start.params();
     report.placement = placement.iter().map(|&k| names[k].name.clone()).collect();
     if !report.weak.is_empty() {
-        report.weak_cause = (measurements.first()).and_then(|m| crate::report::weak_cause::known_cause(&*start, &m.q));
+        // On the calibrated model file: the machine with its tool point, whatever the
+        // instrument's wrapping of the fitted model.
+        let machine = calibrated.build();
+        // At the first row that commands the machine (not a known distance's), its inputs
+        // without what an instrument appends to them.
+        let inputs = machine.input_names().len();
+        let first = measurements
+            .iter()
+            .find(|m| m.q.len() >= inputs && !crate::report::is_known_distance(m));
+        report.weak_cause = first.and_then(|m| crate::report::weak_cause::known_cause(&*machine, &m.q[..inputs]));
     }
     // Rows beyond the model's (the vendor's) limits, kept as measured: worth a look.
     report

@@ -516,7 +516,7 @@ fn the_robot_keeps_what_only_the_reflector_offset_explains() {
     let free = file.free_indices().unwrap();
     let user = se3::pose_from_parts(Vector3::new(40.0, -30.0, 150.0), Vector3::new(0.2, 0.3, -0.4));
     for (what, reflector) in [
-        ("on the last axis", Vector3::new(0.0, 0.0, 60.0)),
+        ("on the last axis", Vector3::new(60.0, 0.0, 0.0)),
         ("off it", Vector3::new(15.0, -10.0, 120.0)),
     ] {
         let mut rng = ChaCha8Rng::seed_from_u64(11);
