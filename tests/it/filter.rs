@@ -106,7 +106,11 @@ pub struct Calibrated {
 pub fn calibrated() -> &'static Calibrated {
     static CAL: OnceLock<Calibrated> = OnceLock::new();
     CAL.get_or_init(|| {
-        let dir = tempfile::tempdir().unwrap().keep();
+        // Under the build's own scratch directory (a static is never dropped, so a TempDir
+        // would be left behind in /tmp by every run); made afresh by each test process.
+        let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("filter-fixture-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
         let d = dir.as_path();
         let text = kinecal::io::builtin::model_file("irb120").unwrap().to_toml().unwrap();
         std::fs::write(d.join("m.toml"), text + TRACKER).unwrap();
