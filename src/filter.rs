@@ -74,6 +74,17 @@ pub enum FilterError {
     Io(#[from] IoError),
 }
 
+impl FilterError {
+    /// The lexers' and parsers' `(line, message)` errors as [`FilterError::Parse`] of `path`.
+    pub(crate) fn parse_at(path: &Path) -> impl Fn((usize, String)) -> FilterError + Copy + '_ {
+        move |(line, message)| FilterError::Parse {
+            path: path.to_path_buf(),
+            line,
+            message,
+        }
+    }
+}
+
 /// A program's format.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]

@@ -169,14 +169,7 @@ pub fn filter_krl(
     models: &FilterModels,
     opts: &FilterOptions,
 ) -> Result<FilteredProgram, FilterError> {
-    let err = |p: &Path| {
-        let p = p.to_path_buf();
-        move |(line, message): (usize, String)| FilterError::Parse {
-            path: p.clone(),
-            line,
-            message,
-        }
-    };
+    let err = FilterError::parse_at;
     let mut sources = vec![Source {
         path,
         text,

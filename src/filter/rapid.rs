@@ -237,11 +237,7 @@ fn split_optional(arg: &[Tok]) -> (&[Tok], Vec<(usize, usize)>) {
 
 /// Filter a RAPID module.
 pub fn filter_rapid(path: &Path, text: &str, models: &FilterModels, opts: &FilterOptions) -> Result<FilteredProgram, FilterError> {
-    let parse_err = |(line, message): (usize, String)| FilterError::Parse {
-        path: path.to_path_buf(),
-        line,
-        message,
-    };
+    let parse_err = FilterError::parse_at(path);
     let toks = lex(text, b'!').map_err(parse_err)?;
     let src = |t: &Tok| &text[t.range.clone()];
     let mut decls: HashMap<(String, String), Decl> = HashMap::new();

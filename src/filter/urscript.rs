@@ -84,11 +84,7 @@ fn rotvec_near(r: &nalgebra::UnitQuaternion<f64>, near: &Vector3<f64>) -> Vector
 
 /// Filter a URScript program.
 pub fn filter_urscript(path: &Path, text: &str, models: &FilterModels, opts: &FilterOptions) -> Result<FilteredProgram, FilterError> {
-    let parse_err = |(line, message): (usize, String)| FilterError::Parse {
-        path: path.to_path_buf(),
-        line,
-        message,
-    };
+    let parse_err = FilterError::parse_at(path);
     let toks = lex(text, b'#').map_err(parse_err)?;
     let src = |t: &Tok| &text[t.range.clone()];
     let mut tcp = Pose::identity();
