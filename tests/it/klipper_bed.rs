@@ -324,3 +324,159 @@ fn tilted_rails_leave_the_printed_residual_named() {
         );
     }
 }
+
+/// The printer's path from files: its printer.cfg imported, a virtual prototype with errors of
+/// Klipper's kinds (lengths only) touched on its bed and measured with a ballbar into one file,
+/// identified, written for Klipper on the bed found: the values are the prototype's own (its
+/// bed is its base plane) to 1e-7; the file round-trips; wrong inputs are one line, exit 1.
+#[test]
+fn printer_on_its_bed_from_the_command_line() {
+    use crate::cli::{fails, ok};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(
+        d.join("printer.cfg"),
+        "[printer]\nkinematics: delta\ndelta_radius: 140\n\n[stepper_a]\narm_length: 250\nposition_endstop: 250\n",
+    )
+    .unwrap();
+    ok(
+        d,
+        &[
+            "model",
+            "import",
+            "printer.cfg",
+            "--format",
+            "klipper-delta",
+            "--out",
+            "printer.toml",
+        ],
+    );
+    ok(
+        d,
+        &[
+            "simulate",
+            "printer.toml",
+            "--error-deg",
+            "0",
+            "--seed",
+            "1",
+            "--planes",
+            "0,0,0",
+            "--plane-normals",
+            "0,0,1",
+            "--probe-radius-mm",
+            "0",
+            "--per-point",
+            "40",
+            "--pivots",
+            "50,0,0;-25,43,0;-25,-43,0",
+            "--ballbar-mm",
+            "100",
+            "--lengths-per-pivot",
+            "5",
+            "--reference",
+            "290,290,290",
+            "--tilt-deg",
+            "40",
+            "--out",
+            "bed.csv",
+            "--truth",
+            "truth.toml",
+        ],
+    );
+    let identified = ok(d, &["identify", "printer.toml", "bed.csv", "--out", "cal.toml"]);
+    assert!(identified.contains("verdict: calibrated"), "{identified}");
+    let printed = ok(
+        d,
+        &[
+            "model",
+            "export",
+            "cal.toml",
+            "--format",
+            "klipper-delta",
+            "--bed",
+            "bed.csv",
+            "--angle-c",
+            "90",
+            "--out",
+            "cal.cfg",
+        ],
+    );
+    assert!(printed.starts_with("bed: plane 0 of bed.csv, 40 touches"), "{printed}");
+    ok(
+        d,
+        &[
+            "model",
+            "export",
+            "truth.toml",
+            "--format",
+            "klipper-delta",
+            "--angle-c",
+            "90",
+            "--out",
+            "truth.cfg",
+        ],
+    );
+    let read = |f: &str| KlipperDelta::parse(&std::fs::read_to_string(d.join(f)).unwrap()).unwrap();
+    let (cal, truth) = (read("cal.cfg"), read("truth.cfg"));
+    let mut worst = (cal.radius - truth.radius).abs();
+    for i in 0..3 {
+        worst = worst
+            .max((cal.angle[i] - truth.angle[i]).abs())
+            .max((cal.arm_length[i] - truth.arm_length[i]).abs())
+            .max((cal.position_endstop[i] - truth.position_endstop[i]).abs());
+    }
+    eprintln!("printer from files: written values vs the prototype's {worst:.2e} (mm, °)\n{printed}");
+    assert!(worst < 1e-7, "{cal:?}\n{truth:?}");
+    // Round trip.
+    ok(
+        d,
+        &["model", "import", "cal.cfg", "--format", "klipper-delta", "--out", "back.toml"],
+    );
+    ok(
+        d,
+        &["model", "export", "back.toml", "--format", "klipper-delta", "--out", "back.cfg"],
+    );
+    assert_eq!(
+        std::fs::read(d.join("back.cfg")).unwrap(),
+        std::fs::read(d.join("cal.cfg")).unwrap()
+    );
+    // Wrong inputs: one line each.
+    let e = fails(d, &["model", "export", "cal.toml", "--format", "ur-yaml", "--bed", "bed.csv"]);
+    assert!(e.contains("only with --format klipper-delta"), "{e}");
+    let e = fails(
+        d,
+        &[
+            "model",
+            "export",
+            "cal.toml",
+            "--format",
+            "klipper-delta",
+            "--bed",
+            "bed.csv",
+            "--bed-plane",
+            "3",
+        ],
+    );
+    assert!(e.starts_with("bed.csv: plane 3 is not touched"), "{e}");
+    ok(
+        d,
+        &[
+            "simulate",
+            "printer.toml",
+            "--poses",
+            "10",
+            "--measure",
+            "position",
+            "--out",
+            "track.csv",
+            "--truth",
+            "t2.toml",
+        ],
+    );
+    let e = fails(
+        d,
+        &["model", "export", "cal.toml", "--format", "klipper-delta", "--bed", "track.csv"],
+    );
+    assert!(e.starts_with("track.csv: no plane touches"), "{e}");
+}

@@ -21,7 +21,17 @@
 //! solution of the squared equations), the circle through the three towers (its centre is
 //! Klipper's origin: `(x0, y0)` in the model's base frame, reported), then Gauss–Newton on the
 //! nozzle positions. Rail tilts, parallelogram and joint-axis errors have no Klipper parameter:
-//! reported with their residual. Values with 6 decimals (mm, degrees).
+//! reported with their residual, and each rail's lean from Klipper's z. Values with 10 decimals
+//! (mm, degrees).
+//!
+//! # On a printer's bed ([`export_with`], [`KlipperOptions`])
+//! A printer calibrated from its probe's touches on the bed (and a few ballbar lengths) is known
+//! only up to a rigid motion. Given the bed ([`super::bed::bed_from_touches`]), Klipper's frame
+//! is the bed's: `z = 0` on it, `z` along its normal, the origin below the towers' circle
+//! centre, the nozzle the model's tool point (its `[frames]` included); tower c's angle may be
+//! given (the turn about the normal nothing measured fixes). What Klipper cannot represent —
+//! rails leaning from the bed's normal, the rest of the geometry — is printed, each rail's lean
+//! in Klipper's frame.
 //!
 //! # Import ([`import`])
 //! A limbs model of the effective geometry: prismatic carriages along z at the towers, a rod
@@ -480,6 +490,10 @@ pub fn from_model(file: &ModelFile, opts: &KlipperOptions) -> Result<KlipperFit,
             crate::params::Unit::Angle => (outside * 1f64.to_radians(), "°"),
             _ => (outside, "mm"),
         };
+        // Below what the file's figures show: no motion worth naming.
+        if per < 5e-7 {
+            continue;
+        }
         lost.push(format!(
             "{}: {} mm RMS of nozzle motion per {unit} of error ({} % of its effect) outside Klipper's parameters",
             params[j].name,
