@@ -553,7 +553,7 @@ fn malformed_printer_cfg_names_the_line() {
     let good = controllers::export(&kinecal::io::builtin::model_file("linear-delta").unwrap(), Controller::KlipperDelta)
         .unwrap()
         .text;
-    let target = "arm_length: 250.000000";
+    let target = "arm_length: 250.0000000000";
     let line = good.lines().position(|l| l == target).unwrap() + 1;
     for bad in ["arm_length: long", "arm_length: 10", "arm_length 250", "[stepper_a"] {
         let text = good.replacen(target, bad, 1);

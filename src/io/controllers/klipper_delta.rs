@@ -99,7 +99,7 @@ impl KlipperDelta {
         out.push_str("# Klipper linear delta kinematics, written by kinecal\n");
         out.push_str("# (`kinecal model export MODEL --format klipper-delta`; docs/controllers.md). Merge these keys\n");
         out.push_str("# into printer.cfg. mm and degrees; tower i at (delta_radius*cos(angle), delta_radius*sin(angle));\n");
-        out.push_str("# z = 0 is the bed (the model's base plane).\n");
+        out.push_str("# z = 0 is the bed: the model's base plane, or the bed given to the export (--bed).\n");
         out.push_str("[printer]\nkinematics: delta\n");
         let _ = writeln!(out, "delta_radius: {}", fixed(self.radius, DECIMALS));
         for (i, t) in TOWERS.iter().enumerate() {
