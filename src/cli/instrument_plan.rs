@@ -59,6 +59,10 @@ impl InstrumentArgs {
 /// Run an instrument plan.
 pub fn run(args: &PlanArgs, file: ModelFile) -> anyhow::Result<()> {
     let a = &args.instrument;
+    anyhow::ensure!(
+        !(a.touch.active() && a.pivots.is_some()),
+        "--planes and --pivots: plan the touches and the ballbar's rows apart"
+    );
     if a.touch.active() {
         return touch_run(args, file);
     }

@@ -89,6 +89,18 @@ enum ModelCommand {
         /// Angle unit of the written model file: deg or rad (URDF is always in rad).
         #[arg(long)]
         angle: Option<String>,
+        /// With --format klipper-delta: the bed, found from the probe's touches on it in this data
+        /// file (the rows with a `plane`, e.g. those the model was calibrated from): Klipper's
+        /// z = 0 on it, z along its normal, the nozzle the model's tool point.
+        #[arg(long, value_name = "DATA.csv")]
+        bed: Option<PathBuf>,
+        /// With --bed: which plane of the file is the bed (default: its only plane).
+        #[arg(long, value_name = "K", requires = "bed")]
+        bed_plane: Option<usize>,
+        /// With --format klipper-delta: tower c's angle (degrees), the frame turned about z to
+        /// put it there (nothing measured fixes that turn; keep the printer's own).
+        #[arg(long, value_name = "DEG", allow_hyphen_values = true)]
+        angle_c: Option<f64>,
         /// Write to this file instead of standard output.
         #[arg(long, short)]
         out: Option<PathBuf>,
@@ -171,11 +183,17 @@ pub fn run(args: ModelArgs) -> anyhow::Result<()> {
             hayati,
             length,
             angle,
+            bed,
+            bed_plane,
+            angle_c,
             out,
             force,
         } => {
             let mut outputs = Outputs::new(force);
             outputs.input(Path::new(&name)).output_opt(out.as_deref())?;
+            if let Some(b) = &bed {
+                outputs.input(b);
+            }
             let mut file = ModelFile::load_or_builtin(&name)?;
             if hayati && format != ExportFormat::Dh {
                 anyhow::bail!("--hayati: only with --format dh (Hayati's β is a standard-DH term)");
@@ -187,10 +205,22 @@ pub fn run(args: ModelArgs) -> anyhow::Result<()> {
                 if length.is_some() || angle.is_some() {
                     anyhow::bail!("--length / --angle: a controller file has its own units (docs/controllers.md)");
                 }
-                let export = controllers::export(&file, controller).map_err(|e| anyhow::anyhow!("{}", e.at(&name)))?;
+                let (export, bed_line) = match (controller, &bed, angle_c) {
+                    (Controller::KlipperDelta, _, _) if bed.is_some() || angle_c.is_some() => {
+                        klipper_on_bed(&file, &name, bed.as_deref(), bed_plane, angle_c)?
+                    }
+                    (_, None, None) => (
+                        controllers::export(&file, controller).map_err(|e| anyhow::anyhow!("{}", e.at(&name)))?,
+                        None,
+                    ),
+                    _ => anyhow::bail!(
+                        "--bed / --angle-c: only with --format klipper-delta (where Klipper's frame stands on a printer's bed)"
+                    ),
+                };
                 write_out(outputs, out.as_deref(), &export.text)?;
                 let p = &export.projection;
-                let mut report = format!("{}: {}\n", controller.name(), p.difference);
+                let mut report = bed_line.unwrap_or_default();
+                report += &format!("{}: {}\n", controller.name(), p.difference);
                 if p.not_represented.is_empty() {
                     report += "  every error parameter of the model is represented\n";
                 } else {
@@ -208,6 +238,9 @@ pub fn run(args: ModelArgs) -> anyhow::Result<()> {
                     eprint!("{report}");
                 }
                 return Ok(());
+            }
+            if bed.is_some() || angle_c.is_some() {
+                anyhow::bail!("--bed / --angle-c: only with --format klipper-delta (where Klipper's frame stands on a printer's bed)");
             }
             units(&mut file, length.as_deref().unwrap_or("mm"), angle.as_deref().unwrap_or("deg"))?;
             let text = match format {
@@ -279,4 +312,40 @@ pub fn run(args: ModelArgs) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// `model export --format klipper-delta` with `--bed` and/or `--angle-c`: the export and a line
+/// about the bed found.
+fn klipper_on_bed(
+    file: &ModelFile,
+    name: &str,
+    bed: Option<&Path>,
+    bed_plane: Option<usize>,
+    angle_c: Option<f64>,
+) -> anyhow::Result<(controllers::Export, Option<String>)> {
+    use kinecal::io::controllers::{bed::bed_from_touches, klipper_delta};
+    use kinecal::io::data_file::{read_data, InputColumns};
+    if let Some(a) = angle_c {
+        anyhow::ensure!(a.is_finite(), "--angle-c: a finite angle in degrees, got {a}");
+    }
+    let (found, line) = match bed {
+        Some(path) => {
+            let data = read_data(path, &file.data_columns(), InputColumns::Required)?;
+            let fit = bed_from_touches(file, &data.measurements, bed_plane)
+                .map_err(|e| anyhow::anyhow!("{}", e.at(&path.display().to_string())))?;
+            let line = format!(
+                "bed: plane {} of {}, {} touches, {:.4} mm RMS from their plane ({:.4} mm max)\n",
+                fit.plane,
+                path.display(),
+                fit.touches,
+                fit.rms_mm,
+                fit.max_mm
+            );
+            (Some(fit.bed), Some(line))
+        }
+        None => (None, None),
+    };
+    let opts = klipper_delta::KlipperOptions { bed: found, angle_c };
+    let export = klipper_delta::export_with(file, &opts).map_err(|e| anyhow::anyhow!("{}", e.at(name)))?;
+    Ok((export, line))
 }

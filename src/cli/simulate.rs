@@ -116,6 +116,10 @@ pub struct SimulateArgs {
     /// zero unknown to `identify`, which estimates it as `pivotK.zero`).
     #[arg(long, value_name = "Z[,Z…]", requires = "pivots")]
     pub length_zero_mm: Option<String>,
+    /// With `--planes` and `--pivots`: the ballbar's lengths per pivot written beside the
+    /// touches (default `--per-point`).
+    #[arg(long, value_name = "N", requires = "planes")]
+    pub lengths_per_pivot: Option<usize>,
     /// Instrument data: rows per seat or pivot.
     #[arg(long, visible_aliases = ["per-seat", "per-pivot"], default_value_t = 15)]
     pub per_point: usize,
@@ -607,11 +611,45 @@ fn touch_run(
         }
         None => None,
     };
+    // A ballbar's lengths beside the touches: its pivots, length and how the rows are drawn.
+    let bar = match (&a.pivots, a.ballbar_mm) {
+        (Some(text), Some(length)) => {
+            anyhow::ensure!(plan.is_none(), "--pivots with --at: a touch plan holds only touches");
+            anyhow::ensure!(a.length_zero_mm.is_none(), "--length-zero-mm: not with touches");
+            let points = parse_points(text).map_err(|e| anyhow::anyhow!("--pivots {e}"))?;
+            let reference =
+                kinecal::instrument::simulate::reference_configuration(a.reference.as_deref(), &inputs).map_err(anyhow::Error::msg)?;
+            let how = Placement {
+                per_point: a.per_point,
+                reference,
+                max_tilt: a.tilt_deg.to_radians(),
+                noise_mm: a.noise_mm,
+                seed: 0,
+                inputs: inputs.clone(),
+            };
+            Some((points, length, how))
+        }
+        _ => None,
+    };
     // `per` touches of each artifact at the random configurations nearest it, or the plan.
     stage_sets(a, file, &mut outputs, "touches per artifact", |k, per| match (&plan, k) {
         (Some((at, rows)), 0) => touch_planned(truth, rows, &artifacts, a.noise_mm, rng.random(), &inputs)
             .map_err(|e| anyhow::anyhow!("{}: {}", at.display(), plain(e))),
-        _ => random_touches(truth, &inputs, &artifacts, per, a.noise_mm, rng).map_err(plain),
+        _ => {
+            let mut rows = random_touches(truth, &inputs, &artifacts, per, a.noise_mm, rng).map_err(plain)?;
+            if let Some(how) = &bar {
+                let placement = Placement {
+                    per_point: a.lengths_per_pivot.unwrap_or(per),
+                    seed: rng.random(),
+                    ..how.2.clone()
+                };
+                rows.extend(
+                    distance_rows(truth, &how.0, how.1, a.ballbar_range_mm, &placement)
+                        .map_err(|e| anyhow::anyhow!("--pivots: {}", plain(e)))?,
+                );
+            }
+            Ok(rows)
+        }
     })?;
     outputs.commit()?;
     println!(
@@ -637,6 +675,14 @@ fn touch_run(
             a.noise_mm,
             a.out.display()
         ),
+    }
+    if let Some((points, length, _)) = &bar {
+        println!(
+            "and a ballbar of {length} mm ± {} mm: {} pivots × {} lengths in the same file",
+            a.ballbar_range_mm,
+            points.len(),
+            a.lengths_per_pivot.unwrap_or(a.per_point)
+        );
     }
     if let Some(v) = &a.validation_out {
         println!(

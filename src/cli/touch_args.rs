@@ -18,7 +18,9 @@ pub struct TouchArgs {
     pub sphere_diameter_mm: Option<f64>,
     /// Touch-probe data: planes through these points (mm, base frame, `X,Y,Z;…`), their normals
     /// `--plane-normals`, each touched `--per-point` times; columns `plane,probe_radius_mm`.
-    #[arg(long, value_name = "X,Y,Z;…", requires = "plane_normals", conflicts_with_all = ["seats", "pivots", "cube"])]
+    /// With `kinecal simulate`, `--pivots` may add a ballbar's lengths to the same file (a
+    /// printer's bed touches and a few lengths).
+    #[arg(long, value_name = "X,Y,Z;…", requires = "plane_normals", conflicts_with_all = ["seats", "cube"])]
     pub planes: Option<String>,
     /// The planes' normals (`NX,NY,NZ;…`, one per plane; normalised).
     #[arg(long, value_name = "NX,NY,NZ;…", allow_hyphen_values = true, requires = "planes")]

@@ -24,6 +24,7 @@ mod instrument_plan;
 mod instruments;
 mod irb120;
 mod joint_terms;
+mod klipper_bed;
 mod limbs;
 mod mistakes;
 mod mixed;

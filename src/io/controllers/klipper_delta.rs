@@ -21,7 +21,17 @@
 //! solution of the squared equations), the circle through the three towers (its centre is
 //! Klipper's origin: `(x0, y0)` in the model's base frame, reported), then Gauss–Newton on the
 //! nozzle positions. Rail tilts, parallelogram and joint-axis errors have no Klipper parameter:
-//! reported with their residual. Values with 6 decimals (mm, degrees).
+//! reported with their residual, and each rail's lean from Klipper's z. Values with 10 decimals
+//! (mm, degrees).
+//!
+//! # On a printer's bed ([`export_with`], [`KlipperOptions`])
+//! A printer calibrated from its probe's touches on the bed (and a few ballbar lengths) is known
+//! only up to a rigid motion. Given the bed ([`super::bed::bed_from_touches`]), Klipper's frame
+//! is the bed's: `z = 0` on it, `z` along its normal, the origin below the towers' circle
+//! centre, the nozzle the model's tool point (its `[frames]` included); tower c's angle may be
+//! given (the turn about the normal nothing measured fixes). What Klipper cannot represent —
+//! rails leaning from the bed's normal, the rest of the geometry — is printed, each rail's lean
+//! in Klipper's frame.
 //!
 //! # Import ([`import`])
 //! A limbs model of the effective geometry: prismatic carriages along z at the towers, a rod
@@ -38,7 +48,7 @@ use nalgebra::{DMatrix, DVector, Vector3};
 use std::fmt::Write as _;
 use std::path::Path;
 
-const DECIMALS: usize = 6;
+const DECIMALS: usize = 10;
 const TOWERS: [&str; 3] = ["a", "b", "c"];
 
 /// Klipper's delta parameters (mm, degrees).
@@ -89,7 +99,7 @@ impl KlipperDelta {
         out.push_str("# Klipper linear delta kinematics, written by kinecal\n");
         out.push_str("# (`kinecal model export MODEL --format klipper-delta`; docs/controllers.md). Merge these keys\n");
         out.push_str("# into printer.cfg. mm and degrees; tower i at (delta_radius*cos(angle), delta_radius*sin(angle));\n");
-        out.push_str("# z = 0 is the bed (the model's base plane).\n");
+        out.push_str("# z = 0 is the bed: the model's base plane, or the bed given to the export (--bed).\n");
         out.push_str("[printer]\nkinematics: delta\n");
         let _ = writeln!(out, "delta_radius: {}", fixed(self.radius, DECIMALS));
         for (i, t) in TOWERS.iter().enumerate() {
@@ -295,9 +305,55 @@ fn angle_text(a: f64) -> String {
     }
 }
 
-/// Klipper's parameters of a linear delta model, with the origin `(x0, y0)` (mm, base frame),
-/// the largest carriage-height residual of the per-tower fit and the lines of what is lost.
-pub fn from_model(file: &ModelFile) -> Result<(KlipperDelta, [f64; 2], f64, Vec<String>), ControllerError> {
+/// Where Klipper's frame stands ([`from_model`], [`export_with`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct KlipperOptions {
+    /// The printer's bed in the model's frame (e.g. [`super::bed::bed_from_touches`]): Klipper's
+    /// `z = 0` on it, `z` along its normal, and the nozzle the model's tool point (its
+    /// `[frames]` included). Without one, Klipper's `z` is the model's base `z` and the nozzle
+    /// the mechanism's platform origin.
+    pub bed: Option<super::bed::Bed>,
+    /// Tower c's `angle` (degrees): the frame turned about its `z` so that tower c stands there
+    /// (what nothing measured fixes; Klipper's delta calibration keeps it too). Without one, `x`
+    /// is the model's `x` (projected onto the bed).
+    pub angle_c: Option<f64>,
+}
+
+/// Klipper's parameters of a linear delta model and what they leave.
+#[derive(Debug, Clone, PartialEq)]
+pub struct KlipperFit {
+    /// The parameters (not rounded).
+    pub delta: KlipperDelta,
+    /// Klipper's frame in the model's frame: a nozzle at `k` in Klipper's frame is at
+    /// `frame · k` in the model's.
+    pub frame: Pose,
+    /// The largest nozzle-position residual of the fit (mm).
+    pub fit_residual_mm: f64,
+    /// What Klipper cannot represent, each a line.
+    pub lost: Vec<String>,
+}
+
+/// Tower `i`'s rail direction in the frame of `points` from the nozzle positions and its
+/// carriage input `c`: `|p − a − d·c|² = L²` is linear in `a`, `d`, `a·d` and `|a|² − L²`
+/// when `|d| = 1` (least squares; normalised).
+fn rail_direction(points: &[Vector3<f64>], c: &[f64]) -> Option<Vector3<f64>> {
+    let mut a = DMatrix::zeros(points.len(), 8);
+    let mut y = DVector::zeros(points.len());
+    for (k, (p, &q)) in points.iter().zip(c).enumerate() {
+        for j in 0..3 {
+            a[(k, j)] = 2.0 * p[j];
+            a[(k, 3 + j)] = 2.0 * q * p[j];
+        }
+        a[(k, 6)] = -2.0 * q;
+        a[(k, 7)] = -1.0;
+        y[k] = p.norm_squared() + q * q;
+    }
+    let s = a.svd(true, true).solve(&y, 1e-14).ok()?;
+    Vector3::new(s[3], s[4], s[5]).try_normalize(1e-12)
+}
+
+/// Klipper's parameters of a linear delta model: see the module docs and [`KlipperOptions`].
+pub fn from_model(file: &ModelFile, opts: &KlipperOptions) -> Result<KlipperFit, ControllerError> {
     let m = file.mechanism.build();
     let inputs = file.mechanism.inputs();
     if !matches!(file.mechanism, MechanismSpec::Limbs(_)) || inputs.len() != 3 || m.task() != crate::model::Task::Position {
@@ -308,10 +364,19 @@ pub fn from_model(file: &ModelFile) -> Result<(KlipperDelta, [f64; 2], f64, Vec<
         )));
     }
     let upper = endstop_inputs(&inputs)?;
-    let configurations = spread_configurations(&*m, &inputs, 300, super::PROJECTION_SEED + 2)?;
+    // The nozzle: the platform origin in the base frame, or with a bed the tool point in the
+    // frame the bed was found in; seen from the bed's frame.
+    let full = file.build();
+    let model: &dyn Mechanism = if opts.bed.is_some() { &*full } else { &*m };
+    let bed_frame = opts.bed.map_or(Pose::identity(), |b| b.frame());
+    let configurations = spread_configurations(model, &inputs, 300, super::PROJECTION_SEED + 2)?;
     let points = configurations
         .iter()
-        .map(|q| Ok(m.forward(q)?.translation.vector))
+        .map(|q| {
+            Ok(bed_frame
+                .inverse_transform_point(&model.forward(q)?.translation.vector.into())
+                .coords)
+        })
         .collect::<Result<Vec<_>, KinError>>()?;
     // Per tower: (c + o − z)² + (tx − x)² + (ty − y)² = L², linear in (o, tx, ty, K = o² + tx² + ty² − L²):
     // (c − z)² + x² + y² = −2o(c − z) + 2 tx x + 2 ty y − K.
@@ -400,20 +465,35 @@ pub fn from_model(file: &ModelFile) -> Result<(KlipperDelta, [f64; 2], f64, Vec<
         xm[c] -= 1e-6;
         jk.set_column(c, &((sub_residual(&xp)? - sub_residual(&xm)?) / 2e-6));
     }
-    // The free parameters (named in the file's own numbering, frames first when it has them)
-    // of the machine itself.
+    // Klipper's columns in the model's frame (the bed's frame turned back).
+    let turn_back = bed_frame.rotation.to_rotation_matrix();
+    for n in 0..subset.len() {
+        for c in 0..x.len() {
+            let v = turn_back * Vector3::new(jk[(3 * n, c)], jk[(3 * n + 1, c)], jk[(3 * n + 2, c)]);
+            for a in 0..3 {
+                jk[(3 * n + a, c)] = v[a];
+            }
+        }
+    }
+    // The free parameters of the machine itself (not its frames), indexed in `model`.
     let free = file.free_indices().map_err(|e| ControllerError::Unsupported(e.to_string()))?;
-    let all = file.build().params();
-    let params = m.params();
+    let all = full.params();
+    let own = m.params();
+    let params = model.params();
     let free: Vec<usize> = free
         .iter()
+        .filter(|&&i| own.iter().any(|p| p.name == all[i].name))
         .filter_map(|&i| params.iter().position(|p| p.name == all[i].name))
         .collect();
-    for (j, fraction, outside) in unrepresented_positions(&*m, &free, subset, &jk, 1e-6, 1e-3)? {
+    for (j, fraction, outside) in unrepresented_positions(model, &free, subset, &jk, 1e-6, 1e-3)? {
         let (per, unit) = match params[j].unit {
             crate::params::Unit::Angle => (outside * 1f64.to_radians(), "°"),
             _ => (outside, "mm"),
         };
+        // Below what the file's figures show: no motion worth naming.
+        if per < 5e-7 {
+            continue;
+        }
         lost.push(format!(
             "{}: {} mm RMS of nozzle motion per {unit} of error ({} % of its effect) outside Klipper's parameters",
             params[j].name,
@@ -421,45 +501,107 @@ pub fn from_model(file: &ModelFile) -> Result<(KlipperDelta, [f64; 2], f64, Vec<
             fixed(100.0 * fraction, 1)
         ));
     }
-    let (k, _, o) = unpack(&x, &upper);
-    Ok((k, o, worst, lost))
+    let (mut k, _, o) = unpack(&x, &upper);
+    // Tower c where asked: the frame turned about z.
+    let turn = match opts.angle_c {
+        Some(a) => (k.angle[2] - a).to_radians(),
+        None => 0.0,
+    };
+    for a in k.angle.iter_mut() {
+        *a -= turn.to_degrees();
+    }
+    let frame = bed_frame
+        * Pose::from_parts(
+            nalgebra::Translation3::new(o[0], o[1], 0.0),
+            nalgebra::UnitQuaternion::from_axis_angle(&Vector3::z_axis(), turn),
+        );
+    // Each rail's lean from Klipper's z (the bed's normal), in Klipper's frame.
+    for (i, t) in TOWERS.iter().enumerate() {
+        let c: Vec<f64> = configurations.iter().map(|q| q[i]).collect();
+        let Some(d) = rail_direction(&points, &c) else { continue };
+        let d = nalgebra::UnitQuaternion::from_axis_angle(&Vector3::z_axis(), -turn) * if d.z < 0.0 { -d } else { d };
+        let lean = d.z.clamp(-1.0, 1.0).acos().to_degrees();
+        if lean > 1e-6 {
+            lost.push(format!(
+                "tower {t}'s rail leans {}° from Klipper's z ({}): toward x {}°, toward y {}° (Klipper's towers are parallel to z)",
+                fixed(lean, 6),
+                if opts.bed.is_some() { "the bed's normal" } else { "the model's z" },
+                fixed(d.x.atan2(d.z).to_degrees(), 6),
+                fixed(d.y.atan2(d.z).to_degrees(), 6)
+            ));
+        }
+    }
+    Ok(KlipperFit {
+        delta: k,
+        frame,
+        fit_residual_mm: worst,
+        lost,
+    })
 }
 
-/// The Klipper delta sections of a linear delta model (see the module docs) and what they leave.
+/// The Klipper delta sections of a linear delta model (see the module docs) and what they
+/// leave, Klipper's frame where the model's base frame puts it.
 pub fn export(file: &ModelFile) -> Result<Export, ControllerError> {
-    let (k, origin, worst, not_represented) = from_model(file)?;
-    let text = k.to_text();
+    export_with(file, &KlipperOptions::default())
+}
+
+/// [`export`] with Klipper's frame on a bed and tower c's angle ([`KlipperOptions`]).
+pub fn export_with(file: &ModelFile, opts: &KlipperOptions) -> Result<Export, ControllerError> {
+    let fit = from_model(file, opts)?;
+    let text = fit.delta.to_text();
     let read = KlipperDelta::parse(&text)?;
+    let full = file.build();
     let m = file.mechanism.build();
+    let model: &dyn Mechanism = if opts.bed.is_some() { &*full } else { &*m };
     let inputs = file.mechanism.inputs();
     let upper = endstop_inputs(&inputs)?;
-    let configurations = spread_configurations(&*m, &inputs, super::PROJECTION_POSES, super::PROJECTION_SEED)?;
-    let o = Vector3::new(origin[0], origin[1], 0.0);
+    let configurations = spread_configurations(model, &inputs, super::PROJECTION_POSES, super::PROJECTION_SEED)?;
     let pairs = configurations
         .iter()
         .map(|q| {
-            let t = m.forward(q)?;
+            let t = model.forward(q)?;
             // The carriage at input q: Klipper's height is q shifted so that the endstop input
             // (the upper limit) is Klipper's endstop height.
             let h: [f64; 3] = std::array::from_fn(|i| q[i] - upper[i] + read.endstop_height(i));
-            let p = read.forward(&h)? + o;
+            let p = fit.frame.transform_point(&read.forward(&h)?.into()).coords;
             Ok((t, Pose::translation(p.x, p.y, p.z)))
         })
         .collect::<Result<Vec<_>, KinError>>()?;
-    let mut not_written = vec![format!(
-        "Klipper's origin (the towers' circle centre) at ({}, {}) mm in the model's base frame: Klipper's x, y are the model's minus it",
-        fixed(origin[0], 6),
-        fixed(origin[1], 6)
-    )];
-    if file.frames.is_some() {
-        not_written.push("measurement and tool frames of the calibration: the nozzle is the platform frame's origin".into());
+    let o = fit.frame.translation.vector;
+    let mut not_written = Vec::new();
+    match opts.bed {
+        None => {
+            not_written.push(format!(
+                "Klipper's origin (the towers' circle centre) at ({}, {}) mm in the model's base frame: Klipper's x, y are the model's minus it",
+                fixed(o.x, 6),
+                fixed(o.y, 6)
+            ));
+            if file.frames.is_some() {
+                not_written.push("measurement and tool frames of the calibration: the nozzle is the platform frame's origin".into());
+            }
+        }
+        Some(bed) => {
+            let x = fit.frame.rotation * Vector3::x();
+            not_written.push(format!(
+                "Klipper's frame on the bed: origin (below the towers' circle centre) at ({}, {}, {}) mm, z along ({}, {}, {}), x along ({}, {}, {}) in the model's frame; the nozzle is the model's tool point",
+                fixed(o.x, 6),
+                fixed(o.y, 6),
+                fixed(o.z, 6),
+                fixed(bed.normal.x, 9),
+                fixed(bed.normal.y, 9),
+                fixed(bed.normal.z, 9),
+                fixed(x.x, 9),
+                fixed(x.y, 9),
+                fixed(x.z, 9)
+            ));
+        }
     }
     Ok(Export {
         text,
         projection: Projection {
             difference: PoseDifference::of(&pairs, false),
-            not_represented,
-            fit_residual_mm: Some(worst),
+            not_represented: fit.lost,
+            fit_residual_mm: Some(fit.fit_residual_mm),
             not_written,
         },
     })

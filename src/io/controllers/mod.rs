@@ -14,6 +14,7 @@
 //! spread over the workspace) and which error parameters the controller cannot represent.
 //! Numbers are written with a fixed number of decimals, so a file read back and written again
 //! is the same byte for byte. Conventions, units and frames: each module and docs/controllers.md.
+pub mod bed;
 pub mod klipper_delta;
 pub mod linuxcnc_hexapod;
 pub mod ur_yaml;
