@@ -26,6 +26,7 @@ mod irb120;
 mod joint_terms;
 mod limbs;
 mod mistakes;
+mod mistakes_artifacts;
 mod mixed;
 mod model_file;
 mod observed;
