@@ -119,12 +119,21 @@ const STYLE: &str = "body{font-family:sans-serif;margin:24px;color:#222}table{bo
 th,td{border:1px solid #ccc;padding:3px 8px;text-align:right}th{background:#f0f0f0}td:first-child,th:first-child{text-align:left}\
 .note{color:#555;font-size:90%}";
 
+/// `v` as shown with 4 decimals, without the sign of a value that shows as zero (`-0.0000`).
+fn z(v: f64) -> f64 {
+    if v.abs() < 5e-5 {
+        0.0
+    } else {
+        v
+    }
+}
+
 fn f4(v: f64) -> String {
-    format!("{v:.4}")
+    format!("{:.4}", z(v))
 }
 
 fn abc(v: Option<[f64; 3]>) -> String {
-    v.map_or("—".into(), |v| format!("{:.4} / {:.4} / {:.4}", v[0], v[1], v[2]))
+    v.map_or("—".into(), |v| format!("{:.4} / {:.4} / {:.4}", z(v[0]), z(v[1]), z(v[2])))
 }
 
 /// The ISO 9283 table of one run.
@@ -207,8 +216,8 @@ pub fn assess_html(
                 t.points,
                 t.nominal_radius_mm,
                 t.lsq_radius_mm,
-                t.centre_offset_mm[0],
-                t.centre_offset_mm[1],
+                z(t.centre_offset_mm[0]),
+                z(t.centre_offset_mm[1]),
                 t.circular_deviation_g_mm,
                 t.radial_deviation_f_max_mm,
                 t.radial_deviation_f_min_mm
@@ -232,8 +241,8 @@ pub fn assess_html(
                     b.anticlockwise.circular_deviation_g_mm,
                     b.circular_deviation_g_both_mm,
                     b.circular_hysteresis_h_mm,
-                    b.centre_offset_mm[0],
-                    b.centre_offset_mm[1]
+                    z(b.centre_offset_mm[0]),
+                    z(b.centre_offset_mm[1])
                 );
                 out.push_str(&polar_plot_runs(
                     "radial deviation (magnified)",
