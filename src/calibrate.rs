@@ -10,6 +10,7 @@ mod instrument_data;
 mod mixed;
 mod robust;
 pub mod scale;
+pub mod sizes;
 mod starts;
 pub use starts::{start_agreement, StartAgreement, WORSE_MARGIN, WORSE_MINIMUM};
 pub mod tolerances;
@@ -188,8 +189,31 @@ pub struct StartOutcome {
 /// Calibrate `model` from `data` (and judge it on `validation`): the stages below, in order —
 /// plausibility checks (`checks`), the starting model with its frames (`starting_model`),
 /// the robust identification (`robust`), the other starts (`starts`), the report with its
-/// verdict (`judge`).
+/// verdict (`judge`). A calibration that fails while an artifact size read another way (a
+/// sphere diameter in inches, a probe's diameter for its radius, a bar length in inches)
+/// calibrates is an error naming that size ([`sizes::likely_mistake`]).
 pub fn calibrate(
+    model: &ModelFile,
+    data: &DataSet,
+    validation: Option<&DataSet>,
+    opts: &CalibrationOptions,
+) -> Result<Calibration, CalibrateError> {
+    let cal = calibrate_as_stated(model, data, validation, opts)?;
+    if cal.report.verdict.status == crate::report::Status::Failed {
+        let why = cal.report.verdict.reasons.first().map_or("", String::as_str);
+        if let Some(message) = sizes::likely_mistake(model, data, opts, cal.identification.sigma0, why) {
+            return Err(IoError::Invalid {
+                path: data.path.clone(),
+                message,
+            }
+            .into());
+        }
+    }
+    Ok(cal)
+}
+
+/// [`calibrate`] with the data's sizes as they are stated.
+fn calibrate_as_stated(
     model: &ModelFile,
     data: &DataSet,
     validation: Option<&DataSet>,

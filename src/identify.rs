@@ -13,7 +13,7 @@
 //! # Uncertainty
 //! Parameter standard deviations are `sqrt(diag(σ̂₀²·(AᵀA)⁻¹))` on the identifiable subset, with
 //! `A` the weighted Jacobian at the solution and `σ̂₀² = |r|²/(m − k)` the a-posteriori variance of
-//! unit weight (the issue's `σ²(JᵀJ)⁻¹`).
+//! unit weight (the textbook `σ²(JᵀJ)⁻¹`).
 //!
 //! # Scale
 //! Gauss–Newton never holds the rows × p weighted Jacobian: each linearisation is a residual pass

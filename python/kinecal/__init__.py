@@ -235,11 +235,16 @@ def identifiability(model: Model, data: Data, tolerance: float = 1e-8) -> Dict[s
     return json.loads(_kinecal.identifiability(model, data, tolerance))
 
 
-def assess(commanded: str, attained: str, distances: Optional[List[Tuple[int, int]]] = None) -> Dict[str, Any]:
+def assess(
+    commanded: str, attained: str, distances: Optional[List[Tuple[int, int]]] = None, force: bool = False
+) -> Dict[str, Any]:
     """ISO 9283 pose accuracy and repeatability (``poses``: AP_x/y/z/P, RP_l, …) and distance
     accuracy (``distances``) of an attained test file against the commanded test poses
-    (``kinecal assess --json``; docs/assess.md)."""
-    return json.loads(_kinecal.assess(commanded, attained, list(distances or [])))
+    (``kinecal assess --json``; docs/assess.md). Attained poses beyond any plausible accuracy
+    (a mean position error above 20 mm or orientation error above 5° at a test pose: files that
+    do not belong together) raise ``KinecalError`` naming the worst pose, as ``kinecal assess``
+    refuses them, unless ``force``."""
+    return json.loads(_kinecal.assess(commanded, attained, list(distances or []), force))
 
 
 def assess_circle(

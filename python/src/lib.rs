@@ -580,14 +580,19 @@ fn validate_instrument(model: &Model, data: &Data, seat_distances: Vec<String>) 
 }
 
 /// ISO 9283 figures of an attained test file against a commanded one (`kinecal assess --json`),
-/// with distance figures between the `(from, to)` test poses of `distances`.
+/// with distance figures between the `(from, to)` test poses of `distances`. Attained poses
+/// beyond any plausible accuracy (`kinecal::assess::implausible`: files that do not belong
+/// together) are refused, as by `kinecal assess`, unless `force`.
 #[pyfunction]
-#[pyo3(signature = (commanded, attained, distances = Vec::new()))]
-fn assess(commanded: &str, attained: &str, distances: Vec<(i64, i64)>) -> PyResult<String> {
+#[pyo3(signature = (commanded, attained, distances = Vec::new(), force = false))]
+fn assess(commanded: &str, attained: &str, distances: Vec<(i64, i64)>, force: bool) -> PyResult<String> {
     use kinecal::io::test_poses::{read_attained, read_commanded};
     let c = read_commanded(std::path::Path::new(commanded)).map_err(err)?;
     let a = read_attained(std::path::Path::new(attained)).map_err(err)?;
     let r = kinecal::assess::iso9283(&c, &a, &distances).map_err(|e| err(format!("{attained}: {e}")))?;
+    if let Some(why) = kinecal::assess::implausible(&r).filter(|_| !force) {
+        return Err(err(format!("{attained}: {why}; force=True assesses it anyway")));
+    }
     serde_json::to_string(&r).map_err(err)
 }
 

@@ -303,6 +303,19 @@ def test_assess_gives_the_iso_9283_figures(tmp_path):
         kinecal.assess(str(tmp_path / "c.csv"), str(tmp_path / "u.csv"))
 
 
+def test_assess_refuses_implausible_attained_poses_unless_forced(tmp_path):
+    """Attained poses 100 mm from their commands (another run's file, metres for mm) are refused
+    naming the pose and the figure, as kinecal assess refuses them; force=True assesses them."""
+    (tmp_path / "c.csv").write_text("pose,x_mm,y_mm,z_mm\n1,0,0,0\n2,10,0,0\n")
+    (tmp_path / "far.csv").write_text(
+        "pose,cycle,x_mm,y_mm,z_mm\n1,1,0,0,0\n1,2,0,0,0\n2,1,110,0,0\n2,2,110,0,0\n"
+    )
+    with pytest.raises(kinecal.KinecalError, match="test pose 2 is attained 100.000 mm from where it was commanded"):
+        kinecal.assess(str(tmp_path / "c.csv"), str(tmp_path / "far.csv"))
+    r = kinecal.assess(str(tmp_path / "c.csv"), str(tmp_path / "far.csv"), force=True)
+    assert abs(r["poses"][1]["ap_p"] - 100.0) < 1e-9
+
+
 def test_assess_circle_and_plan_iso9283(tmp_path):
     """ISO 230-4 by hand (an ellipse of radii 100.01 / 99.99: G = 0.02, F = +-0.01) and the ISO 9283
     test poses in a region of pm5 that is all reachable (the cube is the region's, P1 its centre)."""

@@ -8,29 +8,37 @@ use crate::io::IoError;
 use crate::params::Unit;
 use std::f64::consts::PI;
 
-/// Angle columns whose every value, read in degrees, stays within ±π (what radians in a degree
-/// column give) while the joint's limits allow far more, are almost certainly in the wrong unit.
+/// Angle columns whose every value, read in degrees, stays within what radians can be (±π, or
+/// the joint's limits in radians when they pass ±π: ±2π on an arm whose wrists turn twice) while
+/// the joint's limits allow far more, are almost certainly in the wrong unit.
 pub fn plausible_angles(model: &ModelFile, data: &DataSet) -> Result<(), IoError> {
     if data.measurements.len() < 10 {
         return Ok(());
     }
     let inputs = model.inputs();
+    // The largest value (rad) radians can take on a joint: π, or its limits' when larger.
+    let radians_bound = |limits: Option<(f64, f64)>| limits.map_or(PI, |(lo, hi)| lo.abs().max(hi.abs()).max(PI));
     let suspicious: Vec<&str> = inputs
         .iter()
         .enumerate()
         .filter(|(_, i)| i.unit == Unit::Angle)
-        .filter(|(_, i)| i.limits.is_none_or(|(lo, hi)| hi - lo > 4.0 * PI.to_radians()))
-        .filter(|(k, _)| {
+        .filter(|(_, i)| i.limits.is_none_or(|(lo, hi)| hi - lo > 4.0 * radians_bound(i.limits).to_radians()))
+        .filter(|(k, i)| {
             let max = data.measurements.iter().map(|m| m.q[*k].abs()).fold(0.0, f64::max);
-            max > 0.0 && max <= PI.to_radians() * 1.0001
+            max > 0.0 && max <= radians_bound(i.limits).to_radians() * 1.0001
         })
         .map(|(_, i)| i.name.as_str())
         .collect();
     if suspicious.len() >= 2 && suspicious.len() * 2 >= inputs.iter().filter(|i| i.unit == Unit::Angle).count() {
+        let largest = inputs
+            .iter()
+            .filter(|i| suspicious.contains(&i.name.as_str()))
+            .map(|i| radians_bound(i.limits))
+            .fold(PI, f64::max);
         return Err(IoError::Invalid {
             path: data.path.clone(),
             message: format!(
-                "the angle columns {} never leave ±3.1416 degrees: they look like radians; name them {}_rad (or convert them to degrees)",
+                "the angle columns {} never leave ±{largest:.4} degrees, where their limits allow far more: they look like radians; name them {}_rad (or convert them to degrees)",
                 suspicious.join(", "),
                 suspicious[0]
             ),
@@ -188,30 +196,73 @@ pub fn plausible_units(model: &ModelFile, data: &DataSet) -> Result<(), IoError>
     Ok(())
 }
 
+/// The centre of every seat of `data` under `mech` (`None` for a seat without rows): the linear
+/// pivot calibration `R_i·t − c_s = −p_i` over every seat row (the tool point `t` the data find,
+/// so a model without the ball's offset still places its seats), or the mean of the tool points
+/// when the rows' orientations do not determine `t`.
+fn seat_centres(mech: &dyn crate::Mechanism, data: &DataSet) -> Vec<Option<nalgebra::Vector3<f64>>> {
+    use crate::measure::Observation;
+    use nalgebra::{DMatrix, DVector, Vector3};
+    let rows: Vec<(usize, crate::se3::Pose)> = data
+        .measurements
+        .iter()
+        .filter_map(|m| match m.obs {
+            Observation::Seat(k) => mech.forward(&m.q).ok().map(|p| (k, p)),
+            _ => None,
+        })
+        .collect();
+    let n = rows.iter().map(|r| r.0 + 1).max().unwrap_or(0);
+    let mean = |k: usize| {
+        let p: Vec<Vector3<f64>> = rows.iter().filter(|r| r.0 == k).map(|r| r.1.translation.vector).collect();
+        (!p.is_empty()).then(|| p.iter().sum::<Vector3<f64>>() / p.len() as f64)
+    };
+    let (mut a, mut b) = (
+        DMatrix::<f64>::zeros(3 * rows.len(), 3 + 3 * n),
+        DVector::<f64>::zeros(3 * rows.len()),
+    );
+    for (i, (k, pose)) in rows.iter().enumerate() {
+        let r = pose.rotation.to_rotation_matrix();
+        for u in 0..3 {
+            for v in 0..3 {
+                a[(3 * i + u, v)] = r[(u, v)];
+            }
+            a[(3 * i + u, 3 + 3 * k + u)] = -1.0;
+            b[3 * i + u] = -pose.translation.vector[u];
+        }
+    }
+    let svd = a.svd(true, true);
+    let (hi, lo) = (svd.singular_values.max(), svd.singular_values.min());
+    match (rows.len() >= 4 && lo > 1e-3 * hi).then(|| svd.solve(&b, 1e-12).ok()).flatten() {
+        Some(x) => (0..n)
+            .map(|k| {
+                rows.iter()
+                    .any(|r| r.0 == k)
+                    .then(|| Vector3::new(x[3 + 3 * k], x[4 + 3 * k], x[5 + 3 * k]))
+            })
+            .collect(),
+        None => (0..n).map(mean).collect(),
+    }
+}
+
 /// Known distances between seats against the nominal model's distance between the seats'
-/// centres (the mean of its tool points over each seat's rows): a distance about 1000× or 25.4×
-/// off is an error naming the unit; one more than twice or less than half the nominal one is a
-/// warning (seats paired across placements, numbers swapped), returned as lines.
+/// centres (each placed by the pivot calibration of its rows, the tool point found from them):
+/// a distance about 1000× or 25.4× off is an error naming the unit; one outside half to twice the
+/// nominal one, by more than twice the model's length tolerance, is an error naming the likely
+/// cause (seats paired across placements, wrong seat numbers) and the pair the nominal model puts
+/// at that distance, if one; outside 0.8–1.25× (by as much) it is a warning, returned as lines.
 pub fn plausible_seat_distances(
     model: &ModelFile,
     data: &DataSet,
     distances: &[crate::instrument::SeatDistance],
 ) -> Result<Vec<String>, IoError> {
-    use crate::measure::Observation;
     let mut warnings = Vec::new();
     if distances.is_empty() {
         return Ok(warnings);
     }
     let mech = model.build();
-    let centre = |seat: usize| -> Option<nalgebra::Vector3<f64>> {
-        let points: Vec<nalgebra::Vector3<f64>> = data
-            .measurements
-            .iter()
-            .filter(|m| matches!(m.obs, Observation::Seat(k) if k == seat))
-            .filter_map(|m| mech.forward(&m.q).ok().map(|p| p.translation.vector))
-            .collect();
-        (!points.is_empty()).then(|| points.iter().sum::<nalgebra::Vector3<f64>>() / points.len() as f64)
-    };
+    let centres = seat_centres(&*mech, data);
+    let centre = |k: usize| centres.get(k).copied().flatten();
+    let margin = 2.0 * model.tolerances.length_mm;
     for d in distances {
         let (Some(a), Some(b)) = (centre(d.a), centre(d.b)) else { continue };
         let nominal = (a - b).norm();
@@ -219,20 +270,50 @@ pub fn plausible_seat_distances(
             continue;
         }
         let ratio = nominal / d.length;
+        let given = format!("--seat-distance {}:{}:{}", d.a, d.b, d.length);
         if let Some((f, what)) = length_factor(ratio) {
             return Err(IoError::Invalid {
                 path: data.path.clone(),
                 message: format!(
-                    "--seat-distance {}:{}:{}: the nominal model puts seats {} and {} {nominal:.1} mm apart, {f:.4}× the stated {} mm: {what} for mm? (give it in mm: {}:{}:{:.4})",
-                    d.a, d.b, d.length, d.a, d.b, d.length, d.a, d.b, d.length * f
+                    "{given}: the nominal model puts seats {} and {} {nominal:.1} mm apart, {f:.4}× the stated {} mm: {what} for mm? (give it in mm: {}:{}:{:.4})",
+                    d.a, d.b, d.length, d.a, d.b, d.length * f
                 ),
             });
         }
-        if !(0.5..=2.0).contains(&ratio) {
-            warnings.push(format!(
-                "--seat-distance {}:{}:{}: the nominal model puts seats {} and {} {nominal:.1} mm apart: seats paired across placements, or their numbers swapped?",
-                d.a, d.b, d.length, d.a, d.b
-            ));
+        if (nominal - d.length).abs() <= margin || (0.8..=1.25).contains(&ratio) {
+            continue;
+        }
+        // The pair of seats the nominal model puts nearest the stated distance, if near it.
+        let mut pairs = Vec::new();
+        for i in 0..centres.len() {
+            for j in i + 1..centres.len() {
+                if let (Some(p), Some(q)) = (centre(i), centre(j)) {
+                    pairs.push((i, j, (p - q).norm()));
+                }
+            }
+        }
+        let nearest = pairs
+            .iter()
+            .filter(|(i, j, _)| (*i, *j) != (d.a.min(d.b), d.a.max(d.b)))
+            .min_by(|x, y| (x.2 - d.length).abs().total_cmp(&(y.2 - d.length).abs()))
+            .filter(|(_, _, l)| (l - d.length).abs() <= margin.max(0.25 * d.length));
+        let hint = nearest.map_or(String::new(), |(i, j, l)| {
+            format!(
+                " (it puts seats {i} and {j} {l:.1} mm apart: --seat-distance {i}:{j}:{}?)",
+                d.length
+            )
+        });
+        let line = format!(
+            "{given}: the nominal model puts seats {} and {} {nominal:.1} mm apart, {ratio:.2}× the stated {} mm, more than the model's tolerances explain: seats paired across placements, or wrong seat numbers?{hint}",
+            d.a, d.b, d.length
+        );
+        if (0.5..=2.0).contains(&ratio) {
+            warnings.push(line);
+        } else {
+            return Err(IoError::Invalid {
+                path: data.path.clone(),
+                message: line,
+            });
         }
     }
     Ok(warnings)

@@ -169,10 +169,17 @@ pub fn run(a: AssessArgs) -> anyhow::Result<()> {
             runs.iter()
                 .map(|(f, _)| f.as_str())
                 .chain(a.circle.as_ref().map(|_| circle_name.as_str()))
+                .chain(a.circle_ccw.iter().filter_map(|p| p.to_str()))
                 .collect::<Vec<_>>()
                 .join(", ")
         );
-        let html = kinecal::report::assess::assess_html(&title, &runs, circular.as_ref().map(|t| (circle_name.as_str(), t)));
+        let ccw_name = a.circle_ccw.as_ref().map(|p| p.display().to_string()).unwrap_or_default();
+        let html = kinecal::report::assess::assess_html(
+            &title,
+            &runs,
+            circular.as_ref().map(|t| (circle_name.as_str(), t)),
+            both.as_ref().map(|b| (ccw_name.as_str(), b)),
+        );
         outputs.stage(r, html.as_bytes())?;
         outputs.commit()?;
     }

@@ -183,7 +183,9 @@ pub fn run(args: DataArgs) -> anyhow::Result<()> {
     match args.command {
         DataCommand::Check { model, data, json } => {
             let file = ModelFile::load_or_builtin(&model)?;
-            summary(&read_data(&data, &file.data_columns(), InputColumns::Required)?, json)
+            let d = read_data(&data, &file.data_columns(), InputColumns::Required)?;
+            super::check_units(&file, &d, true)?;
+            summary(&d, json)
         }
         DataCommand::Split {
             model,

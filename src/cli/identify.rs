@@ -220,6 +220,7 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         },
     };
     for d in std::iter::once(&data).chain(validation.as_ref()) {
+        super::check_units(&file, d, false)?;
         if let Some(note) = d.derived_note() {
             eprintln!("note: {note}");
         }

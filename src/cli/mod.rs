@@ -97,3 +97,18 @@ pub fn count(n: usize, noun: &str) -> String {
         _ => format!("{n} {noun}s"),
     }
 }
+
+/// What `data check`, `validate` and `identify` say of a data file's units: a note naming the
+/// columns read as metres or radians (`x_m`, `yaw_rad`), and, with `check`, the plausibility
+/// checks of [`kinecal::calibrate::checks`] (metres or inches in `_mm` columns, radians in `_deg`
+/// ones: one line naming the mistake).
+pub fn check_units(file: &kinecal::io::model_file::ModelFile, d: &kinecal::io::data_file::DataSet, check: bool) -> anyhow::Result<()> {
+    if let Some(note) = kinecal::io::data_file::si_units_note(&d.path) {
+        eprintln!("note: {note}");
+    }
+    if check {
+        kinecal::calibrate::checks::plausible_angles(file, d)?;
+        kinecal::calibrate::checks::plausible_units(file, d)?;
+    }
+    Ok(())
+}

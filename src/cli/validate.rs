@@ -27,6 +27,7 @@ pub fn run(a: ValidateArgs) -> anyhow::Result<()> {
     let file = ModelFile::load_or_builtin(&a.model)?;
     let model = file.build();
     let mut data = read_data(&a.data, &file.data_columns(), InputColumns::Required)?;
+    super::check_units(&file, &data, true)?;
     if let Some(u) = data.set_aside_unassembled(&*model)? {
         eprintln!("warning: {}", u.note(&data));
     }

@@ -1,7 +1,7 @@
 //! The report of `kinecal assess --report`: one self-contained HTML page with the ISO 9283 table
 //! of each test run (AP, RP per test pose; AD, RD), the before/after comparison when two runs are
 //! given, and the ISO 230-4 circular test's figures with its polar error plot.
-use crate::assess::{CircularTest, Iso9283};
+use crate::assess::{BidirectionalTest, CircularTest, Iso9283};
 use std::fmt::Write as _;
 
 fn esc(s: &str) -> String {
@@ -22,8 +22,23 @@ fn nice_above(v: f64) -> f64 {
 /// `|p_i| − R` about the nominal centre, magnified, around the nominal circle (bold ring); dashed
 /// rings at ± one scale step (labelled in µm, or mm from a step of 0.1 mm). An inline SVG.
 pub fn polar_plot(title: &str, t: &CircularTest) -> String {
+    polar_plot_runs(title, &[("", t)])
+}
+
+/// Colours of the runs of a polar plot: the clockwise (or only) run, then the anticlockwise one.
+const RUN_COLOURS: [&str; 2] = ["#c0392b", "#2471a3"];
+
+/// [`polar_plot`] of one or two runs of the same circle (clockwise, then anticlockwise), on one
+/// scale, each in its colour with its label (`""` for a single run: no legend).
+pub fn polar_plot_runs(title: &str, runs: &[(&str, &CircularTest)]) -> String {
     let (size, cx, cy, r0, band) = (440.0, 220.0, 240.0, 120.0, 50.0);
-    let peak = t.radial.iter().map(|p| p[1].abs()).fold(0.0, f64::max);
+    let Some(&(_, t)) = runs.first() else {
+        return String::new();
+    };
+    let peak = runs
+        .iter()
+        .flat_map(|(_, t)| t.radial.iter().map(|p| p[1].abs()))
+        .fold(0.0, f64::max);
     let step = nice_above(peak.max(1e-6));
     let at = |deg: f64, dev: f64| {
         let r = r0 + dev / step * band;
@@ -74,15 +89,26 @@ pub fn polar_plot(title: &str, t: &CircularTest) -> String {
             esc(&text)
         );
     }
-    let mut path = String::new();
-    for (k, p) in t.radial.iter().enumerate() {
-        let (x, y) = at(p[0], p[1]);
-        let _ = write!(path, "{}{x:.2},{y:.2} ", if k == 0 { "M" } else { "L" });
+    for (n, (label, t)) in runs.iter().enumerate() {
+        let colour = RUN_COLOURS[n % RUN_COLOURS.len()];
+        let mut path = String::new();
+        for (k, p) in t.radial.iter().enumerate() {
+            let (x, y) = at(p[0], p[1]);
+            let _ = write!(path, "{}{x:.2},{y:.2} ", if k == 0 { "M" } else { "L" });
+        }
+        let _ = write!(svg, r##"<path d="{path}Z" fill="none" stroke="{colour}" stroke-width="1.4"/>"##);
+        if !label.is_empty() {
+            let y = size - 22.0 + 14.0 * n as f64;
+            let _ = write!(
+                svg,
+                r##"<line x1="12" y1="{:.1}" x2="34" y2="{:.1}" stroke="{colour}" stroke-width="2"/><text x="40" y="{y:.1}" font-size="11">{}</text>"##,
+                y - 4.0,
+                y - 4.0,
+                esc(label)
+            );
+        }
     }
-    let _ = write!(
-        svg,
-        r##"<path d="{path}Z" fill="none" stroke="#c0392b" stroke-width="1.4"/></svg>"##
-    );
+    svg.push_str("</svg>");
     svg
 }
 
@@ -93,12 +119,21 @@ const STYLE: &str = "body{font-family:sans-serif;margin:24px;color:#222}table{bo
 th,td{border:1px solid #ccc;padding:3px 8px;text-align:right}th{background:#f0f0f0}td:first-child,th:first-child{text-align:left}\
 .note{color:#555;font-size:90%}";
 
+/// `v` as shown with 4 decimals, without the sign of a value that shows as zero (`-0.0000`).
+fn z(v: f64) -> f64 {
+    if v.abs() < 5e-5 {
+        0.0
+    } else {
+        v
+    }
+}
+
 fn f4(v: f64) -> String {
-    format!("{v:.4}")
+    format!("{:.4}", z(v))
 }
 
 fn abc(v: Option<[f64; 3]>) -> String {
-    v.map_or("—".into(), |v| format!("{:.4} / {:.4} / {:.4}", v[0], v[1], v[2]))
+    v.map_or("—".into(), |v| format!("{:.4} / {:.4} / {:.4}", z(v[0]), z(v[1]), z(v[2])))
 }
 
 /// The ISO 9283 table of one run.
@@ -119,26 +154,41 @@ fn run_table(out: &mut String, name: &str, r: &Iso9283) {
     }
     out.push_str("</table>");
     if !r.distances.is_empty() {
-        out.push_str("<table><tr><th>distance</th><th>cycles</th><th>D<sub>c</sub></th><th>AD<sub>P</sub></th><th>AD<sub>x</sub></th><th>AD<sub>y</sub></th><th>AD<sub>z</sub></th><th>RD<sub>P</sub> (±)</th></tr>");
+        out.push_str("<table><tr><th>distance</th><th>cycles</th><th>D<sub>c</sub></th><th>AD<sub>P</sub></th><th>AD<sub>x</sub></th><th>AD<sub>y</sub></th><th>AD<sub>z</sub></th><th>RD<sub>P</sub> (±)</th><th>AD<sub>a</sub> / AD<sub>b</sub> / AD<sub>c</sub> (deg)</th><th>RD<sub>a</sub> / RD<sub>b</sub> / RD<sub>c</sub> (±deg)</th></tr>");
         for d in &r.distances {
             let cells = [d.commanded_mm, d.ad_p, d.ad_xyz[0], d.ad_xyz[1], d.ad_xyz[2], d.rd_p]
                 .map(f4)
                 .join("</td><td>");
-            let _ = write!(out, "<tr><td>P{}–P{}</td><td>{}</td><td>{cells}</td></tr>", d.from, d.to, d.cycles);
+            let _ = write!(
+                out,
+                "<tr><td>P{}–P{}</td><td>{}</td><td>{cells}</td><td>{}</td><td>{}</td></tr>",
+                d.from,
+                d.to,
+                d.cycles,
+                abc(d.ad_abc),
+                abc(d.rd_abc)
+            );
         }
         out.push_str("</table>");
     }
 }
 
 /// The page: `title`, the ISO 9283 runs (file name and figures; with two, the first is taken as
-/// before calibration and the second as after), and the circular test (file name and figures).
-pub fn assess_html(title: &str, runs: &[(String, Iso9283)], circle: Option<(&str, &CircularTest)>) -> String {
+/// before calibration and the second as after), and the circular test (file name and figures;
+/// with `both`, that file is the clockwise run and `both` names the anticlockwise one and holds
+/// the figures of the two directions: G each way, G(b), H, both paths on one polar plot).
+pub fn assess_html(
+    title: &str,
+    runs: &[(String, Iso9283)],
+    circle: Option<(&str, &CircularTest)>,
+    both: Option<(&str, &BidirectionalTest)>,
+) -> String {
     let mut out = format!(
         "<!DOCTYPE html><html><head><meta charset=\"utf-8\"><title>{0}</title><style>{STYLE}</style></head><body><h1>{0}</h1>",
         esc(title)
     );
     if !runs.is_empty() {
-        out.push_str("<h2>ISO 9283 pose characteristics</h2><p class=\"note\">mm and degrees. AP: the barycentre of the attained poses against the commanded pose; RP<sub>l</sub> = l̄ + 3·S<sub>l</sub>; RP<sub>a,b,c</sub> = ±3·S; AD, RD: distance accuracy and repeatability (ISO 9283 §7.2, §7.3).</p>");
+        out.push_str("<h2>ISO 9283 pose characteristics</h2><p class=\"note\">mm and degrees. AP: the barycentre of the attained poses against the commanded pose; RP<sub>l</sub> = l̄ + 3·S<sub>l</sub>; RP<sub>a,b,c</sub> = ±3·S; AD, RD: distance accuracy and repeatability, of position and orientation (ISO 9283 §7.2, §7.3). Orientation figures are the components about the base x, y, z of the rotation vectors of the orientation errors (docs/assess.md).</p>");
     }
     if let [(b, before), (a, after)] = runs {
         let _ = write!(out, "<h3>Before → after</h3><table><tr><th>pose</th><th>AP<sub>P</sub> {}</th><th>AP<sub>P</sub> {}</th><th>RP<sub>l</sub> {0}</th><th>RP<sub>l</sub> {1}</th></tr>", esc(b), esc(a));
@@ -159,8 +209,52 @@ pub fn assess_html(title: &str, runs: &[(String, Iso9283)], circle: Option<(&str
         run_table(&mut out, name, r);
     }
     if let Some((name, t)) = circle {
-        let _ = write!(out, "<h2>ISO 230-4 circular test: {}</h2><p class=\"note\">G: max − min radius about the least-squares centre; F: radius less the nominal radius about the nominal centre (the ballbar's pivot); mm.</p><table><tr><th>points</th><th>R nominal</th><th>LSQ radius</th><th>centre offset</th><th>G</th><th>F<sub>max</sub></th><th>F<sub>min</sub></th></tr><tr><td>{}</td><td>{}</td><td>{:.4}</td><td>({:.4}, {:.4})</td><td>{:.4}</td><td>{:+.4}</td><td>{:+.4}</td></tr></table>", esc(name), t.points, t.nominal_radius_mm, t.lsq_radius_mm, t.centre_offset_mm[0], t.centre_offset_mm[1], t.circular_deviation_g_mm, t.radial_deviation_f_max_mm, t.radial_deviation_f_min_mm);
-        out.push_str(&polar_plot("radial deviation (magnified)", t));
+        let row = |label: &str, t: &CircularTest| {
+            format!(
+                "<tr><td>{}</td><td>{}</td><td>{}</td><td>{:.4}</td><td>({:.4}, {:.4})</td><td>{:.4}</td><td>{:+.4}</td><td>{:+.4}</td></tr>",
+                esc(label),
+                t.points,
+                t.nominal_radius_mm,
+                t.lsq_radius_mm,
+                z(t.centre_offset_mm[0]),
+                z(t.centre_offset_mm[1]),
+                t.circular_deviation_g_mm,
+                t.radial_deviation_f_max_mm,
+                t.radial_deviation_f_min_mm
+            )
+        };
+        let heading = match both {
+            Some((ccw, _)) => format!("{} (clockwise), {} (anticlockwise)", esc(name), esc(ccw)),
+            None => esc(name),
+        };
+        let _ = write!(out, "<h2>ISO 230-4 circular test: {heading}</h2><p class=\"note\">G: max − min radius about the least-squares centre; F: radius less the nominal radius about the nominal centre (the ballbar's pivot); G(b): max − min radius of both directions about their common centre; H: the largest radial difference between the two directions at the same angle; mm.</p><table><tr><th>run</th><th>points</th><th>R nominal</th><th>LSQ radius</th><th>centre offset</th><th>G</th><th>F<sub>max</sub></th><th>F<sub>min</sub></th></tr>");
+        match both {
+            Some((ccw, b)) => {
+                out.push_str(&row(&format!("clockwise: {name}"), &b.clockwise));
+                out.push_str(&row(&format!("anticlockwise: {ccw}"), &b.anticlockwise));
+                let _ = write!(
+                    out,
+                    "</table><table><tr><th>both directions</th><th>G<sub>cw</sub></th><th>G<sub>ccw</sub></th><th>G(b)</th><th>H (hysteresis)</th><th>common centre offset</th></tr><tr><td>{} / {}</td><td>{:.4}</td><td>{:.4}</td><td>{:.4}</td><td>{:.4}</td><td>({:.4}, {:.4})</td></tr></table>",
+                    esc(name),
+                    esc(ccw),
+                    b.clockwise.circular_deviation_g_mm,
+                    b.anticlockwise.circular_deviation_g_mm,
+                    b.circular_deviation_g_both_mm,
+                    b.circular_hysteresis_h_mm,
+                    z(b.centre_offset_mm[0]),
+                    z(b.centre_offset_mm[1])
+                );
+                out.push_str(&polar_plot_runs(
+                    "radial deviation (magnified)",
+                    &[("clockwise", &b.clockwise), ("anticlockwise", &b.anticlockwise)],
+                ));
+            }
+            None => {
+                out.push_str(&row(name, t));
+                out.push_str("</table>");
+                out.push_str(&polar_plot("radial deviation (magnified)", t));
+            }
+        }
     }
     out.push_str("</body></html>\n");
     out
@@ -182,7 +276,19 @@ mod tests {
         );
         // The path: 4 points, the first at 0° one step (50 px) outside the nominal ring (120 px).
         assert!(svg.contains("M390.00,240.00 L") && svg.contains(" Z\""), "{svg}");
-        let html = assess_html("t", &[], Some(("c.csv", &t)));
+        let html = assess_html("t", &[], Some(("c.csv", &t)), None);
         assert!(html.contains("<td>0.0200</td>") && html.contains("<svg"), "{html}");
+        // Both directions: a row per run, G(b) and H, two paths on one plot with a legend.
+        let cw = [[100.01, 0.0], [0.0, 100.01], [-100.01, 0.0], [0.0, -100.01]];
+        let ccw = [[99.99, 0.0], [0.0, 99.99], [-99.99, 0.0], [0.0, -99.99]];
+        let b = crate::assess::iso230_4_both(&cw, &ccw, 100.0).unwrap();
+        let html = assess_html("t", &[], Some(("cw.csv", &b.clockwise)), Some(("ccw.csv", &b)));
+        assert!(
+            html.contains("clockwise: cw.csv") && html.contains("anticlockwise: ccw.csv") && html.contains("<th>H (hysteresis)</th>"),
+            "{html}"
+        );
+        assert!(html.contains("<td>0.0200</td><td>0.0200</td><td>(")); // G(b), H
+        assert_eq!(html.matches("<path d=").count(), 2);
+        assert!(html.contains(">anticlockwise</text>"));
     }
 }

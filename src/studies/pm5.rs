@@ -8,7 +8,7 @@
 //!    the first `identification` ones are measured on the truth (full tool pose, with or without
 //!    Gaussian noise `N(0, σ_p²)`, `N(0, σ_θ²)` per axis), the other `verification` ones are used
 //!    only to evaluate;
-//! 3. identification of dW′ (the identifiable subset in the priority order, see
+//! 3. identification of dW′ (the identifiable subset in the natural priority order, see
 //!    [`pm5::natural_priority`]) with kinecal's iterated Gauss–Newton, residuals weighted by the
 //!    noise (maximum likelihood);
 //! 4. compensation, two ways: **exact** — the calibrated model's inverse kinematics gives the

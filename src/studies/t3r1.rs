@@ -51,7 +51,7 @@
 //!   (`T_{i2,i3}(0)`, `T_{i3,i4}(0)`), so one chain gives `6 + 2 + 3·4 = 20`. With the links fixed
 //!   at `Trans(l)` between the coupled revolutes and the errors on a `T(0)` before every joint, a
 //!   parallelogram keeps only 3 (no length error can be represented): `6 + 2 + 3 + 3 + 4 = 18`,
-//!   the figure.
+//!   the fixed-link formulation's figure.
 //! * The two chains of a pair share no coordinate: 40 (36) with `q_i3` measured.
 //! * With `q_i3` from the closure of the model, a change of a lower-parallelogram phase (`13-14.vz`,
 //!   `23-24.vz`; fixed links: `13-14.wy`, `23-24.wy`) is absorbed by the recomputed angle: 38 (34).

@@ -420,7 +420,7 @@ pub enum ErrorModel {
     /// The links fixed at `Trans(l)` between the coupled revolutes and a full `T(0)` before every
     /// joint instead: `T_B, T_12, [Trans(l_u)], T_23, [Trans(l_d)], T_34, T_4P`. A link-length
     /// error cannot be represented (each parallelogram keeps 3 identifiable coordinates instead of
-    /// 4); used only to compare ranks with the figures.
+    /// 4); used only to compare ranks with that formulation's figures.
     FixedLinks,
 }
 

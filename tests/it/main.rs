@@ -27,6 +27,7 @@ mod joint_terms;
 mod klipper_bed;
 mod limbs;
 mod mistakes;
+mod mistakes_artifacts;
 mod mixed;
 mod model_file;
 mod observed;

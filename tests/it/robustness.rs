@@ -1,4 +1,4 @@
-//! Hostile but realistic input (issue: never hang, never destroy, never pass a failed result):
+//! Hostile but realistic input (never hang, never destroy, never pass a failed result):
 //! each case answers at once with one clear message.
 use kinecal::design::{CandidateJacobians, SelectOptions};
 use kinecal::io::builtin;

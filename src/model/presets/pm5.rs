@@ -403,7 +403,7 @@ impl ConstraintSystem for Pm5 {
 
 /// Priority order that reproduces the paper's dW′ (§3.2, eq. (34)): within each sub-loop
 /// `dl4, dl5, dg4` come before `dl2, dl3`, so `dl2, dl3` (and `dl6, dl7`) are called redundant.
-/// The advice is the natural order instead ([`natural_priority`]): keeping `dl2, dl3,
+/// kinecal's default is the natural order instead ([`natural_priority`]): keeping `dl2, dl3,
 /// dg4` stays representable for any true geometry while `l2 + l5 ≠ l3`, whereas the paper's
 /// choice can sit near a fold of the map `(l4, l5) ↦ L22(·)`.
 pub fn paper_priority() -> Vec<usize> {
