@@ -44,6 +44,12 @@ pub struct FilterArgs {
     /// arcs are linearised within 0.01 mm.
     #[arg(long, value_name = "MM")]
     pub max_deviation_mm: Option<f64>,
+    /// Correct joint targets too (URScript joint lists `movej([…])`): taught on the nominal
+    /// controller, they name the pose FK_nominal(q) of the tool in effect; written as the
+    /// calibrated model's joint values for that pose on the same branch. Without it they are left
+    /// as they are, with a note.
+    #[arg(long)]
+    pub joints: bool,
     /// Replace an existing output; leave targets that cannot be corrected as they are (listed)
     /// instead of writing nothing; use a model marked failed.
     #[arg(long)]
@@ -131,6 +137,7 @@ pub fn run(a: FilterArgs) -> anyhow::Result<()> {
     let mut opts = FilterOptions {
         force: a.force,
         max_deviation_mm: a.max_deviation_mm,
+        joints: a.joints,
         ..FilterOptions::default()
     };
     if let Some(t) = &a.tool {
