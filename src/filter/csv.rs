@@ -146,12 +146,23 @@ pub fn filter_csv(path: &Path, text: &str, models: &FilterModels, opts: &FilterO
     let mut edits: Vec<Edit> = Vec::new();
     let paths = row_paths(models, opts, &corrected, &poses, &data.lines, path)?;
     let eol = if text.contains("\r\n") { "\r\n" } else { "\n" };
+    let mut next_id = data.ids.iter().copied().max().unwrap_or(0);
     for (k, ((c, line), original)) in corrected.iter().zip(&data.lines).zip(&poses).enumerate() {
         let Some(c) = c else { continue };
         // Rows added before this one: copies of it with their targets.
         let range = lines[line - 1].clone();
         for added in &paths.1[k] {
-            let shifted: Vec<Edit> = row_edits(*line, added, original)
+            let mut row = row_edits(*line, added, original);
+            // An id of its own, after the file's largest.
+            if let Some(ci) = col("id") {
+                let (r, _) = &cells(&text[range.clone()], range.start)[ci];
+                next_id += 1;
+                row.push(Edit {
+                    range: r.clone(),
+                    text: next_id.to_string(),
+                });
+            }
+            let shifted: Vec<Edit> = row
                 .into_iter()
                 .map(|e| Edit {
                     range: e.range.start - range.start..e.range.end - range.start,

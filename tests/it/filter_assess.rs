@@ -38,6 +38,26 @@ fn iso9283_of_a_filtered_program_as_of_compensated_commands() {
     );
     eprintln!("{said}");
     ok(d, &["compensate", "pm5.toml", "filtered.csv", "--out", "flt.csv"]);
+    // CSV rows as straight moves: split to 0.003 mm, the rows added with ids of their own.
+    let split = ok(
+        d,
+        &[
+            "filter",
+            "cal.toml",
+            "targets.csv",
+            "--nominal",
+            "pm5.toml",
+            "--out",
+            "split.csv",
+            "--max-deviation-mm",
+            "0.003",
+        ],
+    );
+    eprintln!("{split}");
+    let rows = std::fs::read_to_string(d.join("split.csv")).unwrap().lines().count() - 1;
+    assert!(rows > 5, "{split}");
+    assert!(split.contains(&format!("{} points added to hold 0.003 mm", rows - 5)), "{split}");
+    ok(d, &["compensate", "pm5.toml", "split.csv", "--out", "split-cmd.csv"]);
     for (commands, out) in [
         ("nom.csv", "before.csv"),
         ("cmp.csv", "after-cmp.csv"),
