@@ -22,11 +22,13 @@
 //! format), ABB RAPID modules ([`rapid`]), KUKA KRL ([`krl`]), URScript ([`urscript`]) and
 //! G-code for machines commanding their tool position (and axis) ([`gcode`]). Every byte outside the numbers that change is
 //! kept ([`rewrite`]). [`filter_program`] is the one call of `kinecal filter`.
+pub mod arc;
 pub mod branch;
 pub mod csv;
 pub mod gcode;
 pub mod krl;
 mod lex;
+pub mod path;
 pub mod rapid;
 pub mod rewrite;
 mod solve;
@@ -66,6 +68,9 @@ pub enum FilterError {
         /// What cannot be corrected.
         message: String,
     },
+    /// Options that do not fit the program.
+    #[error("{0}")]
+    Options(String),
     /// The models do not fit together (different inputs).
     #[error("{0}")]
     Models(String),
@@ -322,6 +327,34 @@ fn correct_one(
     })
 }
 
+/// A joint target corrected (`--joints`): the joint values `q` taught on the nominal controller
+/// name the pose `T = FK_nominal(q)` of `tool`; the calibrated model's joint values for `T` on
+/// the same branch (a 6R arm's configuration, else the solution nearest `q`) are returned, with
+/// the predicted error of `q` at `T` before (mm, rad).
+pub fn correct_joints(models: &FilterModels, q: &[f64], tool: &Pose) -> Result<(Vec<f64>, (f64, f64)), String> {
+    let (cal, nom) = models.with_tool(tool);
+    let target = nom
+        .forward(q)
+        .map_err(|e| format!("the nominal model's forward kinematics fails here: {e}"))?;
+    let starts = crate::compensate::fixed_starts(&models.inputs, crate::compensate::COMPENSATION_STARTS);
+    let branches = models.branches.as_ref();
+    let conf = branches.and_then(|b| b.of(q).ok());
+    let same_branch = |x: &[f64]| match (conf, branches) {
+        (Some(c), Some(b)) => b.of(x).is_ok_and(|k| k.cfx == c.cfx),
+        _ => true,
+    };
+    let mut seeds = vec![q.to_vec()];
+    seeds.extend(starts.iter().cloned());
+    let corrected = solve::solve(&*cal, &models.inputs, &target, &seeds, q, &same_branch).map_err(|e| match e {
+        solve::SolveError::OtherBranch => {
+            "configuration flip: the calibrated model reaches this pose only on another configuration".to_string()
+        }
+        solve::SolveError::Kin(e) => format!("the calibrated model cannot reach this pose on its branch: {e}"),
+    })?;
+    let before = commanded_error(cal.task(), &target, &cal.forward(q).map_err(|e| e.to_string())?);
+    Ok((corrected, before))
+}
+
 /// Options of [`filter_program`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct FilterOptions {
@@ -334,6 +367,43 @@ pub struct FilterOptions {
     pub tool_data: Vec<(u32, Pose)>,
     /// KRL: `BASE_DATA[n]` the files do not assign (the robot's base frame).
     pub base_data: Vec<(u32, Pose)>,
+    /// G-code and CSV targets: split each straight move so that the machine, driven by the
+    /// nominal controller between corrected points, stays within this distance (mm) of the
+    /// commanded line (judged on the calibrated model); G-code arcs are linearised within it.
+    /// `None`: nothing is split, the largest deviation is reported, arcs are linearised within
+    /// [`DEFAULT_ARC_TOLERANCE_MM`].
+    pub max_deviation_mm: Option<f64>,
+    /// Correct joint targets too (URScript joint lists, RAPID `jointtarget`s) with
+    /// [`correct_joints`]; otherwise they are left as they are, with a note.
+    pub joints: bool,
+}
+
+/// The tolerance (mm) G-code arcs are linearised within when no
+/// [`FilterOptions::max_deviation_mm`] is given: half of it for the chords.
+pub const DEFAULT_ARC_TOLERANCE_MM: f64 = 0.01;
+
+/// The paths between a program's targets (G-code, CSV targets: straight moves between them).
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct PathReport {
+    /// Straight moves judged (between two corrected targets).
+    pub moves: usize,
+    /// Straight moves the nominal controller's inverse kinematics could not follow from one
+    /// target to the next (not judged; with a tolerance, an error).
+    pub unjudged: usize,
+    /// Points added to hold [`FilterOptions::max_deviation_mm`].
+    pub added_points: usize,
+    /// The largest distance (mm) of the machine's path (the calibrated model driven by the
+    /// nominal controller along its straight lines between the corrected points, sampled) from
+    /// the commanded line, after any splitting.
+    pub largest_deviation_mm: f64,
+    /// The line of that move.
+    pub largest_deviation_line: usize,
+    /// G-code arcs linearised.
+    pub arcs: usize,
+    /// The chords they became.
+    pub arc_chords: usize,
+    /// The largest distance of a chord from its arc (mm).
+    pub largest_chord_error_mm: f64,
 }
 
 impl Default for FilterOptions {
@@ -343,6 +413,8 @@ impl Default for FilterOptions {
             tool: Pose::identity(),
             tool_data: Vec::new(),
             base_data: Vec::new(),
+            max_deviation_mm: None,
+            joints: false,
         }
     }
 }
@@ -385,6 +457,9 @@ pub struct FilteredProgram {
     /// What was left as it was on purpose (joint targets, targets computed at run time, unused
     /// declarations): one line each.
     pub notes: Vec<String>,
+    /// The paths between targets, where the format's moves are straight lines between them
+    /// (G-code, CSV targets).
+    pub paths: Option<PathReport>,
 }
 
 /// Filter a program's text (`path` names it in messages) in `format`; `companion` is the file
@@ -397,6 +472,18 @@ pub fn filter_program(
     models: &FilterModels,
     opts: &FilterOptions,
 ) -> Result<FilteredProgram, FilterError> {
+    if let Some(d) = opts.max_deviation_mm {
+        if !(d.is_finite() && d > 0.0) {
+            return Err(FilterError::Options(format!(
+                "--max-deviation-mm {d}: expected a distance above 0 mm"
+            )));
+        }
+        if !matches!(format, Format::Gcode | Format::Csv) {
+            return Err(FilterError::Options(format!(
+                "--max-deviation-mm splits the straight moves of G-code and CSV targets; a {format:?} program's moves are not split (the largest deviation between its targets is not judged either)"
+            )));
+        }
+    }
     match format {
         Format::Krl => krl::filter_krl(path, text, companion, models, opts),
         Format::Gcode => gcode::filter_gcode(path, text, models, opts),

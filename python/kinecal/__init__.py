@@ -38,6 +38,7 @@ __all__ = [
     "identifiability",
     "assess",
     "compensate",
+    "filter_program",
     "simulate",
     "plan",
     "plan_sampled",
@@ -281,6 +282,64 @@ def compensate(model: Model, targets: np.ndarray, seeds: Optional[np.ndarray] = 
     t = np.ascontiguousarray(targets, dtype=np.float64)
     s = None if seeds is None else np.ascontiguousarray(seeds, dtype=np.float64)
     return _kinecal.compensate(model, t, s)
+
+
+def filter_program(
+    calibrated: Model,
+    nominal: Model,
+    program: str,
+    out: Optional[str] = None,
+    *,
+    format: Optional[str] = None,
+    tool: Optional[np.ndarray] = None,
+    max_deviation_mm: Optional[float] = None,
+    force: bool = False,
+) -> Dict[str, Any]:
+    """A program's targets corrected for a controller that keeps its nominal kinematics
+    (``kinecal filter``): ``T' = FK_nominal(IK_calibrated(T))`` on the program's configuration,
+    every other byte kept. ``program`` is a file (CSV targets, RAPID ``.mod``, KRL ``.src`` with
+    its ``.dat`` beside it, URScript, G-code); ``format`` when its extension does not say.
+    ``tool`` (4×4, mm): the tool in the flange where the format has none (CSV, G-code).
+    ``max_deviation_mm``: G-code and CSV moves split to stay within it of their lines.
+
+    Returns a dict: ``text`` (the filtered program), ``companion`` (a KRL ``.dat``, or None),
+    ``targets`` (line, name, before_mm, before_deg, after_mm, after_deg, shift_mm, shift_deg of
+    each), ``paths`` (moves, added_points, largest_deviation_mm, arcs, … or None), ``notes``,
+    ``uncorrected``. With ``out`` the text is also written there (and the ``.dat`` beside it)."""
+    import os
+
+    fmt = format
+    if fmt is None:
+        ext = os.path.splitext(program)[1].lower().lstrip(".")
+        fmt = {"csv": "csv", "mod": "rapid", "modx": "rapid", "prg": "rapid", "src": "krl",
+               "script": "urscript", "urscript": "urscript", "nc": "gcode", "ngc": "gcode",
+               "gcode": "gcode"}.get(ext)
+        if fmt is None:
+            raise KinecalError(f"{program}: unknown program format (pass format=...)")
+    with open(program, encoding="utf-8") as f:
+        text = f.read()
+    dat = os.path.splitext(program)[0] + ".dat"
+    companion = None
+    if fmt == "krl" and os.path.exists(dat):
+        with open(dat, encoding="utf-8") as f:
+            companion = f.read()
+    t = None if tool is None else np.ascontiguousarray(tool, dtype=np.float64)
+    new, new_dat, report = _kinecal.filter_program(
+        calibrated, nominal, text, fmt, path=program, companion=companion, tool=t,
+        max_deviation_mm=max_deviation_mm, force=force,
+    )
+    result = json.loads(report)
+    result["text"] = new
+    result["companion"] = new_dat
+    if out is not None:
+        if os.path.abspath(out) == os.path.abspath(program):
+            raise KinecalError(f"{out}: the output would overwrite the program")
+        with open(out, "w", encoding="utf-8", newline="") as f:
+            f.write(new)
+        if new_dat is not None:
+            with open(os.path.splitext(out)[0] + ".dat", "w", encoding="utf-8", newline="") as f:
+                f.write(new_dat)
+    return result
 
 
 def simulate(

@@ -94,6 +94,18 @@ def plan_iso9283(
     seed: int = 1,
 ) -> Tuple[str, np.ndarray]: ...
 def compensate(model: Model, targets: np.ndarray, seeds: Optional[np.ndarray] = None) -> np.ndarray: ...
+def filter_program(
+    calibrated: Model,
+    nominal: Model,
+    text: str,
+    format: str,
+    *,
+    path: str = "<string>",
+    companion: Optional[str] = None,
+    tool: Optional[np.ndarray] = None,
+    max_deviation_mm: Optional[float] = None,
+    force: bool = False,
+) -> Tuple[str, Optional[str], str]: ...
 def simulate(
     model: Model,
     poses: int,

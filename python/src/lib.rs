@@ -682,6 +682,47 @@ fn compensate<'py>(
     Ok(rows_array(py, &q, inputs.len()))
 }
 
+/// A program filtered for a controller that keeps its nominal kinematics (`kinecal filter`):
+/// `text` in `format` (csv, rapid, krl, urscript, gcode), `path` naming it in messages,
+/// `companion` a KRL program's `.dat` text. `tool` (4×4, mm) in the flange where the format has
+/// none. Returns (the filtered text, the companion's, the report as JSON).
+#[pyfunction]
+#[pyo3(signature = (calibrated, nominal, text, format, *, path = "<string>", companion = None, tool = None, max_deviation_mm = None, force = false))]
+#[allow(clippy::too_many_arguments)]
+fn filter_program(
+    calibrated: &Model,
+    nominal: &Model,
+    text: &str,
+    format: &str,
+    path: &str,
+    companion: Option<&str>,
+    tool: Option<PyReadonlyArray2<'_, f64>>,
+    max_deviation_mm: Option<f64>,
+    force: bool,
+) -> PyResult<(String, Option<String>, String)> {
+    use kinecal::filter::{FilterModels, FilterOptions, Format};
+    let format: Format = format.parse().map_err(err)?;
+    let models = FilterModels::new(&calibrated.file, &nominal.file).map_err(err)?;
+    let mut opts = FilterOptions {
+        force,
+        max_deviation_mm,
+        ..FilterOptions::default()
+    };
+    if let Some(t) = &tool {
+        let rows = rows_2d(t, 4, "tool")?;
+        let m = Matrix4::from_fn(|i, j| rows.get(i).map_or(f64::NAN, |r| r[j]));
+        opts.tool = matrix_pose(&m, "tool")?;
+    }
+    let path = Path::new(path);
+    let dat = path.with_extension("dat");
+    let companion = companion.map(|c| (dat.as_path(), c));
+    let f = kinecal::filter::filter_program(path, text, companion, format, &models, &opts).map_err(err)?;
+    let report = serde_json::json!({
+        "format": f.format, "targets": f.targets, "uncorrected": f.uncorrected, "notes": f.notes, "paths": f.paths,
+    });
+    Ok((f.text, f.companion, report.to_string()))
+}
+
 /// A virtual prototype of `model` (uniform errors ±error_mm / ±error_deg on its free parameters)
 /// measured at `poses` random configurations with Gaussian noise: (true model, data).
 /// `measure`: "pose", "position" or "reflectors".
@@ -1158,6 +1199,7 @@ fn _kinecal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(assess_circle, m)?)?;
     m.add_function(wrap_pyfunction!(plan_iso9283, m)?)?;
     m.add_function(wrap_pyfunction!(compensate, m)?)?;
+    m.add_function(wrap_pyfunction!(filter_program, m)?)?;
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
     m.add_function(wrap_pyfunction!(plan, m)?)?;
     m.add_function(wrap_pyfunction!(plan_sampled, m)?)?;

@@ -373,3 +373,37 @@ def test_touches_are_simulated_planned_and_calibrated():
         kinecal.simulate_touches(m, probe_radius_mm=1.5, spheres=spheres, sphere_diameter_mm=0.0254)
     with pytest.raises(kinecal.KinecalError, match="one kind"):
         kinecal.simulate_touches(m, probe_radius_mm=1.5, spheres=spheres, sphere_diameter_mm=25.4, cube=[0.0, 0.0, 0.0], cube_edge_mm=100.0)
+
+
+def test_filter_program_gcode_arc_and_long_move(tmp_path):
+    """``kinecal.filter_program`` on 5-axis G-code for pm5: the arc linearised, the long move
+    split to 0.01 mm, and a corrected block sent to the nominal controller reaching its original
+    tip on the calibrated model."""
+    nominal = kinecal.Model.load("pm5")
+    truth, data = kinecal.simulate(nominal, 40, seed=6, error_mm=0.2, error_deg=0.02, noise_mm=0.002, noise_deg=0.002)
+    cal = kinecal.calibrate(nominal, data, noise_mm=0.002, noise_deg=0.002, frames="model").model
+    prog = tmp_path / "head.nc"
+    text = "G21 G90 ; head\nG0 X-20 Y-20 Z380 A0 B0\nG1 X20 Y20 Z420 A2 B-1 F500\nG2 X20 Y10 I0 J-5 ; arc\nM30\n"
+    prog.write_text(text)
+    out = tmp_path / "head_cal.nc"
+    r = kinecal.filter_program(cal, nominal, str(prog), str(out), max_deviation_mm=0.01)
+    assert out.read_text() == r["text"]
+    p = r["paths"]
+    assert p["arcs"] == 1 and p["arc_chords"] >= 2 and p["largest_chord_error_mm"] <= 0.005
+    assert p["largest_deviation_mm"] <= 0.01
+    assert "G2 " not in r["text"] and r["text"].count("\n") == text.count("\n") + p["added_points"] + p["arc_chords"] - 1
+    assert max(t["before_mm"] for t in r["targets"]) > 0.05
+    assert max(t["after_mm"] for t in r["targets"]) < 1e-3
+    # The G0 block as filtered, sent to the nominal controller, read here: X Y Z, A B about x then y.
+    words = dict((w[0], float(w[1:])) for w in r["text"].splitlines()[1].split()[1:])
+    a, b = np.radians(words["A"]), np.radians(words["B"])
+    rx = np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
+    ry = np.array([[np.cos(b), 0, np.sin(b)], [0, 1, 0], [-np.sin(b), 0, np.cos(b)]])
+    pose = np.eye(4)
+    pose[:3, :3] = rx @ ry
+    pose[:3, 3] = [words["X"], words["Y"], words["Z"]]
+    q = nominal.inverse(pose[None])
+    reached = cal.forward(q)[0]
+    assert np.linalg.norm(reached[:3, 3] - [-20, -20, 380]) < 2e-3
+    with pytest.raises(kinecal.KinecalError):
+        kinecal.filter_program(cal, nominal, str(prog), str(prog))

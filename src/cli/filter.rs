@@ -37,6 +37,19 @@ pub struct FilterArgs {
     /// frame; repeat for several.
     #[arg(long, value_name = "N=X,Y,Z,A,B,C", allow_hyphen_values = true)]
     pub base_data: Vec<String>,
+    /// G-code and CSV targets: split each straight move so that the machine, driven by the
+    /// nominal controller between the corrected points, stays within this distance (mm) of the
+    /// commanded line (judged on the calibrated model); G-code arcs are linearised within it
+    /// (half for the chords). Without it nothing is split, the largest deviation is printed and
+    /// arcs are linearised within 0.01 mm.
+    #[arg(long, value_name = "MM")]
+    pub max_deviation_mm: Option<f64>,
+    /// Correct joint targets too (URScript joint lists `movej([…])`): taught on the nominal
+    /// controller, they name the pose FK_nominal(q) of the tool in effect; written as the
+    /// calibrated model's joint values for that pose on the same branch. Without it they are left
+    /// as they are, with a note.
+    #[arg(long)]
+    pub joints: bool,
     /// Replace an existing output; leave targets that cannot be corrected as they are (listed)
     /// instead of writing nothing; use a model marked failed.
     #[arg(long)]
@@ -123,6 +136,8 @@ pub fn run(a: FilterArgs) -> anyhow::Result<()> {
     let models = FilterModels::new(&cal, &nominal)?;
     let mut opts = FilterOptions {
         force: a.force,
+        max_deviation_mm: a.max_deviation_mm,
+        joints: a.joints,
         ..FilterOptions::default()
     };
     if let Some(t) = &a.tool {
@@ -151,7 +166,8 @@ pub fn run(a: FilterArgs) -> anyhow::Result<()> {
         let mut j = serde_json::json!({"program": a.program, "out": a.out, "format": format,
             "corrected": filtered.targets.len(), "uncorrected": filtered.uncorrected, "notes": filtered.notes,
             "worst_before_mm": before_mm, "worst_before_deg": before_deg, "worst_after_mm": after_mm,
-            "worst_after_deg": after_deg, "largest_shift_mm": shift_mm, "largest_shift_deg": shift_deg});
+            "worst_after_deg": after_deg, "largest_shift_mm": shift_mm, "largest_shift_deg": shift_deg,
+            "paths": filtered.paths});
         if a.report {
             j["targets"] = serde_json::to_value(&filtered.targets)?;
         }
@@ -166,6 +182,31 @@ pub fn run(a: FilterArgs) -> anyhow::Result<()> {
         a.out.display()
     );
     println!("predicted error at the targets (calibrated model): before max {before_mm:.4} mm / {before_deg:.4} deg, after max {after_mm:.4} mm / {after_deg:.4} deg; targets moved by up to {shift_mm:.4} mm / {shift_deg:.4} deg");
+    if let Some(p) = &filtered.paths {
+        if p.arcs > 0 {
+            println!(
+                "{} arcs linearised into {} chords, within {:.4} mm of the arcs",
+                p.arcs, p.arc_chords, p.largest_chord_error_mm
+            );
+        }
+        match a.max_deviation_mm {
+            Some(d) => println!(
+                "{} points added to hold {d} mm on {} straight moves: largest deviation of the machine's path from the commanded line {:.4} mm (line {})",
+                p.added_points, p.moves, p.largest_deviation_mm, p.largest_deviation_line
+            ),
+            None if p.moves > 0 => println!(
+                "largest deviation expected between points (the machine's path from the commanded line, on the calibrated model): {:.4} mm (line {}), over {} straight moves; --max-deviation-mm splits them",
+                p.largest_deviation_mm, p.largest_deviation_line, p.moves
+            ),
+            None => {}
+        }
+        if p.unjudged > 0 {
+            println!(
+                "{} moves not judged: the nominal controller's inverse kinematics does not follow a straight line between their targets",
+                p.unjudged
+            );
+        }
+    }
     for n in &filtered.notes {
         println!("note: {n}");
     }

@@ -5,8 +5,9 @@
 //! their cells are rewritten in place, every other byte (other columns, comments, line ends)
 //! kept. Positions get at least 0.001 mm (1e-6 m), quaternions 7 decimals, angles 1e-5 deg
 //! (1e-7 rad).
+use super::path::{slerp, Path as MovePath, PathPoint};
 use super::rewrite::{apply, number_edit, Edit};
-use super::{correct_located, FilterError, FilterModels, FilterOptions, FilteredProgram, Format, Target};
+use super::{correct_located, FilterError, FilterModels, FilterOptions, FilteredProgram, Format, PathReport, Target};
 use crate::compensate::target_poses;
 use crate::io::data_file::{data_from_table, InputColumns};
 use crate::io::table::parse_table;
@@ -106,18 +107,19 @@ pub fn filter_csv(path: &Path, text: &str, models: &FilterModels, opts: &FilterO
         uncorrected,
     } = correct_located(models, &targets, &located, opts.force)?;
     let lines = line_ranges(text);
-    let mut edits: Vec<Edit> = Vec::new();
-    for ((c, line), original) in corrected.iter().zip(&data.lines).zip(&poses) {
-        let Some(c) = c else { continue };
+    // The edits writing `pose` over the cells of the line `line` (1-based), `original` the
+    // row's own target.
+    let row_edits = |line: usize, pose: &crate::se3::Pose, original: &crate::se3::Pose| -> Vec<Edit> {
+        let mut edits = Vec::new();
         let range = lines[line - 1].clone();
         let cells = cells(&text[range.clone()], range.start);
-        let p = c.pose.translation.vector;
+        let p = pose.translation.vector;
         for (k, (ci, f, d)) in position.iter().enumerate() {
             let (r, t) = &cells[*ci];
             edits.extend(number_edit(t, r.clone(), p[k] * f, *d));
         }
         if quat.len() == 4 {
-            let mut q = c.pose.rotation.into_inner();
+            let mut q = pose.rotation.into_inner();
             if q.coords.dot(&original.rotation.coords) < 0.0 {
                 q = -q;
             }
@@ -130,7 +132,7 @@ pub fn filter_csv(path: &Path, text: &str, models: &FilterModels, opts: &FilterO
                 .iter()
                 .map(|(ci, f, _)| cells[*ci].1.parse::<f64>().unwrap_or(0.0) / f)
                 .collect();
-            let a = rpy_near(&c.pose.rotation, [old[0], old[1], old[2]]);
+            let a = rpy_near(&pose.rotation, [old[0], old[1], old[2]]);
             for ((ci, f, d), v) in rpy.iter().zip(a) {
                 let (r, t) = &cells[*ci];
                 // The whole-turn equivalent nearest the angle as written.
@@ -139,6 +141,40 @@ pub fn filter_csv(path: &Path, text: &str, models: &FilterModels, opts: &FilterO
                 edits.extend(number_edit(t, r.clone(), v * f, *d));
             }
         }
+        edits
+    };
+    let mut edits: Vec<Edit> = Vec::new();
+    let paths = row_paths(models, opts, &corrected, &poses, &data.lines, path)?;
+    let eol = if text.contains("\r\n") { "\r\n" } else { "\n" };
+    let mut next_id = data.ids.iter().copied().max().unwrap_or(0);
+    for (k, ((c, line), original)) in corrected.iter().zip(&data.lines).zip(&poses).enumerate() {
+        let Some(c) = c else { continue };
+        // Rows added before this one: copies of it with their targets.
+        let range = lines[line - 1].clone();
+        for added in &paths.1[k] {
+            let mut row = row_edits(*line, added, original);
+            // An id of its own, after the file's largest.
+            if let Some(ci) = col("id") {
+                let (r, _) = &cells(&text[range.clone()], range.start)[ci];
+                next_id += 1;
+                row.push(Edit {
+                    range: r.clone(),
+                    text: next_id.to_string(),
+                });
+            }
+            let shifted: Vec<Edit> = row
+                .into_iter()
+                .map(|e| Edit {
+                    range: e.range.start - range.start..e.range.end - range.start,
+                    text: e.text,
+                })
+                .collect();
+            edits.push(Edit {
+                range: range.start..range.start,
+                text: format!("{}{eol}", apply(&text[range.clone()], &shifted)),
+            });
+        }
+        edits.extend(row_edits(*line, &c.pose, original));
     }
     Ok(FilteredProgram {
         text: apply(text, &edits),
@@ -147,5 +183,66 @@ pub fn filter_csv(path: &Path, text: &str, models: &FilterModels, opts: &FilterO
         targets: reports,
         uncorrected,
         notes: Vec::new(),
+        paths: Some(paths.0),
     })
+}
+
+/// The straight moves between consecutive rows (position at a constant rate, rotation turned
+/// at one): their report and, by row, the corrected targets of the rows to add before it.
+fn row_paths(
+    models: &FilterModels,
+    opts: &FilterOptions,
+    corrected: &[Option<super::Corrected>],
+    poses: &[se3::Pose],
+    lines: &[usize],
+    path: &Path,
+) -> Result<(PathReport, Vec<Vec<se3::Pose>>), FilterError> {
+    let (cal, nom) = models.with_tool(&opts.tool);
+    let starts = crate::compensate::fixed_starts(&models.inputs, crate::compensate::COMPENSATION_STARTS);
+    let mover = MovePath {
+        models,
+        cal: &*cal,
+        nom: &*nom,
+        tool: opts.tool,
+        interp: &slerp,
+        starts: &starts,
+    };
+    let mut report = PathReport::default();
+    let mut added = vec![Vec::new(); corrected.len()];
+    let point = |k: usize| {
+        corrected[k].as_ref().map(|c| PathPoint {
+            original: poses[k],
+            corrected: c.clone(),
+            fraction: 0.0,
+        })
+    };
+    for k in 1..corrected.len() {
+        let (Some(a), Some(mut b)) = (point(k - 1), point(k)) else {
+            continue;
+        };
+        b.fraction = 1.0;
+        let fail = |message: String| FilterError::Target {
+            path: path.to_path_buf(),
+            line: lines[k],
+            message,
+        };
+        let (points, worst) = match opts.max_deviation_mm {
+            Some(d) => mover.split(&a, &b, d).map_err(fail)?,
+            None => match mover.deviation(&a, &b) {
+                Ok(d) => (Vec::new(), d),
+                Err(_) => {
+                    report.unjudged += 1;
+                    continue;
+                }
+            },
+        };
+        report.moves += 1;
+        if worst > report.largest_deviation_mm {
+            report.largest_deviation_mm = worst;
+            report.largest_deviation_line = lines[k];
+        }
+        report.added_points += points.len();
+        added[k] = points.into_iter().map(|p| p.corrected.pose).collect();
+    }
+    Ok((report, added))
 }

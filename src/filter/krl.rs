@@ -460,5 +460,6 @@ pub fn filter_krl(
         targets: reports,
         uncorrected,
         notes,
+        paths: None,
     })
 }

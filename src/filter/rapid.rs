@@ -494,5 +494,6 @@ pub fn filter_rapid(path: &Path, text: &str, models: &FilterModels, opts: &Filte
         targets: reports,
         uncorrected,
         notes,
+        paths: None,
     })
 }

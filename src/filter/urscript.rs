@@ -97,6 +97,8 @@ pub fn filter_urscript(path: &Path, text: &str, models: &FilterModels, opts: &Fi
     let mut joints: Option<Vec<f64>> = None;
     let mut seeds: Vec<Option<Vec<f64>>> = Vec::new();
     let mut notes = Vec::new();
+    // --joints: the corrected joint lists.
+    let (mut joint_edits, mut joint_uncorrected): (Vec<Edit>, Vec<String>) = (Vec::new(), Vec::new());
     let note = |notes: &mut Vec<String>, line: usize, what: &str| notes.push(format!("{}:{line}: {what} is left as it is", path.display()));
     let mut i = 0;
     while i < toks.len() {
@@ -171,16 +173,40 @@ pub fn filter_urscript(path: &Path, text: &str, models: &FilterModels, opts: &Fi
                 } else if toks.get(j).is_some_and(|x| x.is(b'[')) {
                     let mut e = j;
                     let v = value(text, &toks, &mut e).map_err(parse_err)?;
+                    let mut corrected_joints = false;
                     if let Value::List(items, _) = &v {
-                        let q: Vec<f64> = items
+                        let nums: Vec<(&String, &std::ops::Range<usize>, f64)> = items
                             .iter()
-                            .filter_map(|x| if let Value::Num { value, .. } = x { Some(*value) } else { None })
+                            .filter_map(|x| {
+                                if let Value::Num { value, text, range, .. } = x {
+                                    Some((text, range, *value))
+                                } else {
+                                    None
+                                }
+                            })
                             .collect();
+                        let q: Vec<f64> = nums.iter().map(|n| n.2).collect();
                         if q.len() == models.inputs.len() {
+                            if opts.joints {
+                                match super::correct_joints(models, &q, &tcp) {
+                                    Ok((new, _)) => {
+                                        for ((text, range, _), v) in nums.iter().zip(&new) {
+                                            joint_edits.extend(number_edit(text, (*range).clone(), *v, 7));
+                                        }
+                                        corrected_joints = true;
+                                    }
+                                    Err(m) if opts.force => {
+                                        joint_uncorrected.push(format!("{}:{}: joint list: {m}", path.display(), t.line))
+                                    }
+                                    Err(m) => return Err(parse_err((t.line, format!("joint list: {m}")))),
+                                }
+                            }
                             joints = Some(q);
                         }
                     }
-                    note(&mut notes, t.line, "a joint target");
+                    if !corrected_joints {
+                        note(&mut notes, t.line, "a joint target");
+                    }
                     break;
                 } else {
                     let what = "a target computed at run time";
@@ -223,7 +249,9 @@ pub fn filter_urscript(path: &Path, text: &str, models: &FilterModels, opts: &Fi
         reports,
         uncorrected,
     } = correct_located(models, &targets, &located, opts.force)?;
-    let mut edits: Vec<Edit> = Vec::new();
+    let mut uncorrected = uncorrected;
+    uncorrected.extend(joint_uncorrected);
+    let mut edits: Vec<Edit> = joint_edits;
     for (c, &k) in corrected.iter().zip(&order) {
         let Some(c) = c else { continue };
         let l = &literals[k];
@@ -240,5 +268,6 @@ pub fn filter_urscript(path: &Path, text: &str, models: &FilterModels, opts: &Fi
         targets: reports,
         uncorrected,
         notes,
+        paths: None,
     })
 }

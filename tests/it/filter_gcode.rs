@@ -19,9 +19,47 @@ position = [10.0, -15.0, 40.0]
 rpy = [0.0, 0.0, 0.0]
 ";
 
+/// A line the filter adds after a block it splits (an arc's chords, a long move's pieces):
+/// `G1` and every axis, an extrusion perhaps, nothing else.
+fn inserted(line: &str) -> bool {
+    let w: Vec<&str> = line.split_whitespace().collect();
+    w.len() >= 4
+        && w[0] == "G1"
+        && w[1].starts_with('X')
+        && w[2].starts_with('Y')
+        && w[3].starts_with('Z')
+        && w[4..].iter().all(|x| x.starts_with('E'))
+}
+
 /// Absolute positions (mm) of each block that moves, read here: `G90`/`G91`, `G20`/`G21`,
-/// comments `;` and `( … )`.
+/// comments `;` and `( … )`; arcs by their end.
 fn positions(text: &str) -> Vec<Vector3<f64>> {
+    line_positions(text).into_iter().flatten().collect()
+}
+
+/// For each line of `original` that moves, the positions of its lines in `filtered`: its own,
+/// then those of the lines the filter inserted after it (only after the lines `split`, 1-based).
+fn moves(original: &str, filtered: &str, split: &[usize]) -> Vec<Vec<Vector3<f64>>> {
+    let (o, f) = (line_positions(original), line_positions(filtered));
+    let lines: Vec<&str> = filtered.lines().collect();
+    let (mut j, mut out) = (0, Vec::new());
+    for (i, p) in o.iter().enumerate() {
+        let mut group = vec![f[j]];
+        j += 1;
+        while split.contains(&(i + 1)) && j < lines.len() && inserted(lines[j]) {
+            group.push(f[j]);
+            j += 1;
+        }
+        if p.is_some() {
+            out.push(group.into_iter().map(Option::unwrap).collect());
+        }
+    }
+    assert_eq!(j, lines.len(), "lines left over");
+    out
+}
+
+/// The position after each line, where it moves.
+fn line_positions(text: &str) -> Vec<Option<Vector3<f64>>> {
     let (mut p, mut inc, mut inch) = (Vector3::zeros(), false, false);
     let mut out = Vec::new();
     for line in text.lines() {
@@ -47,9 +85,7 @@ fn positions(text: &str) -> Vec<Vector3<f64>> {
                 _ => {}
             }
         }
-        if moved {
-            out.push(p);
-        }
+        out.push(moved.then_some(p));
     }
     out
 }
@@ -83,13 +119,14 @@ fn without_added(line: &str, original: &str) -> String {
         .join(" ")
 }
 
-/// A program of 40 moves: absolute, then a G91 section, back to G90, some blocks naming one or
-/// two axes only.
-fn program(seed: u64) -> (String, usize) {
+/// A program of 42 moves: absolute, then a G91 section, back to G90, some blocks naming one or
+/// two axes only, an arc in each section.
+fn program(seed: u64) -> (String, usize, Vec<Arc>) {
+    let mut arcs = Vec::new();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let mut s = String::from("; delta test part\nG21 G90 (mm, absolute)\nM104 S200\nG0 X0 Y0 Z120.000 F6000\n");
     let mut n = 1;
-    let mut p = [0.0, 0.0, 120.0];
+    let mut p: [f64; 3] = [0.0, 0.0, 120.0];
     for k in 0..39 {
         if k == 15 {
             s += "G91 ; incremental section\n";
@@ -117,15 +154,37 @@ fn program(seed: u64) -> (String, usize) {
         };
         p[..named].copy_from_slice(&next[..named]);
         n += 1;
+        // Arcs from where the machine stands (the block after each names X Y Z, unlike the lines
+        // the filter inserts): clockwise by I J (absolute section), anticlockwise
+        // by R with Z rising (a helix, incremental section).
+        if k == 8 || k == 18 {
+            let (ci, cj) = (-8.0, 6.0);
+            let (cx, cy) = (p[0] + ci, p[1] + cj);
+            let a0 = (p[1] - cy).atan2(p[0] - cx);
+            let a1 = if k == 8 { a0 - 1.4 } else { a0 + 1.1 };
+            let end = [cx + 10.0 * a1.cos(), cy + 10.0 * a1.sin(), p[2] + if k == 8 { 0.0 } else { 4.0 }];
+            if k == 8 {
+                s += &format!("G2 X{:.3} Y{:.3} I{ci:.3} J{cj:.3} E2.5 ; arc\n", end[0], end[1]);
+            } else {
+                s += &format!("G3 X{:.3} Y{:.3} Z{:.3} R10\n", end[0] - p[0], end[1] - p[1], end[2] - p[2]);
+            }
+            arcs.push(([cx, cy], p, end, s.lines().count()));
+            p = end;
+            n += 1;
+        }
     }
     s += "M84 (motors off)\n";
-    (s, n)
+    (s, n, arcs)
 }
 
-#[test]
-fn linear_delta_gcode_filtered_reaches_the_targets_as_compensate_does() {
-    let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
+/// An arc of the test program: centre (x, y), start, end (mm) and line; radius 10 mm.
+type Arc = ([f64; 2], [f64; 3], [f64; 3], usize);
+
+/// The linear delta (`examples/models/linear-delta.toml`) with a tracker's frames, a prototype
+/// (±0.3 mm, seed 4) measured at 40 poses (5 µm) and calibrated in `d`: `delta.toml` (nominal),
+/// `truth.toml`, `cal.toml`. Returns the nominal model, and the prototype's tool point at inputs
+/// `q` read through the calibration's frames.
+fn delta(d: &Path, noise_mm: &str) -> (Box<dyn Mechanism>, impl Fn(&[f64]) -> Vector3<f64>) {
     let model = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/models/linear-delta.toml");
     let text = std::fs::read_to_string(&model).unwrap();
     std::fs::write(d.join("delta.toml"), &text).unwrap();
@@ -144,7 +203,7 @@ fn linear_delta_gcode_filtered_reaches_the_targets_as_compensate_does() {
             "--error-deg",
             "0.05",
             "--noise-mm",
-            "0.005",
+            noise_mm,
             "--noise-deg",
             "0.003",
             "--out",
@@ -154,7 +213,42 @@ fn linear_delta_gcode_filtered_reaches_the_targets_as_compensate_does() {
         ],
     );
     ok(d, &["identify", "m.toml", "ident.csv", "--out", "cal.toml"]);
-    let (prog, n) = program(9);
+    let nominal = ModelFile::load(&d.join("delta.toml")).unwrap().build();
+    let truth = ModelFile::load(&d.join("truth.toml")).unwrap().build();
+    let f = ModelFile::load(&d.join("cal.toml")).unwrap().frames.unwrap();
+    let reached = move |q: &[f64]| {
+        (f.measurement.inverse() * truth.forward(q).unwrap() * f.tool.inverse())
+            .translation
+            .vector
+    };
+    (nominal, reached)
+}
+
+/// The prototype driven by the nominal controller along its straight line from `a` to `b`
+/// (filtered positions), `n` samples: the largest distance from the segment `p`–`q`.
+fn path_deviation(
+    nominal: &dyn Mechanism,
+    reached: &dyn Fn(&[f64]) -> Vector3<f64>,
+    (a, b): (Vector3<f64>, Vector3<f64>),
+    (p, q): (Vector3<f64>, Vector3<f64>),
+    n: usize,
+) -> f64 {
+    (0..=n)
+        .map(|i| {
+            let x = a.lerp(&b, i as f64 / n as f64);
+            let at = reached(&nominal.inverse(&Pose::translation(x.x, x.y, x.z), None).unwrap());
+            let s = ((at - p).dot(&(q - p)) / (q - p).norm_squared()).clamp(0.0, 1.0);
+            (at - (p + (q - p) * s)).norm()
+        })
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn linear_delta_gcode_filtered_reaches_the_targets_as_compensate_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (nominal, reached) = delta(d, "0.005");
+    let (prog, n, arcs) = program(9);
     std::fs::write(d.join("part.gcode"), &prog).unwrap();
     let out = ok(
         d,
@@ -168,27 +262,36 @@ fn linear_delta_gcode_filtered_reaches_the_targets_as_compensate_does() {
             "part_cal.gcode",
         ],
     );
-    eprintln!("{}", out.lines().take(2).collect::<Vec<_>>().join("\n"));
+    eprintln!("{out}");
+    assert!(out.contains("2 arcs linearised into "), "{out}");
+    assert!(out.contains("largest deviation expected between points"), "{out}");
     let filtered = std::fs::read_to_string(d.join("part_cal.gcode")).unwrap();
-    // Byte for byte outside the numbers, but for the axis words added.
-    assert_eq!(prog.lines().count(), filtered.lines().count());
-    for (a, b) in prog.lines().zip(filtered.lines()) {
+    // Byte for byte outside the numbers, but for the axis words added, the arcs' G2/G3 → G1
+    // and I J R removed, and the lines of their chords.
+    let arc_lines: Vec<usize> = arcs.iter().map(|a| a.3).collect();
+    let all = moves(&prog, &filtered, &arc_lines);
+    let mut kept: Vec<&str> = Vec::new();
+    let mut lines = filtered.lines().peekable();
+    for (k, _) in prog.lines().enumerate() {
+        kept.push(lines.next().unwrap());
+        while arc_lines.contains(&(k + 1)) && lines.peek().is_some_and(|l| inserted(l)) {
+            lines.next();
+        }
+    }
+    for (k, (a, b)) in prog.lines().zip(&kept).enumerate() {
+        if let Some(arc) = arcs.iter().find(|x| x.3 == k + 1) {
+            assert!(b.starts_with("G1 X") && !b.contains('I') && !b.contains('R'), "line {}: {b}", arc.3);
+            assert_eq!(a.contains("; arc"), b.contains("; arc"));
+            continue;
+        }
         assert_eq!(skeleton(a), skeleton(&without_added(b, a)), "{a} → {b}");
     }
-    let (orig, corr) = (positions(&prog), positions(&filtered));
+    let orig = positions(&prog);
+    let corr: Vec<Vector3<f64>> = all.iter().map(|g| *g.last().unwrap()).collect();
     assert_eq!(orig.len(), n);
     assert_eq!(corr.len(), n);
     // The nominal controller (the nominal delta's inverse) at the filtered positions, and
     // compensate at the originals; the prototype read through the calibration's frames.
-    let nominal = ModelFile::load(&d.join("delta.toml")).unwrap().build();
-    let truth = ModelFile::load(&d.join("truth.toml")).unwrap().build();
-    let cal = ModelFile::load(&d.join("cal.toml")).unwrap();
-    let f = cal.frames.unwrap();
-    let reached = |q: &[f64]| {
-        (f.measurement.inverse() * truth.forward(q).unwrap() * f.tool.inverse())
-            .translation
-            .vector
-    };
     let mut csv = String::from("id,x_mm,y_mm,z_mm,qw,qx,qy,qz\n");
     for (k, p) in orig.iter().enumerate() {
         csv += &format!("{k},{:.9},{:.9},{:.9},1,0,0,0\n", p.x, p.y, p.z);
@@ -216,12 +319,38 @@ fn linear_delta_gcode_filtered_reaches_the_targets_as_compensate_does() {
         before = before.max((reached(&q0) - p).norm());
         comp = comp.max((reached(&commands.rows[k][1..]) - p).norm());
     }
-    eprintln!("linear delta G-code, {n} moves: max error unfiltered {before:.4} mm, compensate {comp:.5} mm, filtered {filt:.5} mm");
+    // The arcs: every chord end the prototype reaches on its circle (radius 10 mm about the
+    // centre written, Z along the helix), within the chord tolerance and the calibration's error.
+    let (mut chords, mut off_arc) = (0, 0.0f64);
+    for (centre, start, end, line) in &arcs {
+        let k = line_positions(&prog)[..*line].iter().flatten().count() - 1;
+        for p in &all[k] {
+            let q = nominal.inverse(&Pose::translation(p.x, p.y, p.z), None).unwrap();
+            let r = reached(&q);
+            let radius = (r.x - centre[0]).hypot(r.y - centre[1]);
+            let a = |v: &[f64; 3]| (v[1] - centre[1]).atan2(v[0] - centre[0]);
+            let t = ((r.y - centre[1]).atan2(r.x - centre[0]) - a(start)) / (a(end) - a(start));
+            let z = start[2] + (end[2] - start[2]) * t;
+            off_arc = off_arc.max((radius - 10.0).hypot(r.z - z));
+            chords += 1;
+        }
+    }
+    eprintln!(
+        "linear delta G-code, {n} moves: max error unfiltered {before:.4} mm, compensate {comp:.5} mm, filtered {filt:.5} mm; 2 arcs: {chords} chord ends, the prototype within {off_arc:.5} mm of the arcs"
+    );
+    assert!(chords >= 10, "{chords} chords");
+    assert!(off_arc <= 0.005 + comp, "chord ends {off_arc} mm off the arcs");
     assert!(filt <= 1.1 * comp, "filtered {filt} against compensate's {comp}");
     assert!(before > 5.0 * filt);
-    // An arc: one line naming it, nothing written.
-    let arc = prog.replacen("G1 X", "G2 I5 J0 X", 1);
-    std::fs::write(d.join("arc.gcode"), &arc).unwrap();
+    // An arc whose end is off its circle by more than half the tolerance: one line naming it,
+    // nothing written.
+    let arc_line = arcs[0].3;
+    let bad: String = prog
+        .lines()
+        .enumerate()
+        .map(|(k, l)| if k + 1 == arc_line { l.replacen(" I-8.000", " I-8.300", 1) } else { l.to_string() } + "\n")
+        .collect();
+    std::fs::write(d.join("arc.gcode"), &bad).unwrap();
     let e = fails(
         d,
         &[
@@ -234,9 +363,80 @@ fn linear_delta_gcode_filtered_reaches_the_targets_as_compensate_does() {
             "arc_cal.gcode",
         ],
     );
-    let line = arc.lines().position(|l| l.contains("G2 I")).unwrap() + 1;
-    assert!(e.starts_with(&format!("arc.gcode:{line}: an arc (G2)")), "{e}");
+    assert!(e.starts_with(&format!("arc.gcode:{arc_line}: an arc (G2, G17)")), "{e}");
     assert!(!d.join("arc_cal.gcode").exists());
+    // Absolute arc centres (G90.1) are refused.
+    std::fs::write(d.join("abs.gcode"), prog.replacen("M104", "G90.1\nM104", 1)).unwrap();
+    let e = fails(
+        d,
+        &[
+            "filter",
+            "cal.toml",
+            "abs.gcode",
+            "--nominal",
+            "delta.toml",
+            "--out",
+            "abs_cal.gcode",
+        ],
+    );
+    assert!(e.starts_with("abs.gcode:3: G90.1"), "{e}");
+}
+
+/// A long straight move of the delta (115 mm; calibrated from 1 µm data, so that the
+/// calibration's own error is small beside the tolerance): without `--max-deviation-mm` the largest
+/// deviation between its filtered ends is printed; with 0.01 mm the move is split, and the
+/// prototype driven by the nominal controller along the filtered pieces (sampled) stays within
+/// 0.01 mm of the commanded line.
+#[test]
+fn a_long_move_split_stays_within_the_tolerance() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (nominal, reached) = delta(d, "0.001");
+    let prog = "G21 G90\nG0 X-40 Y-30 Z75 F6000\nG1 X40.5 Y35 Z125 E12.5 F1200 ; long move\nM84\n";
+    std::fs::write(d.join("long.gcode"), prog).unwrap();
+    let args = ["filter", "cal.toml", "long.gcode", "--nominal", "delta.toml", "--out"];
+    let unsplit = ok(d, &[&args[..], &["unsplit.gcode"]].concat());
+    eprintln!("{unsplit}");
+    let printed: f64 = unsplit
+        .split("largest deviation expected between points (the machine's path from the commanded line, on the calibrated model): ")
+        .nth(1)
+        .and_then(|r| r.split(' ').next())
+        .unwrap()
+        .parse()
+        .unwrap();
+    let split = ok(d, &[&args[..], &["split.gcode", "--max-deviation-mm", "0.01"]].concat());
+    eprintln!("{split}");
+    let text = std::fs::read_to_string(d.join("split.gcode")).unwrap();
+    let pieces = moves(prog, &text, &[3]);
+    let unsplit_pieces = moves(prog, &std::fs::read_to_string(d.join("unsplit.gcode")).unwrap(), &[]);
+    assert_eq!(pieces.len(), 2);
+    assert!(pieces[1].len() > 1, "the move was not split: {text}");
+    // The extrusion shared along the pieces, the last at the block's value.
+    let es: Vec<f64> = text
+        .lines()
+        .filter_map(|l| l.split_whitespace().find(|w| w.starts_with('E')))
+        .map(|w| w[1..].parse().unwrap())
+        .collect();
+    assert_eq!(es.len(), pieces[1].len());
+    assert!(
+        es.windows(2).all(|w| w[0] < w[1]) && (es.last().unwrap() - 12.5).abs() < 1e-9,
+        "{es:?}"
+    );
+    let (p, q) = (Vector3::new(-40.0, -30.0, 75.0), Vector3::new(40.5, 35.0, 125.0));
+    let nominal = &*nominal;
+    let mut worst = 0.0f64;
+    let mut from = pieces[0][0];
+    for to in &pieces[1] {
+        worst = worst.max(path_deviation(nominal, &reached, (from, *to), (p, q), 60));
+        from = *to;
+    }
+    let before = path_deviation(nominal, &reached, (unsplit_pieces[0][0], unsplit_pieces[1][0]), (p, q), 200);
+    eprintln!(
+        "a 115 mm move: printed {printed} mm; the prototype along the unsplit filtered move {before:.4} mm from the line; split into {} pieces: {worst:.4} mm",
+        pieces[1].len()
+    );
+    assert!(before > 0.01, "the unsplit move stays within {before} mm: no test");
+    assert!(worst <= 0.01, "the split move leaves the line by {worst} mm");
 }
 
 /// Absolute X Y Z A B of each block that moves (G90 only), read here.

@@ -197,3 +197,52 @@ fn urscript_filtered_reaches_the_targets_as_compensate_does() {
         "filtered {filt:?} against compensate's {comp:?}"
     );
 }
+
+/// `--joints`: a joint list `movej([…])` taught on the nominal controller names the tool pose
+/// `FK_nominal(q)`; corrected, the prototype at the joint values written reaches that pose far
+/// better than at the values taught, and nothing else of the program changes.
+#[test]
+fn urscript_joint_lists_corrected_with_joints() {
+    let c = calibrated();
+    let d = c.dir.join("urscript-joints");
+    std::fs::create_dir_all(&d).unwrap();
+    let tool = tool();
+    let r = kinecal::se3::so3_log(&tool.rotation);
+    let taught: Vec<Vec<f64>> = [[20.0, 10.0, -10.0, 30.0, 50.0, 40.0], [-35.0, 25.0, -30.0, -60.0, 70.0, 100.0]]
+        .iter()
+        .map(|q| q.map(f64::to_radians).to_vec())
+        .collect();
+    let mut prog = format!(
+        "def j():\n  set_tcp(p[0.0125, -0.008, 0.13525, {:.9}, {:.9}, {:.9}])\n",
+        r.x, r.y, r.z
+    );
+    for q in &taught {
+        let v: Vec<String> = q.iter().map(|x| format!("{x:.6}")).collect();
+        prog += &format!("  movej([{}], a=1.4, v=1.05) # taught\n", v.join(", "));
+    }
+    prog += "end\n";
+    std::fs::write(d.join("j.script"), &prog).unwrap();
+    let args = ["filter", "../cal.toml", "j.script", "--nominal", "irb120", "--out"];
+    let kept = ok(&d, &[&args[..], &["kept.script"]].concat());
+    assert!(kept.contains("a joint target is left as it is"), "{kept}");
+    assert_eq!(std::fs::read_to_string(d.join("kept.script")).unwrap(), prog);
+    ok(&d, &[&args[..], &["joints.script", "--joints"]].concat());
+    let out = std::fs::read_to_string(d.join("joints.script")).unwrap();
+    assert_eq!(split_numbers(&prog).0, split_numbers(&out).0);
+    let lists: Vec<Vec<f64>> = out
+        .lines()
+        .filter(|l| l.contains("movej(["))
+        .map(|l| {
+            let inner = &l[l.find("([").unwrap() + 2..l.find(']').unwrap()];
+            inner.split(',').map(|x| x.trim().parse().unwrap()).collect()
+        })
+        .collect();
+    let arm = irb120();
+    for (q, q2) in taught.iter().zip(&lists) {
+        let target = arm.forward(q).unwrap() * tool;
+        let e = |x: &[f64]| kinecal::se3::lin(&kinecal::se3::pose_error(&target, &c.reached(x, &tool))).norm();
+        let (before, after) = (e(q), e(q2));
+        eprintln!("URScript joint list: the prototype {before:.4} mm from FK_nominal(q) at q taught, {after:.4} mm at q corrected");
+        assert!(before > 0.1 && after < 0.05 && after < before / 5.0, "{before} → {after}");
+    }
+}

@@ -15,6 +15,7 @@ mod dh;
 mod draw_wire;
 mod exports;
 mod filter;
+mod filter_assess;
 mod filter_gcode;
 mod filter_krl;
 mod filter_urscript;
