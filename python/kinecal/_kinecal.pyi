@@ -106,6 +106,7 @@ def filter_program(
     max_deviation_mm: Optional[float] = None,
     force: bool = False,
 ) -> Tuple[str, Optional[str], str]: ...
+def predict_accuracy(model: Model, configurations: np.ndarray) -> str: ...
 def simulate(
     model: Model,
     poses: int,

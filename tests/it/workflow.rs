@@ -85,8 +85,8 @@ fn simulate_identify_validate_compensate_recovers_the_truth() {
     assert!(!outside.contains("http://") && !outside.contains("https://") && !html.contains("<link") && !html.contains("src="));
     assert_eq!(
         html.matches("<svg").count(),
-        2 * 5 + 6 + 2 + 2,
-        "5 plots per data set, the error against each of the 6 joints, the singular values, the correlations and the two workspace maps"
+        2 * 5 + 6 + 2 + 2 + 2,
+        "5 plots per data set, the error against each of the 6 joints, the singular values, the correlations, the two workspace maps and the two maps of predicted accuracy"
     );
     assert!(html.contains("<canvas id=\"view3d\""), "no 3-D view");
 
