@@ -20,8 +20,9 @@
 //! position, and every single parameter. Each is a direction in the model's parameters; released
 //! (its prior dropped, its size free), it lowers `T` by `Δ`. A pattern explains the change when
 //! `Δ` is beyond the χ² quantile of its size at the false-alarm rate divided by the number of
-//! patterns tried (so that noise releases nothing), and the best is the one whose `Δ` stands
-//! furthest beyond its χ² distribution (Wilson–Hilferty z-score).
+//! patterns tried (so that noise releases nothing), and the best is the one that leaves the least,
+//! `T − Δ + k·ln(rows)` for a pattern of `k` coefficients (Schwarz's criterion: a pattern of more
+//! coefficients is named only where it explains clearly more).
 //!
 //! # The update
 //! [`update()`] minimises the same sum — the prior's rows and the new rows — iterated to
@@ -82,6 +83,15 @@ impl Prior {
         })
     }
 
+    /// The prior a calibrated model file carries (written by `kinecal identify`): its geometry,
+    /// the covariance of its parameters and its noise.
+    pub fn from_model_file(file: &ModelFile) -> Result<Prior, CalibError> {
+        Err(CalibError::InvalidOption(format!(
+            "the model file '{}' carries no covariance of its parameters (a calibrated model file written by kinecal identify does)",
+            file.name
+        )))
+    }
+
     /// The covariance must match the model's parameters.
     pub fn check_size(&self, p: usize) -> Result<(), CalibError> {
         let (r, c) = self.covariance.shape();
@@ -128,13 +138,23 @@ impl Prior {
     }
 }
 
+/// `file` carrying `covariance` and `noise` for a later [`Prior::from_model_file`].
+pub fn with_covariance(file: ModelFile, covariance: &DMatrix<f64>, noise: &Noise) -> ModelFile {
+    let _ = covariance;
+    ModelFile {
+        noise: Some(*noise),
+        ..file
+    }
+}
+
 /// Configurations a covariance is carried over at ([`Prior::from_calibration`]).
 pub const CARRY_CONFIGURATIONS: usize = 40;
 
 /// The covariance `covariance` of `fitted`'s parameters carried to `model`'s (the same machine,
 /// the same predictions, other coordinates): `T·P·Tᵀ` with `T` the minimum-norm solution of
-/// `J_model·T = J_fitted` over the tool poses at `configurations` (column-scaled), so that both
-/// predict the same covariance of the tool pose there.
+/// `J_model·T = J_fitted` over the tool poses at `configurations` (column-scaled; the parameters
+/// `model` cannot take alone, [`crate::model::Mechanism::assembly_breaking`], left out), so that
+/// both predict the same covariance of the tool pose there.
 pub fn covariance_in(
     model: &dyn crate::model::Mechanism,
     fitted: &dyn crate::model::Mechanism,
@@ -161,7 +181,9 @@ pub fn covariance_in(
         jf.view_mut((6 * i, 0), (6, pf))
             .copy_from(&residual_jacobian(&Observation::Pose(tf), &tf, &af));
     }
-    let norms: Vec<f64> = (0..p).map(|c| jm.column(c).norm()).collect();
+    // Parameters the model cannot take alone (an overconstrained machine's) stay as they are.
+    let held = model.assembly_breaking();
+    let norms: Vec<f64> = (0..p).map(|c| if held.contains(&c) { 0.0 } else { jm.column(c).norm() }).collect();
     let scaled = DMatrix::from_fn(rows, p, |r, c| if norms[c] > 0.0 { jm[(r, c)] / norms[c] } else { 0.0 });
     let svd = scaled.svd(true, true);
     let top = svd.singular_values.iter().copied().fold(0.0, f64::max);

@@ -1,7 +1,7 @@
 //! [`check()`]: re-measured poses judged against a calibration's prediction.
 use super::patterns::{patterns, Pattern, PatternKind};
 use super::stacked::Stacked;
-use super::{chi2_quantile, chi2_z, Prior, DEFAULT_FALSE_ALARM};
+use super::{chi2_quantile, Prior, DEFAULT_FALSE_ALARM};
 use crate::error::CalibError;
 use crate::identify::linearize;
 use crate::measure::{self, Measurement};
@@ -230,8 +230,8 @@ fn pose_checks(
     Ok(out)
 }
 
-/// The pattern (not among `skip`) whose release lowers the statistic `cost` furthest beyond its
-/// χ² distribution, fitted on `stacked` (new rows' Jacobian `a`), with `rows` new rows (of which
+/// The pattern (not among `skip`) that leaves the least of the statistic `cost` once released,
+/// each of its coefficients charged `ln(rows)` (Schwarz's criterion), fitted on `stacked` (new rows' Jacobian `a`), with `rows` new rows (of which
 /// the already released patterns' coefficients take `stacked`'s extra columns).
 pub(super) fn best_pattern(
     stacked: &Stacked,
@@ -256,10 +256,12 @@ pub(super) fn best_pattern(
         let Some(sol) = stacked.solve(Some(&g))? else { continue };
         let drop = (cost - sol.cost).max(0.0);
         let k = pat.directions.ncols();
-        let z = chi2_z(drop, k);
-        if best.as_ref().is_none_or(|b| z > b.0 + 1e-9) {
+        // What is left, each coefficient charged ln(rows) (Schwarz's criterion): a pattern of
+        // more coefficients is named only where it explains clearly more.
+        let score = -(sol.cost + k as f64 * (rows.max(2) as f64).ln());
+        if best.as_ref().is_none_or(|b| score > b.0 + 1e-9) {
             let beta = sol.u.rows(sol.u.len() - k, k).into_owned();
-            best = Some((z, i, drop, beta));
+            best = Some((score, i, drop, beta));
         }
     }
     let Some((_, i, drop, beta)) = best else {

@@ -96,7 +96,11 @@ pub fn patterns(model: &dyn Mechanism, inputs: &[InputSpec], seed: u64) -> Resul
     let seen = |c: usize| norms[c] > 1e-9 * top;
     let in_measurement_frame = |c: usize| params[c].group == "measurement frame";
     // Parameters a machine's change may be represented in.
-    let machine: Vec<usize> = (0..p).filter(|&c| seen(c) && !in_measurement_frame(c)).collect();
+    // (Not those an overconstrained machine cannot take alone.)
+    let held = model.assembly_breaking();
+    let machine: Vec<usize> = (0..p)
+        .filter(|&c| seen(c) && !in_measurement_frame(c) && !held.contains(&c))
+        .collect();
     let mut out: Vec<(Pattern, DMatrix<f64>)> = Vec::new();
     // Each input's offset: the pose's change per unit of the input, by central differences.
     let frames = model.frames();
@@ -171,7 +175,7 @@ pub fn patterns(model: &dyn Mechanism, inputs: &[InputSpec], seed: u64) -> Resul
     // The tool's position; the measurement frame.
     let group = |names: &[&str], lengths_only: bool| -> Vec<usize> {
         (0..p)
-            .filter(|&c| names.contains(&params[c].group.as_str()) && seen(c))
+            .filter(|&c| names.contains(&params[c].group.as_str()) && seen(c) && !held.contains(&c))
             .filter(|&c| !lengths_only || params[c].unit == Unit::Length)
             .collect()
     };

@@ -130,10 +130,33 @@ fn fit(prior: &Prior, l: &DMatrix<f64>, d: &DMatrix<f64>, data: &[Measurement], 
                 "the prior and the new poses do not determine the released patterns".into(),
             ));
         };
-        let size = (&state.2.k * &sol.u).norm();
-        u += &sol.u;
-        state = at(&u)?;
-        if size <= 1e-10 * (1.0 + state.2.rhs.norm()) {
+        let before = state.2.rhs.norm_squared();
+        // The step, halved while it raises the cost (a curved closed loop overshoots).
+        let mut alpha = 1.0;
+        let mut accepted = None;
+        for _ in 0..12 {
+            let trial_u = &u + &sol.u * alpha;
+            let trial = at(&trial_u)?;
+            if trial.2.rhs.norm_squared() <= before {
+                accepted = Some((trial_u, trial));
+                break;
+            }
+            alpha *= 0.5;
+        }
+        let Some((next_u, next)) = accepted else {
+            // No shorter step lowers the cost: at the minimum to round-off, or stuck.
+            let scale = 1.0 + state.2.rhs.norm();
+            converged = (&state.2.k * &sol.u).norm() <= 1e-5 * scale;
+            break;
+        };
+        let size = alpha * (&state.2.k * &sol.u).norm();
+        u = next_u;
+        state = next;
+        let after = state.2.rhs.norm_squared();
+        // Converged: a step below 1e-10 of the residual, or a short step that no longer lowers
+        // the cost (a closed loop's kinematics are solved to a tolerance of their own).
+        let scale = 1.0 + state.2.rhs.norm();
+        if size <= 1e-10 * scale || (size <= 1e-5 * scale && before - after <= 1e-9 * before) {
             converged = true;
             break;
         }
