@@ -5,6 +5,7 @@
 //! the calibrated model file (with its `[frames]` and `[provenance]`), the report with its verdict
 //! ([`CalibrationReport`]), from which the command line, the JSON output and the HTML are written.
 pub mod checks;
+mod covariance;
 pub mod gauge;
 mod instrument_data;
 mod mixed;
@@ -281,6 +282,11 @@ pub fn calibrate(
     }
     calibrated.description = Some(format!("calibrated from '{}' on {}", model.name, data.path.display()));
     calibrated.noise = Some(identification.noise);
+    calibrated.covariance = Some(covariance::of(
+        &calibrated,
+        &identification,
+        id_opts.free.as_deref().unwrap_or_default(),
+    ));
     let start_tolerance_mm = START_COVERAGE * opts.noise.position.max(identification.sigma0 * identification.noise.position);
     let judged = Judged {
         start: &start,
@@ -296,6 +302,8 @@ pub fn calibrate(
     let mut report = judge(model, data, validation, opts, &judged)?;
     let names = start.params();
     report.placement = placement.iter().map(|&k| names[k].name.clone()).collect();
+    let measured: Vec<&[Measurement]> = std::iter::once(data).chain(validation).map(|d| &d.measurements[..]).collect();
+    report.predicted = covariance::predicted_map(&calibrated, &measured, opts.seed);
     if !report.weak.is_empty() {
         // On the calibrated model file: the machine with its tool point, whatever the
         // instrument's wrapping of the fitted model.

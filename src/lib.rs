@@ -57,6 +57,7 @@ pub mod io;
 pub mod measure;
 pub mod model;
 pub mod params;
+pub mod predict;
 pub mod register;
 pub mod report;
 pub mod se3;

@@ -37,6 +37,7 @@ __all__ = [
     "calibrate",
     "validate",
     "validate_instrument",
+    "predict_accuracy",
     "identifiability",
     "assess",
     "compensate",
@@ -277,6 +278,26 @@ def validate_instrument(model: Model, data: Data, seat_distances: Sequence[str] 
     ``pivots`` (each pivot's or reference sphere's length residuals), ``planes`` (each unknown
     plane's flatness) and ``cubes`` (each datum cube's fit), RMS and largest values in mm."""
     return json.loads(_kinecal.validate_instrument(model, data, list(seat_distances)))
+
+
+def predict_accuracy(model: Model, configurations: np.ndarray) -> Dict[str, Any]:
+    """The accuracy a calibrated ``model`` (a model file written by ``kinecal identify``, with its
+    ``[covariance]``) predicts at ``configurations`` (n, inputs) in rad / mm (``kinecal validate
+    --predict``): ``position_mm`` (n,) σ of the position (RMS 3-D error, mm),
+    ``worst_axis_mm`` (n,), ``orientation_deg`` (n,), ``positions`` (n, 3) the predicted tool
+    positions (mm), and ``noise_position_mm`` / ``noise_orientation_deg``, what one measurement
+    adds."""
+    q = np.ascontiguousarray(configurations, dtype=np.float64)
+    r = json.loads(_kinecal.predict_accuracy(model, q))
+    poses = r["poses"]
+    return {
+        "position_mm": np.array([p["position_mm"] for p in poses]),
+        "worst_axis_mm": np.array([p["position_worst_axis_mm"] for p in poses]),
+        "orientation_deg": np.array([p["orientation_deg"] for p in poses]),
+        "positions": np.array([p["position"] for p in poses]).reshape(-1, 3),
+        "noise_position_mm": r["noise_position_mm"],
+        "noise_orientation_deg": r["noise_orientation_deg"],
+    }
 
 
 def identifiability(model: Model, data: Data, tolerance: float = 1e-8) -> Dict[str, Any]:

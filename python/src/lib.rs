@@ -745,6 +745,16 @@ fn compensate<'py>(
     Ok(rows_array(py, &q, inputs.len()))
 }
 
+/// The accuracy a calibrated `model` predicts at `configurations` (n, inputs) in rad / mm
+/// (`kinecal validate --predict`, [`kinecal::predict::accuracy_of_file`]): its `[covariance]`
+/// carried to each pose. Returns the result as JSON.
+#[pyfunction]
+fn predict_accuracy(model: &Model, configurations: PyReadonlyArray2<'_, f64>) -> PyResult<String> {
+    let q = input_rows(&configurations, &model.file, "configurations")?;
+    let acc = kinecal::predict::accuracy_of_file(&model.file, &model.file.name, &q).map_err(err)?;
+    serde_json::to_string(&acc).map_err(err)
+}
+
 /// A virtual prototype of `model` (uniform errors ±error_mm / ±error_deg on its free parameters)
 /// measured at `poses` random configurations with Gaussian noise: (true model, data).
 /// `measure`: "pose", "position" or "reflectors".
@@ -1218,6 +1228,7 @@ fn _kinecal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(update, m)?)?;
     m.add_function(wrap_pyfunction!(calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(validate, m)?)?;
+    m.add_function(wrap_pyfunction!(predict_accuracy, m)?)?;
     m.add_function(wrap_pyfunction!(validate_instrument, m)?)?;
     m.add_function(wrap_pyfunction!(identifiability, m)?)?;
     m.add_function(wrap_pyfunction!(assess, m)?)?;

@@ -360,3 +360,21 @@ def test_touches_are_simulated_planned_and_calibrated():
         kinecal.simulate_touches(m, probe_radius_mm=1.5, spheres=spheres, sphere_diameter_mm=0.0254)
     with pytest.raises(kinecal.KinecalError, match="one kind"):
         kinecal.simulate_touches(m, probe_radius_mm=1.5, spheres=spheres, sphere_diameter_mm=25.4, cube=[0.0, 0.0, 0.0], cube_edge_mm=100.0)
+
+
+def test_predict_accuracy_of_a_calibrated_model():
+    m = kinecal.Model.load("irb120")
+    truth, data = kinecal.simulate(m, 60, seed=7, noise_mm=0.02, noise_deg=0.02)
+    cal = kinecal.calibrate(m, data, noise_mm=0.02, noise_deg=0.02)
+    q = kinecal.simulate(m, 20, seed=8)[1].q
+    acc = kinecal.predict_accuracy(cal.model, q)
+    assert acc["position_mm"].shape == (20,) and acc["positions"].shape == (20, 3)
+    # The calibration leaves tens of µm at most; one measurement adds √3 · 20 µm.
+    assert (acc["position_mm"] > 0).all() and (acc["position_mm"] < 0.1).all()
+    assert abs(acc["noise_position_mm"] - 3**0.5 * 0.02) < 1e-12
+    # The command line's figures from the same model file.
+    back = kinecal.Model.from_toml(cal.model.to_toml(), "cal.toml")
+    again = kinecal.predict_accuracy(back, q)
+    assert np.allclose(again["position_mm"], acc["position_mm"], rtol=1e-9)
+    with pytest.raises(kinecal.KinecalError, match="no \\[covariance\\]"):
+        kinecal.predict_accuracy(m, q)

@@ -49,7 +49,7 @@ pub struct SamplingArgs {
 }
 
 /// A range "MIN,MAX" or a fixed "VALUE".
-fn range(text: &str) -> Result<(f64, f64), String> {
+pub(crate) fn range(text: &str) -> Result<(f64, f64), String> {
     let v: Result<Vec<f64>, _> = text.split(',').map(|t| t.trim().parse()).collect();
     match v.as_deref() {
         Ok(&[a]) if a.is_finite() => Ok((a, a)),

@@ -91,12 +91,14 @@
 //! Add a variant to [`MechanismSpec`], a `Raw…` struct with `#[serde(deny_unknown_fields)]` and a
 //! `kind` field, an arm in `load_str`'s dispatch, and the arms of the `MechanismSpec` methods.
 //! Nothing else (data files, CLI, report) depends on the kind.
+mod covariance;
 mod limbs;
 mod parallel;
 mod parse;
 mod select;
 mod write;
 
+pub use covariance::{Covariance, Held};
 use parse::RawJointTerms;
 pub use select::{free_params, glob_match, greek_pattern, param_match, select_params};
 use write::{fmt3, num, quote, write_dh, write_mechanism, write_pose};
@@ -243,6 +245,9 @@ pub struct ModelFile {
     /// built mechanism is then [`Framed`] (`T = X · M(q) · Y`) and its data live in the
     /// measurement (tracker) frame.
     pub frames: Option<Frames>,
+    /// The covariance of a calibration's identified parameters (`[covariance]`, written by
+    /// `kinecal identify`): error coordinates of [`ModelFile::build`] about this geometry.
+    pub covariance: Option<Covariance>,
 }
 
 /// `[frames]` of a model file: `measurement` is the mechanism's base in the measurement (tracker)
@@ -320,6 +325,7 @@ impl ModelFile {
             noise: None,
             provenance: None,
             frames: None,
+            covariance: None,
         }
     }
 
@@ -369,17 +375,20 @@ impl ModelFile {
     }
 
     /// A copy with the geometry of `model` (a calibrated mechanism of the same kind, or such a
-    /// mechanism seen through frames, [`Framed`], whose frames are then kept too).
+    /// mechanism seen through frames, [`Framed`], whose frames are then kept too). A covariance
+    /// belongs to the geometry it was identified at and is left out.
     pub fn with_geometry_of(&self, model: &dyn Mechanism) -> Result<ModelFile, String> {
         if let Some((measurement, tool)) = model.frames() {
             return Ok(ModelFile {
                 mechanism: self.mechanism.with_geometry_of(model)?,
                 frames: Some(Frames { measurement, tool }),
+                covariance: None,
                 ..self.clone()
             });
         }
         Ok(ModelFile {
             mechanism: self.mechanism.with_geometry_of(model)?,
+            covariance: None,
             ..self.clone()
         })
     }
@@ -452,6 +461,9 @@ impl ModelFile {
             write_pose(&f.measurement, &self.units, &mut out);
             out.push_str("[frames.tool]\n");
             write_pose(&f.tool, &self.units, &mut out);
+        }
+        if let Some(c) = &self.covariance {
+            covariance::write_covariance(c, &mut out);
         }
         if let Some(p) = &self.provenance {
             let list = |v: &[String]| v.iter().map(|s| quote(s)).collect::<Vec<_>>().join(", ");
@@ -560,6 +572,7 @@ struct RawFile<M> {
     noise: Option<Spanned<RawNoise>>,
     provenance: Option<Provenance>,
     frames: Option<RawFrames>,
+    covariance: Option<Spanned<covariance::RawCovariance>>,
 }
 
 #[derive(Deserialize)]

@@ -61,6 +61,9 @@ impl CalibrationReport {
         self.variants_html(&mut h);
         self.view_html(&mut h);
         maps_html(&mut h, &sets)?;
+        if let Some(p) = &self.predicted {
+            p.html(&mut h)?;
+        }
         for (name, s) in &sets {
             per_pose_html(&mut h, name, s)?;
         }
@@ -571,6 +574,7 @@ fn maps_html(h: &mut String, sets: &[(&str, &SetErrors)]) -> Result<(), String> 
             &xyz[b],
             &err,
             &hollow,
+            "● identification  □ validation",
         )?);
     }
     h.push_str("</div>\n");

@@ -8,12 +8,14 @@ mod html;
 pub mod kinds;
 pub mod plan;
 pub mod plot;
+mod predicted;
 mod verdict;
 mod view;
 pub mod weak_cause;
 
 pub use artifacts::{is_known_distance, ArtifactView, KnownDistance};
 pub use held_out::HeldOutPlacements;
+pub use predicted::PredictedMap;
 pub use verdict::{Beyond, Status, ToleranceCheck, Verdict, CHANCE_BEYOND_3_SIGMA, SIGMA0_FAIL, SIGMA0_WARN};
 pub use view::{MachineView, VIEW_POINTS, VIEW_WORST};
 
@@ -288,6 +290,10 @@ pub struct CalibrationReport {
     /// rows of the fit, not poses.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub known_distances: Vec<KnownDistance>,
+    /// The predicted position σ over the workspace ([`PredictedMap`]), when the calibrated
+    /// model carries a covariance.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub predicted: Option<PredictedMap>,
 }
 
 /// The same data fitted by a model with fewer terms (see [`CalibrationReport::variants`]).
@@ -424,6 +430,7 @@ impl CalibrationReport {
             machine: MachineView::of(nominal, &result.model, data.first()),
             kinds: Vec::new(),
             known_distances: Vec::new(),
+            predicted: None,
         };
         // An instrument's artifacts, placed by both models (the rows of tracker data are not
         // evaluated again).

@@ -381,8 +381,10 @@ pub fn error_colour(v: f64, top: f64) -> (u8, u8, u8) {
 
 /// The poses over one projection of the workspace (`xs` against `ys`, mm, equal scales),
 /// coloured by `values` from 0 to their 98th percentile ([`error_colour`], with its colour bar); a pose
-/// with `hollow[i]` is an open square (e.g. a validation pose), the others filled circles.
+/// with `hollow[i]` is an open square (e.g. a validation pose), the others filled circles, as
+/// `legend` says (e.g. `"● identification  □ validation"`).
 /// Thinned like the other plots, the ten largest values always kept; larger values drawn last.
+#[allow(clippy::too_many_arguments)]
 pub fn workspace_map(
     title: &str,
     x_label: &str,
@@ -391,6 +393,7 @@ pub fn workspace_map(
     ys: &[f64],
     values: &[f64],
     hollow: &[bool],
+    legend: &str,
 ) -> Result<String, String> {
     const SIDE: u32 = 440;
     let n = xs.len().min(ys.len()).min(values.len());
@@ -465,7 +468,7 @@ pub fn workspace_map(
         "",
     );
     if hollow.iter().any(|h| *h) {
-        frame.text(bx, by + 26, "start", 11, "● identification  □ validation", "");
+        frame.text(bx, by + 26, "start", 11, legend, "");
     }
     Ok(finish(svg, frame))
 }

@@ -13,6 +13,7 @@ mod controllers;
 mod design;
 mod dh;
 mod draw_wire;
+mod drift;
 mod drift_check;
 mod exports;
 mod filter;

@@ -441,6 +441,16 @@ impl Ctx<'_> {
             }
             None => None,
         };
+        let covariance = match &raw.covariance {
+            Some(c) => {
+                let params = match &frames {
+                    Some(f) => Framed::new(mechanism.build(), f.measurement, f.tool).params(),
+                    None => params,
+                };
+                Some(self.covariance(c, &params)?)
+            }
+            None => None,
+        };
         let noise = match &raw.noise {
             Some(n) => {
                 let r = n.get_ref();
@@ -487,6 +497,7 @@ impl Ctx<'_> {
             tolerances,
             noise,
             provenance: raw.provenance,
+            covariance,
             frames,
         })
     }

@@ -1,0 +1,86 @@
+//! The calibrated model file's `[covariance]`: the identification's covariance on the
+//! parameters of the model the file builds, and why each other parameter has none.
+use crate::identify::Identification;
+use crate::io::model_file::{Covariance, Held, ModelFile};
+use crate::model::Mechanism;
+
+/// The covariance of `identification` (whose free parameters, in its model's indices, were
+/// `free`) over the parameters of `file.build()` that it identified; the model's other parameters
+/// held, with why (a parameter of the fit that the file's model does not have — an instrument's
+/// artifact point — is left out: the matrix is the marginal one).
+pub(crate) fn of(file: &ModelFile, identification: &Identification<Box<dyn Mechanism>>, free: &[usize]) -> Covariance {
+    let fitted = identification.model.params();
+    let id = &identification.identifiability;
+    let mut identified = Vec::new();
+    let mut held = Vec::new();
+    for p in file.build().params() {
+        let Some(k) = fitted.iter().position(|f| f.name == p.name) else {
+            held.push((p.name, Held::Fixed));
+            continue;
+        };
+        let why = if id.identifiable.contains(&k) {
+            identified.push((k, p));
+            continue;
+        } else if id.weak.contains(&k) {
+            Held::Weak
+        } else if id.gauge.contains(&k) {
+            Held::Placement
+        } else if free.contains(&k) {
+            Held::Redundant
+        } else {
+            Held::Fixed
+        };
+        held.push((p.name, why));
+    }
+    let c = &identification.covariance;
+    Covariance {
+        matrix: nalgebra::DMatrix::from_fn(identified.len(), identified.len(), |i, j| {
+            // Symmetric to the last bit, as the file requires.
+            let (a, b) = (identified[i].0.min(identified[j].0), identified[i].0.max(identified[j].0));
+            c[(a, b)]
+        }),
+        names: identified.iter().map(|(_, p)| p.name.clone()).collect(),
+        units: identified.iter().map(|(_, p)| p.unit).collect(),
+        sigma0: identification.sigma0,
+        held,
+    }
+}
+
+/// Configurations drawn over the workspace for the report's map of predicted accuracy.
+pub(crate) const MAP_CONFIGURATIONS: usize = 200;
+
+/// The report's map of predicted accuracy: the calibrated model file's predicted position σ
+/// ([`crate::predict::accuracy_of_file`]) at the measured configurations (of `sets`, each
+/// cut to the model's inputs) and at [`MAP_CONFIGURATIONS`] drawn over the workspace with
+/// `seed`; configurations where the model cannot be evaluated are left out. `None` without a
+/// covariance.
+pub(crate) fn predicted_map(file: &ModelFile, sets: &[&[crate::measure::Measurement]], seed: u64) -> Option<crate::report::PredictedMap> {
+    use rand::SeedableRng;
+    let model = file.build();
+    let names: Vec<String> = model.params().into_iter().map(|p| p.name).collect();
+    let covariance = file.covariance.as_ref()?.over(&names);
+    let noise = file.noise.unwrap_or_default();
+    let n = model.input_names().len();
+    let mut configurations: Vec<(Vec<f64>, bool)> = Vec::new();
+    for set in sets {
+        for m in set.iter().filter(|m| m.q.len() >= n && !crate::report::is_known_distance(m)) {
+            configurations.push((m.q[..n].to_vec(), true));
+        }
+    }
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    if let Ok(drawn) = crate::simulate::random_configurations(&*model, &file.inputs(), MAP_CONFIGURATIONS, &mut rng) {
+        configurations.extend(drawn.into_iter().map(|q| (q, false)));
+    }
+    let mut map = crate::report::PredictedMap::default();
+    for (q, measured) in configurations {
+        let Ok(acc) = crate::predict::accuracy(&*model, &covariance, &noise, std::slice::from_ref(&q)) else {
+            continue;
+        };
+        map.noise_mm = acc.noise_position_mm;
+        let p = &acc.poses[0];
+        map.positions.push(p.position);
+        map.sigma_mm.push(p.position_mm);
+        map.measured.push(measured);
+    }
+    (!map.sigma_mm.is_empty()).then_some(map)
+}
