@@ -86,10 +86,18 @@ impl Prior {
     /// The prior a calibrated model file carries (written by `kinecal identify`): its geometry,
     /// the covariance of its parameters and its noise.
     pub fn from_model_file(file: &ModelFile) -> Result<Prior, CalibError> {
-        Err(CalibError::InvalidOption(format!(
-            "the model file '{}' carries no covariance of its parameters (a calibrated model file written by kinecal identify does)",
-            file.name
-        )))
+        let Some(c) = &file.covariance else {
+            return Err(CalibError::InvalidOption(format!(
+                "the model file '{}' carries no covariance of its parameters ([covariance]: a calibrated model file written by kinecal identify does)",
+                file.name
+            )));
+        };
+        let names: Vec<String> = file.build().params().into_iter().map(|p| p.name).collect();
+        Ok(Prior {
+            model: file.clone(),
+            covariance: c.over(&names),
+            noise: file.noise.unwrap_or_default(),
+        })
     }
 
     /// The covariance must match the model's parameters.
@@ -138,11 +146,29 @@ impl Prior {
     }
 }
 
-/// `file` carrying `covariance` and `noise` for a later [`Prior::from_model_file`].
+/// `file` carrying `covariance` (over its model's parameters) and `noise` for a later
+/// [`Prior::from_model_file`]: `[covariance]` over the parameters with a variance, the others
+/// held as [`crate::io::model_file::Held::Fixed`] (they stay as they are).
 pub fn with_covariance(file: ModelFile, covariance: &DMatrix<f64>, noise: &Noise) -> ModelFile {
-    let _ = covariance;
+    let params = file.build().params();
+    let (with, without): (Vec<usize>, Vec<usize>) = (0..params.len()).partition(|&k| covariance[(k, k)] > 0.0);
+    let matrix = DMatrix::from_fn(with.len(), with.len(), |i, j| {
+        let (a, b) = (with[i].min(with[j]), with[i].max(with[j]));
+        covariance[(a, b)]
+    });
+    let c = crate::io::model_file::Covariance {
+        names: with.iter().map(|&k| params[k].name.clone()).collect(),
+        units: with.iter().map(|&k| params[k].unit).collect(),
+        matrix,
+        sigma0: 1.0,
+        held: without
+            .iter()
+            .map(|&k| (params[k].name.clone(), crate::io::model_file::Held::Fixed))
+            .collect(),
+    };
     ModelFile {
         noise: Some(*noise),
+        covariance: Some(c),
         ..file
     }
 }

@@ -143,3 +143,66 @@ fn pm5_check_and_update() {
     );
     assert!(up.passed() && !up.releases.is_empty(), "{why}");
 }
+
+#[test]
+fn cli_check_and_identify_prior_on_a_changed_length() {
+    use assert_cmd::Command;
+    let dir = tempfile::tempdir().unwrap();
+    let run = |args: &[&str]| {
+        Command::cargo_bin("kinecal")
+            .unwrap()
+            .current_dir(dir.path())
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let sim = |model: &str, n: &str, seed: &str, out: &str| {
+        let mut a = vec!["simulate", model, "--poses", n, "--noise-mm", "0.02", "--noise-deg", "0.02", "--seed", seed, "-o", out];
+        if model == "irb120" {
+            a.extend(["--error-mm", "0.2", "--error-deg", "0.02", "--truth", "truth.toml"]);
+        } else {
+            a.extend(["--error-mm", "0", "--error-deg", "0"]);
+        }
+        assert!(run(&a).status.success());
+    };
+    sim("irb120", "60", "1", "cal.csv");
+    let id = run(&["identify", "irb120", "cal.csv", "-o", "cal.toml", "--noise-mm", "0.02", "--noise-deg", "0.02"]);
+    assert!(id.status.success(), "{}", String::from_utf8_lossy(&id.stderr));
+    sim("truth.toml", "5", "2", "again.csv");
+    let ok = run(&["check", "cal.toml", "again.csv"]);
+    assert_eq!(ok.status.code(), Some(0), "{}", String::from_utf8_lossy(&ok.stdout));
+    assert!(String::from_utf8_lossy(&ok.stdout).contains("verdict: still calibrated"));
+    // The third joint's position along the link + 0.1 mm.
+    let text = std::fs::read_to_string(dir.path().join("truth.toml")).unwrap();
+    let mut seen = 0;
+    let drifted: Vec<String> = text
+        .lines()
+        .map(|l| {
+            if !l.starts_with("position = [") {
+                return l.to_string();
+            }
+            seen += 1;
+            if seen != 3 {
+                return l.to_string();
+            }
+            let v: Vec<f64> = l["position = [".len()..l.len() - 1].split(',').map(|x| x.trim().parse().unwrap()).collect();
+            format!("position = [{}, {}, {}]", v[0], v[1], v[2] + 0.1)
+        })
+        .collect();
+    std::fs::write(dir.path().join("drifted.toml"), drifted.join("\n")).unwrap();
+    sim("drifted.toml", "5", "3", "five.csv");
+    let bad = run(&["check", "cal.toml", "five.csv"]);
+    let out = String::from_utf8_lossy(&bad.stdout);
+    assert_eq!(bad.status.code(), Some(2), "{out}");
+    assert!(out.contains("explained by: 2-3.vz +0.0"), "{out}");
+    sim("drifted.toml", "10", "4", "ten.csv");
+    let up = run(&["identify", "--prior", "cal.toml", "ten.csv", "-o", "updated.toml"]);
+    let out = String::from_utf8_lossy(&up.stdout);
+    assert_eq!(up.status.code(), Some(0), "{out}");
+    assert!(out.contains("released (the new poses contradict the prior): 2-3.vz"), "{out}");
+    let again = run(&["check", "updated.toml", "five.csv"]);
+    assert_eq!(again.status.code(), Some(0), "{}", String::from_utf8_lossy(&again.stdout));
+    // A model file without a covariance: one line, exit 1.
+    let none = run(&["check", "truth.toml", "five.csv"]);
+    assert_eq!(none.status.code(), Some(1));
+}
