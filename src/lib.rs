@@ -47,6 +47,7 @@ pub mod assess;
 pub mod calibrate;
 pub mod compensate;
 pub mod design;
+pub mod drift;
 pub mod error;
 pub mod filter;
 pub mod identifiability;

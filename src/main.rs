@@ -41,6 +41,9 @@ enum Command {
     Identify(cli::identify::IdentifyArgs),
     /// Position / orientation error statistics of a model against measurements.
     Validate(cli::validate::ValidateArgs),
+    /// Re-measured poses judged against a calibration's prediction: exit 0 "still calibrated",
+    /// 2 "drifted" with the poses beyond their expected error and the pattern that explains it.
+    Check(cli::check::CheckArgs),
     /// Target poses → actuator commands through the calibrated model's inverse kinematics.
     Compensate(cli::compensate::CompensateArgs),
     /// A program's targets corrected for a controller that keeps its nominal kinematics (CSV
@@ -79,6 +82,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Identifiability(a) => cli::identifiability::run(a),
         Command::Identify(a) => cli::identify::run(a),
         Command::Validate(a) => cli::validate::run(a),
+        Command::Check(a) => cli::check::run(a),
         Command::Compensate(a) => cli::compensate::run(a),
         Command::Filter(a) => cli::filter::run(*a),
         Command::Assess(a) => cli::assess::run(a),

@@ -3,6 +3,7 @@
 //! calibration through `calibrate()` judged on held-out tool points after the rigid motion the
 //! instruments do not see, and the table's median [min–max].
 #![allow(dead_code)]
+pub mod drift;
 use kinecal::calibrate::{calibrate, CalibrationOptions};
 use kinecal::io::data_file::{DataSet, MeasurementFormat};
 use kinecal::io::model_file::ModelFile;

@@ -30,6 +30,8 @@ __all__ = [
     "Model",
     "Data",
     "Calibration",
+    "Update",
+    "check",
     "Validation",
     "KinecalError",
     "calibrate",
@@ -181,7 +183,9 @@ def calibrate(
     seat_distances: Sequence[str] = (),
     kind_noise: Sequence[str] = (),
     validation_seat_distances: Sequence[str] = (),
-) -> Calibration:
+    prior: Optional[Any] = None,
+    false_alarm: float = 0.01,
+) -> Any:
     """Identify the model's free parameters from ``data`` — the call behind ``kinecal identify``,
     with the same options: the measurement and tool frames found from the data (``frames=
     "estimate"``) or taken from the model (``"model"``), Gauss–Newton to convergence from
@@ -194,7 +198,15 @@ def calibrate(
     ``"seat=0.01"``, ``"distance=0.001"``; a kind without its own takes ``noise_mm``). Instrument
     rows in ``validation`` are held-out placements with artifacts of their own (``Calibration.
     held_out``); ``validation_seat_distances`` (``"A:B:MM"``, that file's seat numbers) are the
-    known distances between their seats."""
+    known distances between their seats.
+
+    With ``prior`` (a :class:`Calibration`, or a :class:`Model` loaded from a calibrated model
+    file): the prior's parameters and covariance as information and ``data`` (a few new poses) as
+    data, as ``kinecal identify --prior`` does; the patterns the new poses contradict the prior
+    along are released, each tested at ``false_alarm``. Returns an :class:`Update` then."""
+    if prior is not None:
+        raw = prior._raw if isinstance(prior, Calibration) else prior
+        return Update(_kinecal.update(raw, data, false_alarm=false_alarm))
     return Calibration(
         _kinecal.calibrate(
             model,
@@ -216,6 +228,43 @@ def calibrate(
             validation_seat_distances=list(validation_seat_distances),
         )
     )
+
+
+class Update:
+    """The result of :func:`calibrate` with a ``prior``: the updated model and what moved."""
+
+    def __init__(self, raw: Any) -> None:
+        self._raw = raw
+        self.report: Dict[str, Any] = json.loads(raw.report_json())
+
+    @property
+    def model(self) -> Model:
+        """The updated model."""
+        return self._raw.model
+
+    @property
+    def released(self) -> List[Dict[str, Any]]:
+        """The patterns released (name, kind, fitted values)."""
+        return self.report["released"]
+
+    @property
+    def moved(self) -> List[Dict[str, Any]]:
+        """The parameters moved beyond their prior σ (name, unit, change, σ before and after)."""
+        return self.report["moved"]
+
+    @property
+    def passed(self) -> bool:
+        """The new poses and the updated calibration agree within noise."""
+        return bool(self.report["passed"])
+
+
+def check(calibration: Any, data: Data, *, false_alarm: float = 0.01) -> Dict[str, Any]:
+    """Re-measured poses ``data`` judged against the prediction of ``calibration`` (a
+    :class:`Calibration`, or a :class:`Model` loaded from a calibrated model file), as ``kinecal
+    check`` does: ``result["drifted"]``, the statistic and its bound, each pose, and the pattern
+    that fits best (``result["pattern"]``)."""
+    raw = calibration._raw if isinstance(calibration, Calibration) else calibration
+    return json.loads(_kinecal.check(raw, data, false_alarm=false_alarm))
 
 
 def validate(model: Model, data: Data) -> Validation:

@@ -543,6 +543,74 @@ fn calibrate(
         .map_err(err)
 }
 
+/// The prior of a `Calibration` (in memory) or of a calibrated `Model` (its file carries the
+/// covariance of its parameters).
+fn prior_of(prior: &Bound<'_, PyAny>) -> PyResult<kinecal::drift::Prior> {
+    if let Ok(c) = prior.extract::<PyRef<'_, Calibration>>() {
+        return kinecal::drift::Prior::from_calibration(&c.cal).map_err(err);
+    }
+    if let Ok(m) = prior.extract::<PyRef<'_, Model>>() {
+        return kinecal::drift::Prior::from_model_file(&m.file).map_err(err);
+    }
+    Err(err("prior: a Calibration, or a Model loaded from a calibrated model file"))
+}
+
+/// Re-measured poses `data` judged against the prediction of `calibration` (a `Calibration`, or
+/// a calibrated `Model`): the library call behind `kinecal check`. Returns the report as JSON.
+#[pyfunction]
+#[pyo3(signature = (calibration, data, *, false_alarm = 0.01))]
+fn check(calibration: &Bound<'_, PyAny>, data: &Data, false_alarm: f64) -> PyResult<String> {
+    let prior = prior_of(calibration)?;
+    let opts = kinecal::drift::CheckOptions {
+        false_alarm,
+        ..Default::default()
+    };
+    let r = kinecal::drift::check(&prior, &data.set.measurements, &opts).map_err(|e| err(data.set.locate(e)))?;
+    serde_json::to_string(&r).map_err(err)
+}
+
+/// The result of an update (`calibrate(..., prior=...)`): the updated model and the report.
+#[pyclass(module = "kinecal._kinecal")]
+pub struct Update {
+    up: kinecal::drift::Update,
+}
+
+#[pymethods]
+impl Update {
+    /// The updated model.
+    #[getter]
+    fn model(&self) -> Model {
+        Model::of(self.up.model_file.clone())
+    }
+
+    /// What the update did, as JSON: the patterns released, the one declined, the parameters
+    /// moved, the statistic and its bound, the new poses' errors before and after.
+    fn report_json(&self) -> PyResult<String> {
+        let u = &self.up;
+        serde_json::to_string(&serde_json::json!({
+            "released": u.releases, "declined": u.declined, "moved": u.moved,
+            "largest_move_sigmas": u.largest_move_sigmas, "chi2": u.chi2, "rows": u.rows, "bound": u.bound,
+            "converged": u.converged, "passed": u.passed(), "before": u.before, "after": u.after}))
+        .map_err(err)
+    }
+}
+
+/// `prior` (a `Calibration` or a calibrated `Model`) updated by the new poses `data`: the
+/// library call behind `kinecal identify --prior`.
+#[pyfunction]
+#[pyo3(signature = (prior, data, *, false_alarm = 0.01))]
+fn update(py: Python<'_>, prior: &Bound<'_, PyAny>, data: &Data, false_alarm: f64) -> PyResult<Update> {
+    let prior = prior_of(prior)?;
+    let opts = kinecal::drift::UpdateOptions {
+        false_alarm,
+        ..Default::default()
+    };
+    let set = &data.set;
+    py.detach(|| kinecal::drift::update(&prior, &set.measurements, &opts))
+        .map(|up| Update { up })
+        .map_err(|e| err(set.locate(e)))
+}
+
 /// Per-pose errors of `model` on `data`: (statistics as JSON, position errors (n,) in mm,
 /// orientation errors (n,) in rad or None for position data).
 #[pyfunction]
@@ -1201,6 +1269,9 @@ fn _kinecal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Model>()?;
     m.add_class::<Data>()?;
     m.add_class::<Calibration>()?;
+    m.add_class::<Update>()?;
+    m.add_function(wrap_pyfunction!(check, m)?)?;
+    m.add_function(wrap_pyfunction!(update, m)?)?;
     m.add_function(wrap_pyfunction!(calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(validate, m)?)?;
     m.add_function(wrap_pyfunction!(predict_accuracy, m)?)?;

@@ -47,8 +47,18 @@ pub struct IdentifyArgs {
     /// Starting (nominal) model: a model file or a built-in name. Its [calibration] free/fixed
     /// lists choose what is identified, in priority order.
     pub model: String,
-    /// Measurement data file (CSV; see docs/workflow.md for the columns).
-    pub data: PathBuf,
+    /// Measurement data file (CSV; see docs/workflow.md for the columns). With `--prior`, the
+    /// only file given: `kinecal identify --prior CAL NEW.csv -o OUT`.
+    pub data: Option<PathBuf>,
+    /// Update the calibrated model file CAL from a few new poses (the only positional file is
+    /// then the data): its parameters and their covariance as prior information, the new poses
+    /// as data; where they contradict the prior, the pattern that explains it (a joint offset, a
+    /// length, the tool, a uniform scale) is released, each release tested at --false-alarm.
+    #[arg(long, value_name = "CAL")]
+    pub prior: Option<PathBuf>,
+    /// With `--prior`: the false-alarm rate of each release and of the final test, in percent.
+    #[arg(long, default_value_t = 100.0 * kinecal::drift::DEFAULT_FALSE_ALARM, requires = "prior")]
+    pub false_alarm: f64,
     /// Where to write the calibrated model (TOML, same format and units as the input model).
     #[arg(long, short)]
     pub out: PathBuf,
@@ -159,8 +169,19 @@ pub fn resolve_noise(
 
 /// Run the command.
 pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
+    if let Some(prior) = a.prior.clone() {
+        anyhow::ensure!(
+            a.data.is_none(),
+            "--prior takes the place of MODEL: give the new poses' file only (kinecal identify --prior {} NEW.csv -o OUT)",
+            prior.display()
+        );
+        return super::identify_prior::run(&a, &prior, Path::new(&a.model));
+    }
+    let Some(data_path) = a.data.clone() else {
+        anyhow::bail!("missing DATA: kinecal identify MODEL DATA -o OUT (or kinecal identify --prior CAL DATA -o OUT)");
+    };
     let mut outputs = Outputs::new(a.force);
-    outputs.input(Path::new(&a.model)).input(&a.data);
+    outputs.input(Path::new(&a.model)).input(&data_path);
     if let Some(v) = &a.validation {
         outputs.input(v);
     }
@@ -168,7 +189,7 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
     let file = ModelFile::load_or_builtin(&a.model)?;
     super::note_held(&file, a.json);
     let inputs = file.data_columns();
-    let mut data = read_data(&a.data, &inputs, InputColumns::Required)?;
+    let mut data = read_data(&data_path, &inputs, InputColumns::Required)?;
     let mut validation = match &a.validation {
         Some(p) => Some(read_data(p, &inputs, InputColumns::Required)?),
         None => None,
@@ -177,7 +198,7 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
     if !observed.is_empty() && data.measurements.first().is_some_and(|m| m.joints.is_empty()) {
         eprintln!(
             "note: {} holds no readings of the model's observed joints ({}): fitted from the poses alone, their encoders' zeros stay unidentified",
-            a.data.display(),
+            data_path.display(),
             observed.join(", ")
         );
     }
@@ -262,7 +283,7 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
     let report = &cal.report;
     let mut calibrated = cal.model_file.clone();
     let failed = report.verdict.status == Status::Failed;
-    let mut data_files = vec![a.data.display().to_string()];
+    let mut data_files = vec![data_path.display().to_string()];
     data_files.extend(a.validation.iter().map(|v| format!("{} (validation)", v.display())));
     calibrated.provenance = Some(Provenance {
         status: report.verdict.status.as_str().to_string(),

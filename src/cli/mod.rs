@@ -1,10 +1,12 @@
 //! One module per subcommand: each parses its arguments, calls the library and prints.
 pub mod assess;
+pub mod check;
 pub mod compensate;
 pub mod data;
 pub mod filter;
 pub mod identifiability;
 pub mod identify;
+pub mod identify_prior;
 pub mod instrument_plan;
 pub mod irb120;
 pub mod iso_plan;

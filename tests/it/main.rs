@@ -14,6 +14,7 @@ mod design;
 mod dh;
 mod draw_wire;
 mod drift;
+mod drift_check;
 mod exports;
 mod filter;
 mod filter_assess;

@@ -1,0 +1,298 @@
+//! [`check()`]: re-measured poses judged against a calibration's prediction.
+use super::patterns::{patterns, Pattern, PatternKind};
+use super::stacked::Stacked;
+use super::{chi2_quantile, Prior, DEFAULT_FALSE_ALARM};
+use crate::error::CalibError;
+use crate::identify::linearize;
+use crate::measure::{self, Measurement};
+use nalgebra::{DMatrix, DVector};
+use serde::Serialize;
+
+/// Options of [`check()`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CheckOptions {
+    /// The false-alarm rate of the test over all rows (and of each pose's own test): the
+    /// probability of "drifted" for a machine as calibrated.
+    pub false_alarm: f64,
+    /// Seed of the configurations the patterns are found at ([`super::patterns()`]).
+    pub seed: u64,
+}
+
+impl Default for CheckOptions {
+    fn default() -> Self {
+        CheckOptions {
+            false_alarm: DEFAULT_FALSE_ALARM,
+            seed: 1,
+        }
+    }
+}
+
+/// One pose judged against its prediction.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PoseCheck {
+    /// Index of the pose in the data.
+    pub index: usize,
+    /// Its residual rows.
+    pub rows: usize,
+    /// `eᵀ·C⁻¹·e` over its rows (χ² with `rows` degrees of freedom when as calibrated).
+    pub chi2: f64,
+    /// The χ² quantile of its rows at the false-alarm rate.
+    pub bound: f64,
+    /// Position error (mm).
+    pub position_mm: f64,
+    /// Orientation error (deg), when measured.
+    pub orientation_deg: Option<f64>,
+    /// The position error the prediction expects (mm, RMS of the 3-D error: the parameters'
+    /// covariance at this pose and the noise).
+    pub expected_mm: f64,
+}
+
+impl PoseCheck {
+    /// Whether the pose alone is beyond its bound.
+    pub fn beyond(&self) -> bool {
+        self.chi2 > self.bound
+    }
+}
+
+/// One coefficient of a fitted pattern, in the unit shown.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PatternValue {
+    /// Its label.
+    pub label: String,
+    /// The fitted change.
+    pub value: f64,
+    /// Its standard deviation.
+    pub sigma: f64,
+    /// `"mm"`, `"deg"`, `"ppm"`.
+    pub unit: &'static str,
+}
+
+/// A pattern fitted to the new rows.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PatternFit {
+    /// The pattern's name.
+    pub name: String,
+    /// Its kind.
+    pub kind: PatternKind,
+    /// Its fitted coefficients.
+    pub values: Vec<PatternValue>,
+    /// How much releasing it lowers the statistic, `Δ`.
+    pub chi2_drop: f64,
+    /// The χ² quantile `Δ` is tested against: of the pattern's size, at the false-alarm rate
+    /// divided by the number of patterns tried.
+    pub bound: f64,
+    /// The statistic left once it is released.
+    pub chi2_after: f64,
+    /// The χ² quantile of the rows left, at the false-alarm rate.
+    pub bound_after: f64,
+    /// Index among [`super::patterns()`].
+    #[serde(skip)]
+    pub index: usize,
+}
+
+impl PatternFit {
+    /// Releasing it lowers the statistic beyond noise.
+    pub fn significant(&self) -> bool {
+        self.chi2_drop > self.bound
+    }
+
+    /// Once released, what is left is noise.
+    pub fn explains(&self) -> bool {
+        self.chi2_after <= self.bound_after
+    }
+
+    /// `joint q2 offset +0.0512 deg (σ 0.0041)`, or `tool position tx +0.1200 ty … mm (σ …)`.
+    pub fn describe(&self) -> String {
+        let v = |x: &PatternValue| format!("{:+.4} {} (σ {:.4})", x.value, x.unit, x.sigma);
+        match self.values.as_slice() {
+            [one] if one.label == self.name => format!("{} {}", self.name, v(one)),
+            all => format!(
+                "{}: {}",
+                self.name,
+                all.iter().map(|x| format!("{} {}", x.label, v(x))).collect::<Vec<_>>().join(", ")
+            ),
+        }
+    }
+}
+
+/// What [`check()`] found.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CheckReport {
+    /// The statistic over all new rows is beyond its bound.
+    pub drifted: bool,
+    /// `T`, χ² with [`Self::rows`] degrees of freedom when as calibrated.
+    pub chi2: f64,
+    /// Rows of the new measurements.
+    pub rows: usize,
+    /// The χ² quantile of the rows at the false-alarm rate.
+    pub bound: f64,
+    /// The false-alarm rate.
+    pub false_alarm: f64,
+    /// Each pose judged alone.
+    pub poses: Vec<PoseCheck>,
+    /// The pattern that fits the new rows best, and the number of patterns tried.
+    pub pattern: Option<PatternFit>,
+    /// Patterns tried.
+    pub patterns_tried: usize,
+}
+
+impl CheckReport {
+    /// `still calibrated` or `drifted`, with the statistic.
+    pub fn verdict(&self) -> String {
+        format!(
+            "{}: χ² {:.1} over {} rows, bound {:.1} at a false-alarm rate of {} %",
+            if self.drifted { "drifted" } else { "still calibrated" },
+            self.chi2,
+            self.rows,
+            self.bound,
+            100.0 * self.false_alarm
+        )
+    }
+}
+
+/// Judge `data` (re-measured poses, any measurement kind the model's rows take) against the
+/// prediction of `prior` (see the [module docs](super)): the statistic over all rows against its
+/// χ² bound at `opts.false_alarm`, each pose alone, and the best pattern.
+///
+/// Errors: the covariance does not match the model, kinematics failing at a pose.
+pub fn check(prior: &Prior, data: &[Measurement], opts: &CheckOptions) -> Result<CheckReport, CalibError> {
+    if !(opts.false_alarm > 0.0 && opts.false_alarm < 1.0) {
+        return Err(CalibError::InvalidOption(format!(
+            "the false-alarm rate must be between 0 and 1 (it is {})",
+            opts.false_alarm
+        )));
+    }
+    if data.is_empty() {
+        return Err(CalibError::NothingToIdentify("no poses to check".into()));
+    }
+    let model = prior.model.build();
+    prior.check_size(model.n_params())?;
+    let l = prior.factor();
+    let lin = linearize(&*model, data, &prior.noise)?;
+    let rows = lin.residual.len();
+    let none = DMatrix::zeros(model.n_params(), 0);
+    let stacked = Stacked::new(&lin, &l, &none, &DVector::zeros(l.ncols()));
+    let base = stacked
+        .solve(None)?
+        .ok_or_else(|| CalibError::Numerical("the prior's rows are singular".into()))?;
+    let alpha = opts.false_alarm;
+    let bound = chi2_quantile(rows, 1.0 - alpha);
+    let poses = pose_checks(prior, &*model, data, &lin, &l, alpha)?;
+    let all = patterns(&*model, &prior.model.inputs(), opts.seed)?;
+    let pattern = best_pattern(&stacked, &lin.jacobian, &all, &[], base.cost, rows, alpha)?;
+    Ok(CheckReport {
+        drifted: base.cost > bound,
+        chi2: base.cost,
+        rows,
+        bound,
+        false_alarm: alpha,
+        poses,
+        pattern,
+        patterns_tried: all.len(),
+    })
+}
+
+/// Each pose's statistic over its block of `C = I + A·L·Lᵀ·Aᵀ` (noise-weighted rows).
+fn pose_checks(
+    prior: &Prior,
+    model: &dyn crate::model::Mechanism,
+    data: &[Measurement],
+    lin: &crate::identify::Linearization,
+    l: &DMatrix<f64>,
+    alpha: f64,
+) -> Result<Vec<PoseCheck>, CalibError> {
+    let b = &lin.jacobian * l;
+    let reached = crate::validate::forward_all(model, data)?;
+    let rows = lin.residual.len();
+    let mut out = Vec::with_capacity(data.len());
+    for (i, m) in data.iter().enumerate() {
+        let start = lin.offsets[i];
+        let end = lin.offsets.get(i + 1).copied().unwrap_or(rows);
+        let n = end - start;
+        let bb = b.rows(start, n);
+        let c = DMatrix::identity(n, n) + bb * bb.transpose();
+        let e = lin.residual.rows(start, n).into_owned();
+        let chi2 = c.clone().cholesky().map_or(f64::INFINITY, |ch| e.dot(&ch.solve(&e)));
+        let weights = measure::row_weights(&m.obs, &prior.noise);
+        let positions = n.min(3).min(weights.len());
+        let expected = (0..positions).map(|k| c[(k, k)] / (weights[k] * weights[k])).sum::<f64>().sqrt();
+        let (position_mm, orientation) = measure::errors(&m.obs, &reached[i]);
+        out.push(PoseCheck {
+            index: i,
+            rows: n,
+            chi2,
+            bound: chi2_quantile(n, 1.0 - alpha),
+            position_mm,
+            orientation_deg: orientation.map(f64::to_degrees),
+            expected_mm: expected,
+        });
+    }
+    Ok(out)
+}
+
+/// The pattern (not among `skip`) that leaves the least of the statistic `cost` once released,
+/// each of its coefficients charged `ln(rows)` (Schwarz's criterion), fitted on `stacked` (new rows' Jacobian `a`), with `rows` new rows (of which
+/// the already released patterns' coefficients take `stacked`'s extra columns).
+pub(super) fn best_pattern(
+    stacked: &Stacked,
+    a: &DMatrix<f64>,
+    all: &[Pattern],
+    skip: &[usize],
+    cost: f64,
+    rows: usize,
+    alpha: f64,
+) -> Result<Option<PatternFit>, CalibError> {
+    let tried = all.len().max(1) as f64;
+    let released = stacked.k.ncols() - stacked.r;
+    let mut best: Option<(f64, usize, f64, DVector<f64>)> = None;
+    for (i, pat) in all.iter().enumerate() {
+        if skip.contains(&i) {
+            continue;
+        }
+        let g = a * &pat.directions;
+        if g.norm() <= 1e-12 {
+            continue;
+        }
+        let Some(sol) = stacked.solve(Some(&g))? else { continue };
+        let drop = (cost - sol.cost).max(0.0);
+        let k = pat.directions.ncols();
+        // What is left, each coefficient charged ln(rows) (Schwarz's criterion): a pattern of
+        // more coefficients is named only where it explains clearly more.
+        let score = -(sol.cost + k as f64 * (rows.max(2) as f64).ln());
+        if best.as_ref().is_none_or(|b| score > b.0 + 1e-9) {
+            let beta = sol.u.rows(sol.u.len() - k, k).into_owned();
+            best = Some((score, i, drop, beta));
+        }
+    }
+    let Some((_, i, drop, beta)) = best else {
+        return Ok(None);
+    };
+    let pat = &all[i];
+    let k = pat.directions.ncols();
+    let g = a * &pat.directions;
+    let cov = stacked.covariance(Some(&g));
+    let n = stacked.k.ncols();
+    let values = pat
+        .coefficients
+        .iter()
+        .enumerate()
+        .map(|(j, c)| PatternValue {
+            label: c.label.clone(),
+            value: beta[j] * c.factor,
+            sigma: cov
+                .as_ref()
+                .map_or(f64::NAN, |m| m[(n + j, n + j)].max(0.0).sqrt() * c.factor.abs()),
+            unit: c.unit,
+        })
+        .collect();
+    Ok(Some(PatternFit {
+        name: pat.name.clone(),
+        kind: pat.kind,
+        values,
+        chi2_drop: drop,
+        bound: chi2_quantile(k, 1.0 - alpha / tried),
+        chi2_after: cost - drop,
+        bound_after: chi2_quantile(rows.saturating_sub(k + released).max(1), 1.0 - alpha),
+        index: i,
+    }))
+}

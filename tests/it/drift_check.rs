@@ -1,0 +1,208 @@
+//! `kinecal::drift`: check and update on virtual prototypes (the scenarios of
+//! examples/drift.rs, fewer draws; the 100-draw figures are in docs/drift.md).
+#[path = "../../examples/common/drift.rs"]
+mod scenario;
+use kinecal::drift::{check, update, CheckOptions, Prior, UpdateOptions};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use scenario::{calibrated, configurations, drifted, held_out_rms, machine, measure, Drift, Machine};
+
+/// The IRB 120 drifts and the pattern each should be named by.
+fn irb120_drifts() -> [(Drift, &'static str); 3] {
+    [
+        (
+            Drift::InputOffset {
+                input: 1,
+                amount: 0.05f64.to_radians(),
+            },
+            "joint q2 offset",
+        ),
+        (
+            Drift::Parameter {
+                name: "2-3.vz",
+                amount: 0.1,
+            },
+            "2-3.vz",
+        ),
+        (Drift::Tool { mm: 0.2 }, "tool position"),
+    ]
+}
+
+fn prototype(model: &str, k: u64) -> (Machine, Prior) {
+    let m = machine(model, 1000 + k);
+    let zero = vec![0.0; m.file.inputs().len()];
+    let prior = calibrated(&m, &*m.truth, &zero, 60, 2000 + k);
+    (m, prior)
+}
+
+/// `n` noisy poses of the machine after `drift`.
+fn new_poses(
+    m: &Machine,
+    drift: Drift,
+    n: usize,
+    seed: u64,
+) -> (Vec<kinecal::measure::Measurement>, Box<dyn kinecal::Mechanism>, Vec<f64>) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let (truth, shift) = drifted(m, drift, &mut rng);
+    let q = configurations(m, n, &mut rng);
+    (measure(&*truth, &shift, &q, Some(&m.noise), &mut rng), truth, shift)
+}
+
+#[test]
+fn check_passes_an_unchanged_irb120_and_names_each_drift() {
+    let mut named = 0;
+    for k in 0..4 {
+        let (m, prior) = prototype("irb120", k);
+        let (same, _, _) = new_poses(&m, Drift::None, 5, 3000 + k);
+        let r = check(&prior, &same, &CheckOptions::default()).unwrap();
+        assert!(!r.drifted, "draw {k}: {}", r.verdict());
+        assert_eq!(r.poses.len(), 5);
+        assert!(r.poses.iter().all(|p| p.expected_mm > 0.0 && p.rows == 6));
+        for (drift, name) in irb120_drifts() {
+            let (five, _, _) = new_poses(&m, drift, 5, 3000 + k);
+            let r = check(&prior, &five, &CheckOptions::default()).unwrap();
+            assert!(r.drifted, "draw {k}, {name}: {}", r.verdict());
+            let p = r.pattern.as_ref().unwrap();
+            if p.name == name {
+                named += 1;
+                assert!(p.significant() && p.explains(), "{}", p.describe());
+            }
+        }
+    }
+    assert!(named >= 10, "the true pattern named in {named} of 12");
+}
+
+#[test]
+fn check_works_with_three_poses_and_sizes_a_joint_offset() {
+    let (m, prior) = prototype("irb120", 7);
+    let (three, _, _) = new_poses(&m, Drift::None, 3, 11);
+    assert!(!check(&prior, &three, &CheckOptions::default()).unwrap().drifted);
+    let drift = Drift::InputOffset {
+        input: 1,
+        amount: 0.05f64.to_radians(),
+    };
+    let (three, _, _) = new_poses(&m, drift, 3, 11);
+    let r = check(&prior, &three, &CheckOptions::default()).unwrap();
+    assert!(r.drifted);
+    assert!(r.poses.iter().any(|p| p.beyond()));
+    let p = r.pattern.unwrap();
+    assert_eq!(p.name, "joint q2 offset");
+    // The size found within 3 σ of the drift.
+    let v = &p.values[0];
+    assert_eq!(v.unit, "deg");
+    assert!((v.value - 0.05).abs() < 3.0 * v.sigma + 1e-4, "{}", p.describe());
+}
+
+#[test]
+fn update_releases_the_drift_and_nothing_else() {
+    let (mut upd, mut rec) = (0.0, 0.0);
+    for k in 0..3 {
+        let (m, prior) = prototype("irb120", k);
+        // No drift: nothing released, no parameter far beyond its σ.
+        let (ten, _, _) = new_poses(&m, Drift::None, 10, 5000 + k);
+        let up = update(&prior, &ten, &UpdateOptions::default()).unwrap();
+        assert!(up.releases.is_empty() && up.passed() && up.converged);
+        assert!(up.largest_move_sigmas < 2.0, "{}", up.largest_move_sigmas);
+        for (drift, name) in irb120_drifts() {
+            let (ten, truth, shift) = new_poses(&m, drift, 10, 5000 + k);
+            let up = update(&prior, &ten, &UpdateOptions::default()).unwrap();
+            assert!(up.passed(), "draw {k}, {name}: χ² {} bound {}", up.chi2, up.bound);
+            assert_eq!(up.releases.first().map(|r| r.name.as_str()), Some(name));
+            assert!(up.after.position_rms_mm < 0.5 * up.before.position_rms_mm);
+            let mut rng = ChaCha8Rng::seed_from_u64(9);
+            let q50 = configurations(&m, 50, &mut rng);
+            let recal = calibrated(&m, &*truth, &shift, 60, 4000 + k);
+            let r = held_out_rms(&*recal.model.build(), &*truth, &shift, &q50);
+            // The drift matters: the prior alone is far off.
+            assert!(held_out_rms(&*prior.model.build(), &*truth, &shift, &q50) > 3.0 * r);
+            upd += held_out_rms(&*up.model_file.build(), &*truth, &shift, &q50);
+            rec += r;
+        }
+    }
+    assert!(upd < 1.5 * rec, "update {upd} recalibration {rec}");
+}
+
+#[test]
+fn pm5_check_and_update() {
+    let (m, prior) = prototype("pm5", 0);
+    let (same, _, _) = new_poses(&m, Drift::None, 5, 1);
+    assert!(!check(&prior, &same, &CheckOptions::default()).unwrap().drifted);
+    let drift = Drift::Parameter { name: "dl1", amount: 0.1 };
+    let (five, _, _) = new_poses(&m, drift, 5, 1);
+    let r = check(&prior, &five, &CheckOptions::default()).unwrap();
+    assert!(r.drifted);
+    let (ten, _, _) = new_poses(&m, drift, 10, 2);
+    let up = update(&prior, &ten, &UpdateOptions::default()).unwrap();
+    let why = format!(
+        "released {:?}, declined {:?}, χ² {} bound {}, converged {}",
+        up.releases.iter().map(|r| r.describe()).collect::<Vec<_>>(),
+        up.declined.as_ref().map(|d| d.describe()),
+        up.chi2,
+        up.bound,
+        up.converged
+    );
+    assert!(up.passed() && !up.releases.is_empty(), "{why}");
+}
+
+#[test]
+fn cli_check_and_identify_prior_on_a_changed_length() {
+    use assert_cmd::Command;
+    let dir = tempfile::tempdir().unwrap();
+    let run = |args: &[&str]| {
+        Command::cargo_bin("kinecal")
+            .unwrap()
+            .current_dir(dir.path())
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let sim = |model: &str, n: &str, seed: &str, out: &str| {
+        let mut a = vec!["simulate", model, "--poses", n, "--noise-mm", "0.02", "--noise-deg", "0.02", "--seed", seed, "-o", out];
+        if model == "irb120" {
+            a.extend(["--error-mm", "0.2", "--error-deg", "0.02", "--truth", "truth.toml"]);
+        } else {
+            a.extend(["--error-mm", "0", "--error-deg", "0"]);
+        }
+        assert!(run(&a).status.success());
+    };
+    sim("irb120", "60", "1", "cal.csv");
+    let id = run(&["identify", "irb120", "cal.csv", "-o", "cal.toml", "--noise-mm", "0.02", "--noise-deg", "0.02"]);
+    assert!(id.status.success(), "{}", String::from_utf8_lossy(&id.stderr));
+    sim("truth.toml", "5", "2", "again.csv");
+    let ok = run(&["check", "cal.toml", "again.csv"]);
+    assert_eq!(ok.status.code(), Some(0), "{}", String::from_utf8_lossy(&ok.stdout));
+    assert!(String::from_utf8_lossy(&ok.stdout).contains("verdict: still calibrated"));
+    // The third joint's position along the link + 0.1 mm.
+    let text = std::fs::read_to_string(dir.path().join("truth.toml")).unwrap();
+    let mut seen = 0;
+    let drifted: Vec<String> = text
+        .lines()
+        .map(|l| {
+            if !l.starts_with("position = [") {
+                return l.to_string();
+            }
+            seen += 1;
+            if seen != 3 {
+                return l.to_string();
+            }
+            let v: Vec<f64> = l["position = [".len()..l.len() - 1].split(',').map(|x| x.trim().parse().unwrap()).collect();
+            format!("position = [{}, {}, {}]", v[0], v[1], v[2] + 0.1)
+        })
+        .collect();
+    std::fs::write(dir.path().join("drifted.toml"), drifted.join("\n")).unwrap();
+    sim("drifted.toml", "5", "3", "five.csv");
+    let bad = run(&["check", "cal.toml", "five.csv"]);
+    let out = String::from_utf8_lossy(&bad.stdout);
+    assert_eq!(bad.status.code(), Some(2), "{out}");
+    assert!(out.contains("explained by: 2-3.vz +0.0"), "{out}");
+    sim("drifted.toml", "10", "4", "ten.csv");
+    let up = run(&["identify", "--prior", "cal.toml", "ten.csv", "-o", "updated.toml"]);
+    let out = String::from_utf8_lossy(&up.stdout);
+    assert_eq!(up.status.code(), Some(0), "{out}");
+    assert!(out.contains("released (the new poses contradict the prior): 2-3.vz"), "{out}");
+    let again = run(&["check", "updated.toml", "five.csv"]);
+    assert_eq!(again.status.code(), Some(0), "{}", String::from_utf8_lossy(&again.stdout));
+    // A model file without a covariance: one line, exit 1.
+    let none = run(&["check", "truth.toml", "five.csv"]);
+    assert_eq!(none.status.code(), Some(1));
+}
