@@ -157,7 +157,20 @@ fn cli_check_and_identify_prior_on_a_changed_length() {
             .unwrap()
     };
     let sim = |model: &str, n: &str, seed: &str, out: &str| {
-        let mut a = vec!["simulate", model, "--poses", n, "--noise-mm", "0.02", "--noise-deg", "0.02", "--seed", seed, "-o", out];
+        let mut a = vec![
+            "simulate",
+            model,
+            "--poses",
+            n,
+            "--noise-mm",
+            "0.02",
+            "--noise-deg",
+            "0.02",
+            "--seed",
+            seed,
+            "-o",
+            out,
+        ];
         if model == "irb120" {
             a.extend(["--error-mm", "0.2", "--error-deg", "0.02", "--truth", "truth.toml"]);
         } else {
@@ -166,7 +179,17 @@ fn cli_check_and_identify_prior_on_a_changed_length() {
         assert!(run(&a).status.success());
     };
     sim("irb120", "60", "1", "cal.csv");
-    let id = run(&["identify", "irb120", "cal.csv", "-o", "cal.toml", "--noise-mm", "0.02", "--noise-deg", "0.02"]);
+    let id = run(&[
+        "identify",
+        "irb120",
+        "cal.csv",
+        "-o",
+        "cal.toml",
+        "--noise-mm",
+        "0.02",
+        "--noise-deg",
+        "0.02",
+    ]);
     assert!(id.status.success(), "{}", String::from_utf8_lossy(&id.stderr));
     sim("truth.toml", "5", "2", "again.csv");
     let ok = run(&["check", "cal.toml", "again.csv"]);
@@ -185,7 +208,10 @@ fn cli_check_and_identify_prior_on_a_changed_length() {
             if seen != 3 {
                 return l.to_string();
             }
-            let v: Vec<f64> = l["position = [".len()..l.len() - 1].split(',').map(|x| x.trim().parse().unwrap()).collect();
+            let v: Vec<f64> = l["position = [".len()..l.len() - 1]
+                .split(',')
+                .map(|x| x.trim().parse().unwrap())
+                .collect();
             format!("position = [{}, {}, {}]", v[0], v[1], v[2] + 0.1)
         })
         .collect();
