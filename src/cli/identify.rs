@@ -49,6 +49,7 @@ pub struct IdentifyArgs {
     pub model: String,
     /// Measurement data file (CSV; see docs/workflow.md for the columns). With `--prior`, the
     /// only file given: `kinecal identify --prior CAL NEW.csv -o OUT`.
+    #[arg(required_unless_present = "prior")]
     pub data: Option<PathBuf>,
     /// Update the calibrated model file CAL from a few new poses (the only positional file is
     /// then the data): its parameters and their covariance as prior information, the new poses
