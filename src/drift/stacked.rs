@@ -44,19 +44,23 @@ impl Stacked {
         Stacked { k, rhs, offsets, r }
     }
 
+    /// The stacked matrix with the extra data columns `extra` (new rows only; zero in the prior's
+    /// rows) appended.
+    fn with_extra(&self, extra: Option<&DMatrix<f64>>) -> DMatrix<f64> {
+        let Some(x) = extra else {
+            return self.k.clone();
+        };
+        let (rows, cols) = self.k.shape();
+        let mut k = DMatrix::zeros(rows, cols + x.ncols());
+        k.view_mut((0, 0), (rows, cols)).copy_from(&self.k);
+        k.view_mut((self.r, cols), (rows - self.r, x.ncols())).copy_from(x);
+        k
+    }
+
     /// The least-squares solution, with the extra data columns `extra` (new rows only) free too;
     /// `None` when the columns are not all determined (a pattern these poses do not see).
     pub fn solve(&self, extra: Option<&DMatrix<f64>>) -> Result<Option<Solution>, CalibError> {
-        let k = match extra {
-            None => self.k.clone(),
-            Some(x) => {
-                let (rows, cols) = self.k.shape();
-                let mut k = DMatrix::zeros(rows, cols + x.ncols());
-                k.view_mut((0, 0), (rows, cols)).copy_from(&self.k);
-                k.view_mut((self.r, cols), (rows - self.r, x.ncols())).copy_from(x);
-                k
-            }
-        };
+        let k = self.with_extra(extra);
         let cols: Vec<usize> = (0..k.ncols()).collect();
         if k.ncols() > k.nrows() {
             return Ok(None);
@@ -78,16 +82,7 @@ impl Stacked {
 
     /// The covariance of `[z; β]` (unit weight), with the extra data columns `extra` free too.
     pub fn covariance(&self, extra: Option<&DMatrix<f64>>) -> Option<DMatrix<f64>> {
-        let k = match extra {
-            None => self.k.clone(),
-            Some(x) => {
-                let (rows, cols) = self.k.shape();
-                let mut k = DMatrix::zeros(rows, cols + x.ncols());
-                k.view_mut((0, 0), (rows, cols)).copy_from(&self.k);
-                k.view_mut((self.r, cols), (rows - self.r, x.ncols())).copy_from(x);
-                k
-            }
-        };
+        let k = self.with_extra(extra);
         let n = k.tr_mul(&k);
         let s: Vec<f64> = (0..n.nrows()).map(|i| n[(i, i)].max(0.0).sqrt()).collect();
         if s.iter().any(|v| *v <= 0.0) {
