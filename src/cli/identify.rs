@@ -178,9 +178,7 @@ pub fn run(a: IdentifyArgs) -> anyhow::Result<()> {
         );
         return super::identify_prior::run(&a, &prior, Path::new(&a.model));
     }
-    let Some(data_path) = a.data.clone() else {
-        anyhow::bail!("missing DATA: kinecal identify MODEL DATA -o OUT (or kinecal identify --prior CAL DATA -o OUT)");
-    };
+    let data_path = a.data.clone().expect("clap requires DATA without --prior");
     let mut outputs = Outputs::new(a.force);
     outputs.input(Path::new(&a.model)).input(&data_path);
     if let Some(v) = &a.validation {
