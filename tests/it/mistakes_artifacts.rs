@@ -1,8 +1,11 @@
 //! Mistakes in what a user states of the instrument and its artifacts, each one line naming the
-//! likely cause, exit 1 (the tutorials' "What can go wrong", docs/tutorial-instruments.md): a
-//! sphere diameter in inches, a probe's diameter given as its radius, radians in `_deg` columns
-//! of a 6-axis arm (touches and tracker), a ballbar length in inches, seats paired across
-//! placements; `data check` and `validate` name wrong units as `identify` does.
+//! likely cause, exit 1 (the tutorials' "What can go wrong", docs/tutorial-instruments.md): each
+//! artifact size read another way (`kinecal::calibrate::sizes`: a sphere diameter in inches or
+//! given as its radius, a probe's diameter given as its radius or its radius halved, a cube edge
+//! in inches, a ballbar length in inches, centimetres or metres), radians in `_deg` columns of a
+//! 6-axis arm (touches and tracker), seats paired across placements, a known seat distance off
+//! the nominal one (a warning, then the fit's verdict); `data check` and `validate` name wrong
+//! units as `identify` does.
 use crate::cli::{fails, kinecal, ok};
 use std::fs;
 use std::path::Path;
@@ -43,8 +46,9 @@ fn ur5e(d: &Path) {
 }
 
 /// Tutorial 3's sphere touches (a UR5e, three 25.4 mm spheres, a 1.5 mm probe): calibrated as
-/// stated; a diameter in inches, the probe's diameter in the radius column and radians in the
-/// `_deg` columns are each one line naming that mistake, exit 1, nothing written.
+/// stated; a diameter in inches, a sphere's radius in the diameter column, the probe's diameter
+/// in the radius column, the probe's radius halved and radians in the `_deg` columns are each one
+/// line naming that mistake, exit 1, nothing written.
 #[test]
 fn sphere_sizes_in_the_wrong_unit_and_radians_are_named() {
     let tmp = tempfile::tempdir().unwrap();
@@ -94,6 +98,20 @@ fn sphere_sizes_in_the_wrong_unit_and_radians_are_named() {
             v
         }
     });
+    rewrite(d, "spheres.csv", "radius.csv", &|c, v| {
+        if c == "sphere_diameter_mm" {
+            v / 2.0
+        } else {
+            v
+        }
+    });
+    rewrite(d, "spheres.csv", "halved.csv", &|c, v| {
+        if c == "probe_radius_mm" {
+            v / 2.0
+        } else {
+            v
+        }
+    });
     rewrite(d, "spheres.csv", "rad.csv", &|c, v| {
         if c.ends_with("_deg") {
             v.to_radians()
@@ -110,6 +128,14 @@ fn sphere_sizes_in_the_wrong_unit_and_radians_are_named() {
             "probe.csv",
             "probe radius given as its diameter? (probe_radius_mm 3 read as 1.5000 mm)",
         ),
+        (
+            "radius.csv",
+            "the sphere's radius given as its diameter? (sphere_diameter_mm 12.7 read as 25.4000 mm)",
+        ),
+        (
+            "halved.csv",
+            "probe radius halved, as if it were a diameter? (probe_radius_mm 0.75 read as 1.5000 mm)",
+        ),
         ("rad.csv", "they look like radians; name them shoulder_pan_joint_rad"),
     ] {
         let e = fails(d, &identify(file));
@@ -119,11 +145,68 @@ fn sphere_sizes_in_the_wrong_unit_and_radians_are_named() {
     }
     // The size readings say what the data do with them: the calibration as stated fails, read
     // the other way it calibrates.
+    for file in ["inch.csv", "radius.csv", "probe.csv", "halved.csv"] {
+        let e = fails(d, &identify(file));
+        assert!(
+            e.contains("as stated the calibration fails") && e.contains("read so, it calibrates"),
+            "{file}: {e}"
+        );
+    }
+}
+
+/// Tutorial 3's datum cube (100 mm edge, turned 20°, 10 touches a face): calibrated as stated;
+/// its edge in inches is one line naming the edge's unit, with what the calibration does as
+/// stated and read in mm, exit 1, nothing written.
+#[test]
+fn a_cube_edge_in_inches_is_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    ur5e(d);
+    ok(
+        d,
+        &[
+            "simulate",
+            "ur5e.toml",
+            "--cube",
+            "400,0,150",
+            "--cube-edge-mm",
+            "100",
+            "--cube-rotation-deg",
+            "0,0,20",
+            "--probe-radius-mm",
+            "1.5",
+            "--per-point",
+            "10",
+            "--tool-mm",
+            "10,-5,120",
+            "--noise-mm",
+            "0.005",
+            "--seed",
+            "3",
+            "--out",
+            "cube.csv",
+            "--truth",
+            "truth.toml",
+        ],
+    );
+    let identify =
+        |file: &'static str| -> Vec<&'static str> { vec!["identify", "ur5e.toml", file, "--kind-noise", "probe=0.005", "--out", "c.toml"] };
+    let said = ok(d, &identify("cube.csv"));
+    assert!(said.contains("verdict: calibrated"), "{said}");
+    fs::remove_file(d.join("c.toml")).unwrap();
+    // The edge as a user writes it from the cube's inch drawing: 3.937 for 100 mm.
+    let text = fs::read_to_string(d.join("cube.csv")).unwrap();
+    fs::write(d.join("inch.csv"), text.replace(",100,1.5\n", ",3.937,1.5\n")).unwrap();
+    assert_ne!(text, fs::read_to_string(d.join("inch.csv")).unwrap());
     let e = fails(d, &identify("inch.csv"));
     assert!(
-        e.contains("as stated the calibration fails") && e.contains("read so, it calibrates"),
+        e.starts_with("inch.csv: cube edge in inches? (cube_edge_mm 3.937 read as 99.9998 mm; give it in mm)")
+            && e.contains("as stated the calibration fails")
+            && e.contains("read so, it calibrates")
+            && !e.contains("a model of another machine"),
         "{e}"
     );
+    assert!(!d.join("c.toml").exists());
 }
 
 /// Radians in the `_deg` columns of a 6-axis arm measured by a tracker. With the URDF's limits
@@ -221,10 +304,10 @@ fn radians_in_degree_columns_fit_far_better_as_radians() {
     }
 }
 
-/// Tutorial 2's ballbar (pm5, three pivots, a 100 mm bar) with the lengths in inches: one line
-/// naming the bar length's unit, exit 1.
+/// Tutorial 2's ballbar (pm5, three pivots, a 100 mm bar) with the lengths in inches,
+/// centimetres or metres: one line naming the bar length's unit, exit 1, nothing written.
 #[test]
-fn a_bar_length_in_inches_is_named() {
+fn a_bar_length_in_inches_centimetres_or_metres_is_named() {
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
     ok(d, &["model", "export", "pm5", "-o", "pm5.toml"]);
@@ -253,21 +336,26 @@ fn a_bar_length_in_inches_is_named() {
             "t.toml",
         ],
     );
-    rewrite(d, "bar.csv", "inch.csv", &|c, v| if c == "length_mm" { v / 25.4 } else { v });
-    let e = fails(d, &["identify", "pm5.toml", "inch.csv", "--noise-mm", "0.001", "--out", "c.toml"]);
-    assert!(
-        e.starts_with("inch.csv") && e.contains("bar length in inches?") && e.contains("read so, it calibrates"),
-        "{e}"
-    );
+    for (file, factor, cause) in [
+        ("inch.csv", 25.4, "bar length in inches? (length_mm "),
+        ("cm.csv", 10.0, "bar length in centimetres? (length_mm "),
+        ("m.csv", 1000.0, "bar length in metres? (length_mm "),
+    ] {
+        rewrite(d, "bar.csv", file, &|c, v| if c == "length_mm" { v / factor } else { v });
+        let e = fails(d, &["identify", "pm5.toml", file, "--noise-mm", "0.001", "--out", "c.toml"]);
+        assert!(
+            e.starts_with(&format!("{file}: {cause}"))
+                && e.contains("as stated the calibration fails")
+                && e.contains("read so, it calibrates"),
+            "{e}"
+        );
+        assert!(!d.join("c.toml").exists());
+    }
 }
 
-/// Tutorial 1's seats (the real Panda sockets, three placements): a known distance between seats
-/// of two placements (0:2 for 0:1) is one line naming the likely cause and a pair the nominal
-/// model puts at that distance, exit 1, before fitting.
-#[test]
-fn seats_paired_across_placements_are_named() {
-    let tmp = tempfile::tempdir().unwrap();
-    let d = tmp.path();
+/// In `d`: the Panda's model imported to `panda.toml`; returns the `data join` of its six real
+/// sockets (three placements of two) to `seats.csv`, angles in radians, not yet run.
+fn panda_seats(d: &Path) -> Vec<String> {
     let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mukca-panda");
     ok(
         d,
@@ -290,6 +378,17 @@ fn seats_paired_across_placements_are_named() {
             args.push(data.join(p).join(format!("socket_{s}.csv")).display().to_string());
         }
     }
+    args
+}
+
+/// Tutorial 1's seats (the real Panda sockets, three placements): a known distance between seats
+/// of two placements (0:2 for 0:1) is one line naming the likely cause and a pair the nominal
+/// model puts at that distance, exit 1, before fitting.
+#[test]
+fn seats_paired_across_placements_are_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let args = panda_seats(d);
     // The sockets' radians joined as degrees: the values a wrong unit explains are refused.
     let as_deg: Vec<&str> = args.iter().map(|a| if a == "rad" { "deg" } else { a.as_str() }).collect();
     let e = fails(d, &as_deg);
@@ -340,4 +439,61 @@ fn seats_paired_across_placements_are_named() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(0), "{err}");
     assert!(!err.contains("paired across"), "{err}");
+}
+
+/// The Panda's sockets with a known distance between seats 0 and 1 stated against the distance
+/// between their centres placed by the nominal model (about 50 mm): 1.67× off (30 mm) is a
+/// warning naming the pair, and the fit goes on to its verdict, which fails here (exit 2,
+/// nothing written); within 0.8–1.25× (45 mm) there is no such line and the calibration is
+/// written; beyond half or twice (110 mm, 0.46×) it is one line and exit 1 before fitting.
+#[test]
+fn a_seat_distance_off_by_half_again_is_a_warning_naming_the_pair() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let join = panda_seats(d);
+    ok(d, &join.iter().map(String::as_str).collect::<Vec<_>>());
+    let identify = |first: &'static str| -> Vec<&'static str> {
+        vec![
+            "identify",
+            "panda.toml",
+            "seats.csv",
+            "--seat-distance",
+            first,
+            "--seat-distance",
+            "2:3:50",
+            "--seat-distance",
+            "4:5:50",
+            "--out",
+            "c.toml",
+        ]
+    };
+    let out = kinecal(d, &identify("0:1:30"));
+    let err = String::from_utf8_lossy(&out.stderr);
+    let lines: Vec<&str> = err.lines().collect();
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        lines.len() == 2
+            && lines[0].starts_with("warning: --seat-distance 0:1:30: the nominal model puts seats 0 and 1 ")
+            && lines[0].contains("1.67× the stated 30 mm")
+            && lines[0].contains("seats paired across placements, or wrong seat numbers?")
+            && lines[1].starts_with("kinecal: failed: verdict: failed"),
+        "{err}"
+    );
+    assert!(!d.join("c.toml").exists());
+    // Within 0.8–1.25× of the nominal distance: no warning, calibrated and written.
+    let out = kinecal(d, &identify("0:1:45"));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    assert!(!err.contains("--seat-distance"), "{err}");
+    assert!(d.join("c.toml").exists());
+    fs::remove_file(d.join("c.toml")).unwrap();
+    // Less than half the stated distance: one line, exit 1, before fitting.
+    let e = fails(d, &identify("0:1:110"));
+    assert!(
+        e.starts_with("seats.csv: --seat-distance 0:1:110: the nominal model puts seats 0 and 1 ")
+            && e.contains("0.46× the stated 110 mm")
+            && e.contains("seats paired across placements, or wrong seat numbers?"),
+        "{e}"
+    );
+    assert!(!d.join("c.toml").exists());
 }
