@@ -353,22 +353,20 @@ fn a_bar_length_in_inches_centimetres_or_metres_is_named() {
     }
 }
 
+/// The Panda's model (the test copy of its URDF, cut at the ball) imported to `panda.toml` in `d`.
+fn panda(d: &Path) {
+    let urdf = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mukca-panda/panda.urdf");
+    ok(
+        d,
+        &["model", "import", urdf.to_str().unwrap(), "--tip", "ball_link", "-o", "panda.toml"],
+    );
+}
+
 /// In `d`: the Panda's model imported to `panda.toml`; returns the `data join` of its six real
 /// sockets (three placements of two) to `seats.csv`, angles in radians, not yet run.
 fn panda_seats(d: &Path) -> Vec<String> {
+    panda(d);
     let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mukca-panda");
-    ok(
-        d,
-        &[
-            "model",
-            "import",
-            data.join("panda.urdf").to_str().unwrap(),
-            "--tip",
-            "ball_link",
-            "-o",
-            "panda.toml",
-        ],
-    );
     let mut args: Vec<String> = ["data", "join", "panda.toml", "--angles", "rad", "--out", "seats.csv"]
         .map(String::from)
         .to_vec();
@@ -496,4 +494,55 @@ fn a_seat_distance_off_by_half_again_is_a_warning_naming_the_pair() {
         "{e}"
     );
     assert!(!d.join("c.toml").exists());
+}
+
+/// Five placements of a two-seat artifact (50 mm) on a simulated Panda, the first pair's distance
+/// stated as 30 mm: a warning naming seats 0 and 1 (1.67× the stated), and the fit goes on. The
+/// other four placements carry the calibration, the first pair's 40 rows are set aside as
+/// blunders, and the calibration is written, exit 0, the verdict naming the rows set aside.
+#[test]
+fn a_seat_distance_off_warns_and_the_rest_calibrates() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    panda(d);
+    ok(
+        d,
+        &[
+            "simulate",
+            "panda.toml",
+            "--seats",
+            "500,-200,300;500,-150,300;550,0,250;550,50,250;450,200,350;450,250,350;400,-100,450;400,-50,450;600,100,150;600,150,150",
+            "--per-point",
+            "20",
+            "--tool-mm",
+            "0,0,50",
+            "--noise-mm",
+            "0.02",
+            "--seed",
+            "4",
+            "--out",
+            "s.csv",
+            "--truth",
+            "t.toml",
+        ],
+    );
+    let mut args = vec!["identify", "panda.toml", "s.csv", "--noise-mm", "0.02", "--out", "c.toml"];
+    for pair in ["0:1:30", "2:3:50", "4:5:50", "6:7:50", "8:9:50"] {
+        args.extend(["--seat-distance", pair]);
+    }
+    let out = kinecal(d, &args);
+    let (said, err) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    assert!(
+        err.lines().count() == 1
+            && err.starts_with("warning: --seat-distance 0:1:30: the nominal model puts seats 0 and 1 ")
+            && err.contains("1.67× the stated 30 mm")
+            && err.contains("seats paired across placements, or wrong seat numbers?"),
+        "{err}"
+    );
+    assert!(
+        said.contains("40 poses set aside as blunders") && said.contains("ids 0 1 2 ") && said.contains("verdict: usable with warnings"),
+        "{said}"
+    );
+    assert!(d.join("c.toml").exists());
 }
