@@ -81,3 +81,27 @@ pub fn simulate(dir: &Path, model: &str, poses: usize, validation: usize, seed: 
     args.extend_from_slice(extra);
     ok(dir, &args)
 }
+
+/// The test copy of the real Panda data: its URDF and each placement's two socket exports.
+pub fn panda_data() -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mukca-panda")
+}
+
+/// `kinecal model import` of the Panda's URDF cut at the ball, to `panda.toml` in `dir`.
+pub fn import_panda(dir: &Path) {
+    let urdf = panda_data().join("panda.urdf");
+    ok(
+        dir,
+        &["model", "import", urdf.to_str().unwrap(), "--tip", "ball_link", "-o", "panda.toml"],
+    );
+}
+
+/// The socket exports of these Panda placements, in order: `P/socket_0.csv`, `P/socket_1.csv`
+/// of each (seats 2k and 2k+1 of placement k once joined).
+pub fn panda_sockets(placements: &[&str]) -> Vec<String> {
+    let data = panda_data();
+    placements
+        .iter()
+        .flat_map(|p| [0, 1].map(|s| data.join(p).join(format!("socket_{s}.csv")).display().to_string()))
+        .collect()
+}

@@ -2,7 +2,7 @@
 //! any units, rows matched by id, lost beams dropped), `data split`, and `identify` on the
 //! joined tracker-frame data, fitting the reflectors as a frame or as three points; several
 //! starts that disagree fail the calibration.
-use crate::cli::{fails, kinecal, ok};
+use crate::cli::{fails, import_panda, kinecal, ok, panda_data, panda_sockets};
 use std::fs;
 use std::path::Path;
 
@@ -220,16 +220,8 @@ fn a_start_in_a_clearly_worse_minimum_is_set_aside() {
 fn seat_exports_join_into_one_seat_file() {
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
-    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mukca-panda");
-    let urdf = data.join("panda.urdf");
-    ok(
-        d,
-        &["model", "import", urdf.to_str().unwrap(), "--tip", "ball_link", "-o", "panda.toml"],
-    );
-    let sockets: Vec<String> = ["back_left", "high"]
-        .iter()
-        .flat_map(|p| [0, 1].map(|s| data.join(p).join(format!("socket_{s}.csv")).display().to_string()))
-        .collect();
+    import_panda(d);
+    let sockets = panda_sockets(&["back_left", "high"]);
     let mut args = vec!["data", "join", "panda.toml", "--angles", "rad", "--out", "seats.csv"];
     for s in &sockets {
         args.extend(["--seat", s.as_str()]);
@@ -308,16 +300,12 @@ fn seat_exports_join_into_one_seat_file() {
 fn limits_narrower_than_the_data_are_a_warning_and_a_wrong_unit_is_refused() {
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
-    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mukca-panda");
-    let urdf = fs::read_to_string(data.join("panda.urdf")).unwrap();
+    let urdf = fs::read_to_string(panda_data().join("panda.urdf")).unwrap();
     let narrowed = urdf.replacen("lower=\"-3.0718\"", "lower=\"-2.8900\"", 1);
     assert_ne!(narrowed, urdf);
     fs::write(d.join("panda.urdf"), narrowed).unwrap();
     ok(d, &["model", "import", "panda.urdf", "--tip", "ball_link", "-o", "panda.toml"]);
-    let sockets: Vec<String> = ["back_left", "front_right", "high"]
-        .iter()
-        .flat_map(|p| [0, 1].map(|s| data.join(p).join(format!("socket_{s}.csv")).display().to_string()))
-        .collect();
+    let sockets = panda_sockets(&["back_left", "front_right", "high"]);
     let join = |angles: &str, out: &str| {
         let mut args = vec!["data", "join", "panda.toml", "--angles", angles, "--out", out];
         for s in &sockets {

@@ -386,16 +386,9 @@ fn held_out_placements_numbered_like_the_identification_s_are_their_own_artifact
     use crate::cli::{json, ok};
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
-    let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mukca-panda");
-    let urdf = data.join("panda.urdf");
-    ok(
-        d,
-        &["model", "import", urdf.to_str().unwrap(), "--tip", "ball_link", "-o", "panda.toml"],
-    );
+    crate::cli::import_panda(d);
     let join = |placements: &[&str], out: &str| {
-        let sockets: Vec<String> = (placements.iter())
-            .flat_map(|p| [0, 1].map(|s| data.join(p).join(format!("socket_{s}.csv")).display().to_string()))
-            .collect();
+        let sockets = crate::cli::panda_sockets(placements);
         let mut args = vec!["data", "join", "panda.toml", "--angles", "rad", "--out", out];
         for s in &sockets {
             args.extend(["--seat", s.as_str()]);

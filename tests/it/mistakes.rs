@@ -1,8 +1,7 @@
 //! A user's mistakes get one line naming the cause (exit 1), or a line beside the result when it
 //! can go on; small wording a user reads (plurals, what a command wrote).
-use crate::cli::{fails, kinecal, ok};
+use crate::cli::{fails, import_panda as panda, kinecal, ok, panda_sockets};
 use std::fs;
-use std::path::Path;
 
 /// A data file where the model goes (`identify DATA MODEL`): the order, not a TOML message.
 #[test]
@@ -30,19 +29,7 @@ fn a_csv_given_as_the_model_names_the_order() {
 }
 
 fn sockets() -> Vec<String> {
-    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mukca-panda");
-    ["back_left", "front_right", "high"]
-        .iter()
-        .flat_map(|p| [0, 1].map(|s| data.join(p).join(format!("socket_{s}.csv")).display().to_string()))
-        .collect()
-}
-
-fn panda(d: &Path) {
-    let urdf = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mukca-panda/panda.urdf");
-    ok(
-        d,
-        &["model", "import", urdf.to_str().unwrap(), "--tip", "ball_link", "-o", "panda.toml"],
-    );
+    panda_sockets(&["back_left", "front_right", "high"])
 }
 
 /// `data join --seat`: a file given twice, or a copy of another seat's file, is refused; a seat of

@@ -6,7 +6,7 @@
 //! 6-axis arm (touches and tracker), seats paired across placements, a known seat distance off
 //! the nominal one (a warning, then the fit's verdict); `data check` and `validate` name wrong
 //! units as `identify` does.
-use crate::cli::{fails, kinecal, ok};
+use crate::cli::{fails, import_panda, kinecal, ok, panda_sockets};
 use std::fs;
 use std::path::Path;
 
@@ -45,6 +45,40 @@ fn ur5e(d: &Path) {
     );
 }
 
+/// Tutorial 3's touch probe on a UR5e, in `d`: the model imported to `ur5e.toml`, then `per_point`
+/// touches on each of `artifact`'s spheres or cube faces (its `simulate` options) to `out`, the
+/// 1.5 mm probe at (10, −5, 120) mm, noise 5 µm, seed 3; the touches as stated calibrate.
+fn touches(d: &Path, artifact: &[&str], per_point: &str, out: &str) {
+    ur5e(d);
+    let mut args = vec!["simulate", "ur5e.toml"];
+    args.extend_from_slice(artifact);
+    args.extend([
+        "--probe-radius-mm",
+        "1.5",
+        "--per-point",
+        per_point,
+        "--tool-mm",
+        "10,-5,120",
+        "--noise-mm",
+        "0.005",
+        "--seed",
+        "3",
+        "--out",
+        out,
+        "--truth",
+        "truth.toml",
+    ]);
+    ok(d, &args);
+    let said = ok(d, &identify(out));
+    assert!(said.contains("verdict: calibrated"), "{said}");
+    fs::remove_file(d.join("c.toml")).unwrap();
+}
+
+/// `identify` of the touches in `file` on `ur5e.toml`, the probe's noise stated, to `c.toml`.
+fn identify(file: &str) -> Vec<&str> {
+    vec!["identify", "ur5e.toml", file, "--kind-noise", "probe=0.005", "--out", "c.toml"]
+}
+
 /// Tutorial 3's sphere touches (a UR5e, three 25.4 mm spheres, a 1.5 mm probe): calibrated as
 /// stated; a diameter in inches, a sphere's radius in the diameter column, the probe's diameter
 /// in the radius column, the probe's radius halved and radians in the `_deg` columns are each one
@@ -53,37 +87,12 @@ fn ur5e(d: &Path) {
 fn sphere_sizes_in_the_wrong_unit_and_radians_are_named() {
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
-    ur5e(d);
-    ok(
+    touches(
         d,
-        &[
-            "simulate",
-            "ur5e.toml",
-            "--spheres",
-            "450,-150,100;450,150,100;300,0,300",
-            "--sphere-diameter-mm",
-            "25.4",
-            "--probe-radius-mm",
-            "1.5",
-            "--per-point",
-            "20",
-            "--tool-mm",
-            "10,-5,120",
-            "--noise-mm",
-            "0.005",
-            "--seed",
-            "3",
-            "--out",
-            "spheres.csv",
-            "--truth",
-            "truth.toml",
-        ],
+        &["--spheres", "450,-150,100;450,150,100;300,0,300", "--sphere-diameter-mm", "25.4"],
+        "20",
+        "spheres.csv",
     );
-    let identify =
-        |file: &'static str| -> Vec<&'static str> { vec!["identify", "ur5e.toml", file, "--kind-noise", "probe=0.005", "--out", "c.toml"] };
-    let said = ok(d, &identify("spheres.csv"));
-    assert!(said.contains("verdict: calibrated"), "{said}");
-    fs::remove_file(d.join("c.toml")).unwrap();
     rewrite(d, "spheres.csv", "inch.csv", &|c, v| {
         if c == "sphere_diameter_mm" {
             v / 25.4
@@ -161,39 +170,12 @@ fn sphere_sizes_in_the_wrong_unit_and_radians_are_named() {
 fn a_cube_edge_in_inches_is_named() {
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
-    ur5e(d);
-    ok(
+    touches(
         d,
-        &[
-            "simulate",
-            "ur5e.toml",
-            "--cube",
-            "400,0,150",
-            "--cube-edge-mm",
-            "100",
-            "--cube-rotation-deg",
-            "0,0,20",
-            "--probe-radius-mm",
-            "1.5",
-            "--per-point",
-            "10",
-            "--tool-mm",
-            "10,-5,120",
-            "--noise-mm",
-            "0.005",
-            "--seed",
-            "3",
-            "--out",
-            "cube.csv",
-            "--truth",
-            "truth.toml",
-        ],
+        &["--cube", "400,0,150", "--cube-edge-mm", "100", "--cube-rotation-deg", "0,0,20"],
+        "10",
+        "cube.csv",
     );
-    let identify =
-        |file: &'static str| -> Vec<&'static str> { vec!["identify", "ur5e.toml", file, "--kind-noise", "probe=0.005", "--out", "c.toml"] };
-    let said = ok(d, &identify("cube.csv"));
-    assert!(said.contains("verdict: calibrated"), "{said}");
-    fs::remove_file(d.join("c.toml")).unwrap();
     // The edge as a user writes it from the cube's inch drawing: 3.937 for 100 mm.
     let text = fs::read_to_string(d.join("cube.csv")).unwrap();
     fs::write(d.join("inch.csv"), text.replace(",100,1.5\n", ",3.937,1.5\n")).unwrap();
@@ -353,28 +335,15 @@ fn a_bar_length_in_inches_centimetres_or_metres_is_named() {
     }
 }
 
-/// The Panda's model (the test copy of its URDF, cut at the ball) imported to `panda.toml` in `d`.
-fn panda(d: &Path) {
-    let urdf = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mukca-panda/panda.urdf");
-    ok(
-        d,
-        &["model", "import", urdf.to_str().unwrap(), "--tip", "ball_link", "-o", "panda.toml"],
-    );
-}
-
 /// In `d`: the Panda's model imported to `panda.toml`; returns the `data join` of its six real
 /// sockets (three placements of two) to `seats.csv`, angles in radians, not yet run.
 fn panda_seats(d: &Path) -> Vec<String> {
-    panda(d);
-    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mukca-panda");
+    import_panda(d);
     let mut args: Vec<String> = ["data", "join", "panda.toml", "--angles", "rad", "--out", "seats.csv"]
         .map(String::from)
         .to_vec();
-    for p in ["back_left", "front_right", "high"] {
-        for s in [0, 1] {
-            args.push("--seat".into());
-            args.push(data.join(p).join(format!("socket_{s}.csv")).display().to_string());
-        }
+    for s in panda_sockets(&["back_left", "front_right", "high"]) {
+        args.extend(["--seat".into(), s]);
     }
     args
 }
@@ -504,7 +473,7 @@ fn a_seat_distance_off_by_half_again_is_a_warning_naming_the_pair() {
 fn a_seat_distance_off_warns_and_the_rest_calibrates() {
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
-    panda(d);
+    import_panda(d);
     ok(
         d,
         &[
