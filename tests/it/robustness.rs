@@ -589,9 +589,12 @@ fn a_machine_at_its_tolerances_is_not_failed_for_a_split_of_the_parameters() {
     }
 }
 
-/// Position data planned at one tool orientation cannot show the tool offset (it moves every
-/// point alike): the fit is exact on them, and held-out poses at other orientations keep the
-/// offset's error. The verdict says so (a warning, exit 0), instead of "calibrated".
+/// Position data planned at one tool orientation barely show the tool offset (at one orientation
+/// it moves every point alike; only the robot's own geometric errors turn the tool a little from
+/// pose to pose). Noise-free that little is enough and the offset is found (held-out poses to
+/// round-off); with 0.01 mm of noise it is not: the fit is good on the identification poses and
+/// held-out poses at other orientations keep the offset's error. The verdict says so (a warning,
+/// exit 0), instead of "calibrated".
 #[test]
 fn held_out_poses_far_worse_than_the_fit_are_a_warning() {
     use crate::cli::ok;
@@ -618,33 +621,69 @@ fn held_out_poses_far_worse_than_the_fit_are_a_warning() {
             "plan.csv",
         ],
     );
-    ok(
-        d,
-        &[
-            "simulate",
-            "irb.toml",
-            "--at",
-            "plan.csv",
-            "--measure",
-            "position",
-            "--seed",
-            "2",
-            "--noise-mm",
-            "0",
-            "--noise-deg",
-            "0",
-            "--validation-poses",
-            "30",
-            "--out",
-            "s.csv",
-            "--truth",
-            "t.toml",
-            "--validation-out",
-            "v.csv",
-        ],
-    );
-    let said = ok(d, &["identify", "irb.toml", "s.csv", "--validation", "v.csv", "--out", "c.toml"]);
-    assert!(said.contains("verdict: usable with warnings: the held-out poses keep"), "{said}");
+    for (noise, calibrated) in [("0", true), ("0.01", false)] {
+        ok(
+            d,
+            &[
+                "simulate",
+                "irb.toml",
+                "--at",
+                "plan.csv",
+                "--measure",
+                "position",
+                "--seed",
+                "2",
+                "--noise-mm",
+                noise,
+                "--noise-deg",
+                "0",
+                "--validation-poses",
+                "30",
+                "--out",
+                "s.csv",
+                "--truth",
+                "t.toml",
+                "--validation-out",
+                "v.csv",
+                "--force",
+            ],
+        );
+        let v = crate::cli::json(
+            d,
+            &[
+                "identify",
+                "irb.toml",
+                "s.csv",
+                "--validation",
+                "v.csv",
+                "--out",
+                "c.toml",
+                "--force",
+            ],
+        );
+        let held_out = v["validation"]["after_stats"]["position_rms_mm"].as_f64().unwrap();
+        let verdict = v["verdict"]["status"].as_str().unwrap().to_string();
+        if calibrated {
+            assert!(held_out < 1e-6, "noise-free: held-out RMS {held_out} mm\n{v}");
+            assert_eq!(verdict, "calibrated", "{v}");
+        } else {
+            assert!(held_out > 0.1, "0.01 mm noise: held-out RMS {held_out} mm\n{v}");
+            let said = ok(
+                d,
+                &[
+                    "identify",
+                    "irb.toml",
+                    "s.csv",
+                    "--validation",
+                    "v.csv",
+                    "--out",
+                    "c.toml",
+                    "--force",
+                ],
+            );
+            assert!(said.contains("verdict: usable with warnings: the held-out poses keep"), "{said}");
+        }
+    }
 }
 
 /// Three poses of thirty 25 mm off in the same direction (the whole tool: all three reflectors)
