@@ -332,7 +332,7 @@ fn a_prior_from_the_written_file_checks_and_updates_as_the_calibration() {
                 ua.releases.iter().map(|r| r.name.clone()).collect::<Vec<_>>(),
                 ub.releases.iter().map(|r| r.name.clone()).collect::<Vec<_>>(),
             );
-            // Measured: χ² within 5e-11 (relative), updated models within 2e-11 mm.
+            // Measured: χ² within 6e-11 (relative), updated models within 2e-11 mm.
             assert_eq!(a.drifted, b.drifted);
             assert!(check_rel < 1e-8 && update_rel < 1e-8 && apart < 1e-8, "{model} {drift:?}");
             let names = |u: &kinecal::drift::Update| u.releases.iter().map(|r| r.name.clone()).collect::<Vec<_>>();
