@@ -9,9 +9,10 @@
 //! ```text
 //! cargo run --release --example drift -- 100 irb120
 //! cargo run --release --example drift -- 100 pm5
+//! cargo run --release --example drift -- 100 pm5 file   # the prior read back from the written file
 //! ```
 mod common;
-use common::drift::{calibrated, configurations, drifted, held_out_rms, machine, measure, Drift};
+use common::drift::{calibrated, calibrated_file, configurations, drifted, held_out_rms, machine, measure, Drift};
 use kinecal::drift::{check, update, CheckOptions, UpdateOptions};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -22,9 +23,14 @@ use rayon::prelude::*;
 struct Outcome {
     drifted: bool,
     named: bool,
+    /// The true pattern named, or among those the new poses cannot tell from the one named.
+    among: bool,
+    /// The pattern named with no alternative.
+    alone: bool,
     pattern: String,
     released: usize,
     released_true: bool,
+    released_among: bool,
     update_mm: f64,
     recal_mm: f64,
     prior_mm: f64,
@@ -38,6 +44,11 @@ fn scenarios(model: &str) -> Vec<(&'static str, Drift, &'static str)> {
             (
                 "input g2 zero +0.05 mm",
                 Drift::InputOffset { input: 1, amount: 0.05 },
+                "joint g2 zero",
+            ),
+            (
+                "input g2 zero +0.1 mm",
+                Drift::InputOffset { input: 1, amount: 0.1 },
                 "joint g2 zero",
             ),
             ("length dl1 +0.1 mm", Drift::Parameter { name: "dl1", amount: 0.1 }, "dl1"),
@@ -69,6 +80,8 @@ fn scenarios(model: &str) -> Vec<(&'static str, Drift, &'static str)> {
 fn main() {
     let draws: u64 = std::env::args().nth(1).and_then(|a| a.parse().ok()).unwrap_or(100);
     let model = std::env::args().nth(2).unwrap_or_else(|| "irb120".into());
+    // "file": the prior read back from the calibrated model file as written.
+    let from_file = std::env::args().nth(3).as_deref() == Some("file");
     let scen = scenarios(&model);
     let t = std::time::Instant::now();
     let results: Vec<Vec<Outcome>> = (0..draws)
@@ -76,7 +89,11 @@ fn main() {
         .map(|k| {
             let m = machine(&model, 1000 + k);
             let zero = vec![0.0; m.file.inputs().len()];
-            let prior = calibrated(&m, &*m.truth, &zero, 60, 2000 + k);
+            let prior = if from_file {
+                calibrated_file(&m, &*m.truth, &zero, 60, 2000 + k)
+            } else {
+                calibrated(&m, &*m.truth, &zero, 60, 2000 + k)
+            };
             scen.iter()
                 .map(|(_, drift, truth_name)| {
                     let mut rng = ChaCha8Rng::seed_from_u64(3000 + k);
@@ -85,6 +102,11 @@ fn main() {
                     let five = measure(&*truth, &shift, &q5, Some(&m.noise), &mut rng);
                     let c = check(&prior, &five, &CheckOptions::default()).expect("check");
                     let pattern = c.pattern.as_ref().map(|p| p.name.clone()).unwrap_or_default();
+                    let alternatives: Vec<String> = c
+                        .pattern
+                        .as_ref()
+                        .map(|p| p.alternatives.iter().map(|a| a.name.clone()).collect())
+                        .unwrap_or_default();
                     let q10 = configurations(&m, 10, &mut rng);
                     let ten = measure(&*truth, &shift, &q10, Some(&m.noise), &mut rng);
                     let up = update(&prior, &ten, &UpdateOptions::default()).expect("update");
@@ -94,7 +116,7 @@ fn main() {
                     let recal_mm = held_out_rms(&*recal.model.build(), &*truth, &shift, &q50);
                     if std::env::var_os("DRIFT_VERBOSE").is_some() {
                         eprintln!(
-                            "draw {k} {truth_name}: held out update {update_mm:.4} recal {recal_mm:.4}; check {} pattern {pattern}; update releases {:?} chi2 {:.1}/{:.1} converged {}",
+                            "draw {k} {truth_name}: held out update {update_mm:.4} recal {recal_mm:.4}; check {} pattern {pattern} (cannot tell from {alternatives:?}); update releases {:?} chi2 {:.1}/{:.1} converged {}",
                             c.drifted,
                             up.releases.iter().map(|r| r.describe()).collect::<Vec<_>>(),
                             up.chi2,
@@ -105,9 +127,15 @@ fn main() {
                     Outcome {
                         drifted: c.drifted,
                         named: pattern == *truth_name,
+                        among: pattern == *truth_name || alternatives.iter().any(|a| a == truth_name),
+                        alone: alternatives.is_empty(),
                         pattern,
                         released: up.releases.len(),
                         released_true: up.releases.first().is_some_and(|r| r.name == *truth_name),
+                        released_among: up
+                            .releases
+                            .first()
+                            .is_some_and(|r| r.name == *truth_name || r.alternatives.iter().any(|a| a.name == *truth_name)),
                         update_mm,
                         recal_mm,
                         prior_mm: held_out_rms(&*prior.model.build(), &*truth, &shift, &q50),
@@ -147,10 +175,13 @@ fn main() {
                 *others.entry(x.pattern.as_str()).or_default() += 1;
             }
             println!(
-                "{label}: check 'drifted' {}/{draws}, the named pattern the true one {}/{draws} (others: {others:?}); update released the true pattern first {}/{draws}; held out (mean): prior {:.4} mm, update {:.4} mm, recalibration on 60 poses {:.4} mm, ratio {ratio:.3}; update within 1.2x of the recalibration in {within}/{draws} draws",
+                "{label}: check 'drifted' {}/{draws}, the named pattern the true one {}/{draws} (others: {others:?}), the true one named or among those it cannot tell it from {}/{draws}, named with no alternative {}/{draws}; update released the true pattern first {}/{draws} (or one it cannot tell from it: {}/{draws}); held out (mean): prior {:.4} mm, update {:.4} mm, recalibration on 60 poses {:.4} mm, ratio {ratio:.3}; update within 1.2x of the recalibration in {within}/{draws} draws",
                 count(&|x| x.drifted),
                 count(&|x| x.named),
+                count(&|x| x.among),
+                count(&|x| x.alone),
                 count(&|x| x.released_true),
+                count(&|x| x.released_among),
                 mean(&|x| x.prior_mm),
                 mean(&|x| x.update_mm),
                 mean(&|x| x.recal_mm),

@@ -34,7 +34,7 @@ pub mod patterns;
 mod stacked;
 pub mod update;
 
-pub use check::{check, CheckOptions, CheckReport, PatternFit, PoseCheck};
+pub use check::{check, Alternative, CheckOptions, CheckReport, PatternFit, PoseCheck};
 pub use patterns::{patterns, Pattern, PatternKind};
 pub use update::{update, Moved, Update, UpdateOptions};
 
@@ -85,6 +85,12 @@ impl Prior {
 
     /// The prior a calibrated model file carries (written by `kinecal identify`): its geometry,
     /// the covariance of its parameters and its noise.
+    ///
+    /// The file's `[covariance]` is over the identified parameters of the model the file builds;
+    /// as [`Prior::from_calibration`] does, it is carried over ([`covariance_in`], at
+    /// configurations drawn from seed 1) onto every parameter the model can take alone, the
+    /// minimum-norm share of each: the same predictions, and the same prior as the calibration
+    /// in memory gives.
     pub fn from_model_file(file: &ModelFile) -> Result<Prior, CalibError> {
         let Some(c) = &file.covariance else {
             return Err(CalibError::InvalidOption(format!(
@@ -92,10 +98,14 @@ impl Prior {
                 file.name
             )));
         };
-        let names: Vec<String> = file.build().params().into_iter().map(|p| p.name).collect();
+        let model = file.build();
+        let names: Vec<String> = model.params().into_iter().map(|p| p.name).collect();
+        let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(1);
+        let q = crate::simulate::random_configurations(&*model, &file.inputs(), CARRY_CONFIGURATIONS, &mut rng)
+            .map_err(|source| CalibError::Kinematics { pose: 0, source })?;
         Ok(Prior {
             model: file.clone(),
-            covariance: c.over(&names),
+            covariance: covariance_in(&*model, &*model, &c.over(&names), &q)?,
             noise: file.noise.unwrap_or_default(),
         })
     }
@@ -173,51 +183,21 @@ pub fn with_covariance(file: ModelFile, covariance: &DMatrix<f64>, noise: &Noise
     }
 }
 
-/// Configurations a covariance is carried over at ([`Prior::from_calibration`]).
-pub const CARRY_CONFIGURATIONS: usize = 40;
+pub use crate::predict::CARRY_CONFIGURATIONS;
 
 /// The covariance `covariance` of `fitted`'s parameters carried to `model`'s (the same machine,
-/// the same predictions, other coordinates): `T·P·Tᵀ` with `T` the minimum-norm solution of
-/// `J_model·T = J_fitted` over the tool poses at `configurations` (column-scaled; the parameters
-/// `model` cannot take alone, [`crate::model::Mechanism::assembly_breaking`], left out), so that
-/// both predict the same covariance of the tool pose there.
+/// the same predictions, other coordinates): [`crate::predict::carry_covariance`] onto every
+/// parameter `model` can take alone (not [`crate::model::Mechanism::assembly_breaking`]), the
+/// minimum-norm carrier over them.
 pub fn covariance_in(
     model: &dyn crate::model::Mechanism,
     fitted: &dyn crate::model::Mechanism,
     covariance: &DMatrix<f64>,
     configurations: &[Vec<f64>],
 ) -> Result<DMatrix<f64>, CalibError> {
-    use crate::measure::{residual_jacobian, Observation};
-    let (p, pf) = (model.n_params(), fitted.n_params());
-    if covariance.shape() != (pf, pf) {
-        return Err(CalibError::InvalidOption(format!(
-            "a covariance of {} × {} for {pf} parameters",
-            covariance.nrows(),
-            covariance.ncols()
-        )));
-    }
-    let rows = 6 * configurations.len();
-    let (mut jm, mut jf) = (DMatrix::zeros(rows, p), DMatrix::zeros(rows, pf));
-    for (i, q) in configurations.iter().enumerate() {
-        let kin = |source| CalibError::Kinematics { pose: i, source };
-        let (tm, am) = model.forward_with_jacobian(q).map_err(kin)?;
-        let (tf, af) = fitted.forward_with_jacobian(q).map_err(kin)?;
-        jm.view_mut((6 * i, 0), (6, p))
-            .copy_from(&residual_jacobian(&Observation::Pose(tm), &tm, &am));
-        jf.view_mut((6 * i, 0), (6, pf))
-            .copy_from(&residual_jacobian(&Observation::Pose(tf), &tf, &af));
-    }
-    // Parameters the model cannot take alone (an overconstrained machine's) stay as they are.
     let held = model.assembly_breaking();
-    let norms: Vec<f64> = (0..p).map(|c| if held.contains(&c) { 0.0 } else { jm.column(c).norm() }).collect();
-    let scaled = DMatrix::from_fn(rows, p, |r, c| if norms[c] > 0.0 { jm[(r, c)] / norms[c] } else { 0.0 });
-    let svd = scaled.svd(true, true);
-    let top = svd.singular_values.iter().copied().fold(0.0, f64::max);
-    let t = svd
-        .solve(&jf, 1e-10 * top)
-        .map_err(|e| CalibError::Numerical(format!("carrying the covariance over: {e}")))?;
-    let t = DMatrix::from_fn(p, pf, |r, c| if norms[r] > 0.0 { t[(r, c)] / norms[r] } else { 0.0 });
-    Ok(&t * covariance * t.transpose())
+    let onto: Vec<usize> = (0..model.n_params()).filter(|c| !held.contains(c)).collect();
+    crate::predict::carry_covariance(model, fitted, covariance, configurations, &onto)
 }
 
 /// The standard normal quantile (Acklam's rational approximation, relative error below 1.2e-9).

@@ -102,6 +102,67 @@ impl PredictedAccuracy {
     }
 }
 
+/// Configurations a covariance is carried over at ([`carry_covariance`]): by
+/// [`crate::drift::Prior::from_calibration`] and for the calibrated model file's `[covariance]`.
+pub const CARRY_CONFIGURATIONS: usize = 40;
+
+/// The covariance `covariance` of `fitted`'s parameters carried to `model`'s, the same machine
+/// with the same predictions in other coordinates (a calibrated model file rebuilt: a chain's
+/// errors restart from zero at the calibrated geometry, so its Jacobian is not the fitted one's):
+/// `T·P·Tᵀ` with `T` the least-squares solution of `J_model·T = J_fitted` over the tool poses at
+/// `configurations`, `T`'s rows on `model`'s parameters `onto` only (column-scaled, the
+/// minimum-norm one where they are dependent; the other rows zero). Both then predict the same
+/// covariance of the tool pose there, as far as `onto` spans what `fitted`'s uncertain
+/// parameters move.
+pub fn carry_covariance(
+    model: &dyn Mechanism,
+    fitted: &dyn Mechanism,
+    covariance: &DMatrix<f64>,
+    configurations: &[Vec<f64>],
+    onto: &[usize],
+) -> Result<DMatrix<f64>, CalibError> {
+    let (p, pf) = (model.n_params(), fitted.n_params());
+    if covariance.shape() != (pf, pf) {
+        return Err(CalibError::InvalidOption(format!(
+            "a covariance of {} × {} for {pf} parameters",
+            covariance.nrows(),
+            covariance.ncols()
+        )));
+    }
+    if let Some(&c) = onto.iter().find(|&&c| c >= p) {
+        return Err(CalibError::InvalidOption(format!("parameter {c} of a model of {p}")));
+    }
+    let rows = 6 * configurations.len();
+    let (mut jm, mut jf) = (DMatrix::zeros(rows, p), DMatrix::zeros(rows, pf));
+    for (i, q) in configurations.iter().enumerate() {
+        let kin = |source| CalibError::Kinematics { pose: i, source };
+        let (tm, am) = model.forward_with_jacobian(q).map_err(kin)?;
+        let (tf, af) = fitted.forward_with_jacobian(q).map_err(kin)?;
+        jm.view_mut((6 * i, 0), (6, p))
+            .copy_from(&measure::residual_jacobian(&Observation::Pose(tm), &tm, &am));
+        jf.view_mut((6 * i, 0), (6, pf))
+            .copy_from(&measure::residual_jacobian(&Observation::Pose(tf), &tf, &af));
+    }
+    let norms: Vec<f64> = onto.iter().map(|&c| jm.column(c).norm()).collect();
+    let scaled = DMatrix::from_fn(
+        rows,
+        onto.len(),
+        |r, k| if norms[k] > 0.0 { jm[(r, onto[k])] / norms[k] } else { 0.0 },
+    );
+    let svd = scaled.svd(true, true);
+    let top = svd.singular_values.iter().copied().fold(0.0, f64::max);
+    let t = svd
+        .solve(&jf, 1e-10 * top)
+        .map_err(|e| CalibError::Numerical(format!("carrying the covariance over: {e}")))?;
+    let mut full = DMatrix::zeros(p, pf);
+    for (k, &c) in onto.iter().enumerate() {
+        if norms[k] > 0.0 {
+            full.row_mut(c).copy_from(&(t.row(k) / norms[k]));
+        }
+    }
+    Ok(&full * covariance * full.transpose())
+}
+
 /// The covariance of the predicted pose at each configuration of `poses`: `model`'s parameters
 /// with covariance `covariance` (over `model.params()`, mm and rad) carried through its
 /// identification Jacobian ([module docs](self)); `noise` gives the separate measurement figure.

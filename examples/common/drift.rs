@@ -3,7 +3,7 @@
 //! poses (20 µm / 0.02° noise), then measured again unchanged or after one drift: a joint offset,
 //! a length, the tool re-mounted.
 #![allow(dead_code)]
-use kinecal::calibrate::{calibrate, CalibrationOptions};
+use kinecal::calibrate::{calibrate, Calibration, CalibrationOptions};
 use kinecal::drift::Prior;
 use kinecal::io::data_file::DataSet;
 use kinecal::io::model_file::ModelFile;
@@ -117,8 +117,22 @@ pub fn measure(
     set
 }
 
-/// The calibration of `truth` from `n` poses drawn from `seed`: its prior and its model file.
+/// The calibration of `truth` from `n` poses drawn from `seed`, as a prior.
 pub fn calibrated(m: &Machine, truth: &dyn Mechanism, shift: &[f64], n: usize, seed: u64) -> Prior {
+    Prior::from_calibration(&calibration(m, truth, shift, n, seed)).expect("prior")
+}
+
+/// The calibration of `truth` from `n` poses drawn from `seed`, as the prior its calibrated
+/// model file gives once written and read back (what `kinecal check` and `identify --prior` read).
+pub fn calibrated_file(m: &Machine, truth: &dyn Mechanism, shift: &[f64], n: usize, seed: u64) -> Prior {
+    let cal = calibration(m, truth, shift, n, seed);
+    let text = cal.model_file.to_toml().expect("model file");
+    let file = ModelFile::load_str(std::path::Path::new("cal.toml"), &text).expect("read back");
+    Prior::from_model_file(&file).expect("prior")
+}
+
+/// The calibration of `truth` from `n` poses drawn from `seed`.
+pub fn calibration(m: &Machine, truth: &dyn Mechanism, shift: &[f64], n: usize, seed: u64) -> Calibration {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let q = configurations(m, n, &mut rng);
     let data = measure(truth, shift, &q, Some(&m.noise), &mut rng);
@@ -129,8 +143,7 @@ pub fn calibrated(m: &Machine, truth: &dyn Mechanism, shift: &[f64], n: usize, s
         compare_terms: false,
         ..CalibrationOptions::default()
     };
-    let cal = calibrate(&m.file, &set, None, &opts).expect("calibration");
-    Prior::from_calibration(&cal).expect("prior")
+    calibrate(&m.file, &set, None, &opts).expect("calibration")
 }
 
 /// RMS position error (mm) of `model` against noise-free poses of `truth`.

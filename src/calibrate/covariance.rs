@@ -32,7 +32,8 @@ pub(crate) fn of(file: &ModelFile, identification: &Identification<Box<dyn Mecha
         };
         held.push((p.name, why));
     }
-    let c = &identification.covariance;
+    let carried = in_file_coordinates(file, identification, &identified);
+    let c = carried.as_ref().unwrap_or(&identification.covariance);
     Covariance {
         matrix: nalgebra::DMatrix::from_fn(identified.len(), identified.len(), |i, j| {
             // Symmetric to the last bit, as the file requires.
@@ -44,6 +45,33 @@ pub(crate) fn of(file: &ModelFile, identification: &Identification<Box<dyn Mecha
         sigma0: identification.sigma0,
         held,
     }
+}
+
+/// The identification's covariance carried to the coordinates of the model `file` builds
+/// ([`crate::predict::carry_covariance`] onto the `identified` parameters, at
+/// [`crate::predict::CARRY_CONFIGURATIONS`] configurations drawn from seed 1): the rebuilt model
+/// holds the calibrated geometry with its errors at zero, so its Jacobian is not the fitted
+/// model's. `None` where the fitted model is not the file's (an instrument's artifact points
+/// around it: its parameters are not the file's) or it cannot be evaluated; the covariance is then
+/// written as identified.
+fn in_file_coordinates(
+    file: &ModelFile,
+    identification: &Identification<Box<dyn Mechanism>>,
+    identified: &[(usize, crate::params::Param)],
+) -> Option<nalgebra::DMatrix<f64>> {
+    use rand::SeedableRng;
+    let model = file.build();
+    let fitted = &identification.model;
+    let same = |a: &dyn Mechanism, b: &dyn Mechanism| {
+        a.input_names() == b.input_names() && a.params().iter().map(|p| &p.name).eq(b.params().iter().map(|p| &p.name))
+    };
+    if !same(&*model, &**fitted) {
+        return None;
+    }
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+    let q = crate::simulate::random_configurations(&*model, &file.inputs(), crate::predict::CARRY_CONFIGURATIONS, &mut rng).ok()?;
+    let onto: Vec<usize> = identified.iter().map(|(k, _)| *k).collect();
+    crate::predict::carry_covariance(&*model, &**fitted, &identification.covariance, &q, &onto).ok()
 }
 
 /// Configurations drawn over the workspace for the report's map of predicted accuracy.

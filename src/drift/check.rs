@@ -85,10 +85,28 @@ pub struct PatternFit {
     pub chi2_after: f64,
     /// The χ² quantile of the rows left, at the false-alarm rate.
     pub bound_after: f64,
+    /// Patterns the new rows cannot tell from it: each leaves a statistic within the χ² quantile
+    /// of one degree of freedom at the false-alarm rate of what this one leaves (both charged
+    /// `ln(rows)` per coefficient), best first, at most [`MAX_ALTERNATIVES`]. On a parallel
+    /// machine a leg's length, its rail point and its platform joint act through the same
+    /// closure, their effects differing only by how the leg's direction varies over the poses.
+    pub alternatives: Vec<Alternative>,
     /// Index among [`super::patterns()`].
     #[serde(skip)]
     pub index: usize,
 }
+
+/// A pattern that explains the new rows about as well as the one named.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Alternative {
+    /// Its name.
+    pub name: String,
+    /// The statistic left once it is released instead.
+    pub chi2_after: f64,
+}
+
+/// At most this many [`PatternFit::alternatives`] are kept.
+pub const MAX_ALTERNATIVES: usize = 4;
 
 impl PatternFit {
     /// Releasing it lowers the statistic beyond noise.
@@ -101,8 +119,26 @@ impl PatternFit {
         self.chi2_after <= self.bound_after
     }
 
-    /// `joint q2 offset +0.0512 deg (σ 0.0041)`, or `tool position tx +0.1200 ty … mm (σ …)`.
+    /// `joint q2 offset +0.0512 deg (σ 0.0041)`, or `tool position tx +0.1200 ty … mm (σ …)`,
+    /// followed by the [`Self::alternatives`] when there are: `; as well: db1z (χ² left 30.2), …`.
     pub fn describe(&self) -> String {
+        if self.alternatives.is_empty() {
+            return self.describe_alone();
+        }
+        let others: Vec<String> = self
+            .alternatives
+            .iter()
+            .map(|a| format!("{} (χ² left {:.1})", a.name, a.chi2_after))
+            .collect();
+        format!(
+            "{}; the new poses cannot tell it from: {}",
+            self.describe_alone(),
+            others.join(", ")
+        )
+    }
+
+    /// [`Self::describe`] without the alternatives.
+    pub fn describe_alone(&self) -> String {
         let v = |x: &PatternValue| format!("{:+.4} {} (σ {:.4})", x.value, x.unit, x.sigma);
         match self.values.as_slice() {
             [one] if one.label == self.name => format!("{} {}", self.name, v(one)),
@@ -245,6 +281,7 @@ pub(super) fn best_pattern(
     let tried = all.len().max(1) as f64;
     let released = stacked.k.ncols() - stacked.r;
     let mut best: Option<(f64, usize, f64, DVector<f64>)> = None;
+    let mut scores: Vec<(f64, usize, f64)> = Vec::new();
     for (i, pat) in all.iter().enumerate() {
         if skip.contains(&i) {
             continue;
@@ -259,14 +296,26 @@ pub(super) fn best_pattern(
         // What is left, each coefficient charged ln(rows) (Schwarz's criterion): a pattern of
         // more coefficients is named only where it explains clearly more.
         let score = -(sol.cost + k as f64 * (rows.max(2) as f64).ln());
+        scores.push((score, i, sol.cost));
         if best.as_ref().is_none_or(|b| score > b.0 + 1e-9) {
             let beta = sol.u.rows(sol.u.len() - k, k).into_owned();
             best = Some((score, i, drop, beta));
         }
     }
-    let Some((_, i, drop, beta)) = best else {
+    let Some((top, i, drop, beta)) = best else {
         return Ok(None);
     };
+    let margin = chi2_quantile(1, 1.0 - alpha);
+    scores.retain(|&(score, j, _)| j != i && score >= top - margin);
+    scores.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let alternatives = scores
+        .iter()
+        .take(MAX_ALTERNATIVES)
+        .map(|&(_, j, chi2_after)| Alternative {
+            name: all[j].name.clone(),
+            chi2_after,
+        })
+        .collect();
     let pat = &all[i];
     let k = pat.directions.ncols();
     let g = a * &pat.directions;
@@ -293,6 +342,7 @@ pub(super) fn best_pattern(
         bound: chi2_quantile(k, 1.0 - alpha / tried),
         chi2_after: cost - drop,
         bound_after: chi2_quantile(rows.saturating_sub(k + released).max(1), 1.0 - alpha),
+        alternatives,
         index: i,
     }))
 }

@@ -211,6 +211,8 @@ pub fn update(prior: &Prior, data: &[Measurement], opts: &UpdateOptions) -> Resu
     let mut current = fit(prior, &l, &directions(&released), data, opts.max_iterations)?;
     let rows = current.jacobian.nrows();
     let mut declined = None;
+    // What the new poses could not tell each release from, when it was released.
+    let mut alternatives = Vec::new();
     while released.len() < opts.max_releases {
         let best = best_pattern(
             &current.stacked,
@@ -229,6 +231,7 @@ pub fn update(prior: &Prior, data: &[Measurement], opts: &UpdateOptions) -> Resu
                     Ok(f) => {
                         released = trial;
                         current = f;
+                        alternatives.push(b.alternatives);
                     }
                     Err(CalibError::Numerical(_)) => {
                         declined = Some(b);
@@ -249,7 +252,7 @@ pub fn update(prior: &Prior, data: &[Measurement], opts: &UpdateOptions) -> Resu
     let mut releases = Vec::new();
     let mut col = r;
     let beta_all = &current.u;
-    for &i in &released {
+    for (&i, alternatives) in released.iter().zip(alternatives) {
         let pat = &all[i];
         let k = pat.directions.ncols();
         let values = pat
@@ -273,6 +276,7 @@ pub fn update(prior: &Prior, data: &[Measurement], opts: &UpdateOptions) -> Resu
             bound: f64::NAN,
             chi2_after: current.cost,
             bound_after: f64::NAN,
+            alternatives,
             index: i,
         });
         col += k;

@@ -101,7 +101,7 @@ mod write;
 pub use covariance::{Covariance, Held};
 use parse::RawJointTerms;
 pub use select::{free_params, glob_match, greek_pattern, param_match, select_params};
-use write::{fmt3, num, quote, write_dh, write_mechanism, write_pose};
+use write::{fmt3, num, num_per, quote, write_dh, write_mechanism, write_pose};
 
 use super::IoError;
 use crate::measure::Noise;

@@ -16,7 +16,7 @@
 //!
 //! Poses of these kinds use the platform coordinates of [`crate::model::closed`]:
 //! `position` and `euler_xyz = [α, β, γ]` with `R = Rot(x,α)·Rot(y,β)·Rot(z,γ)`.
-use super::{fmt3, num, Ctx, IoError, MechanismSpec, Units};
+use super::{fmt3, num, num_per, Ctx, IoError, MechanismSpec, Units};
 use crate::model::closed::{ClosedLoop, Workspace};
 use crate::model::presets::pm5::{Parasitic, Pm5};
 use crate::model::presets::stewart::Stewart;
@@ -395,7 +395,14 @@ pub(super) fn write_pm5(m: &ClosedLoop<Pm5>, units: &Units, out: &mut String) {
         "parasitic = \"{mode}\"  # \"physical\": constraint on the real geometry; \"paper\": eq. (16)-(18), on [mechanism.parasitic_reference]"
     );
     out.push_str("\n[mechanism.limb1]  # PUU: |p + R·c − b − (g1 + g_offset)·w| = l\n");
-    let _ = writeln!(out, "c = {}\nb = {}\nphi = {}\nl = {}", v3(1), v3(4), num(t[8] / a), num(t[7] / l));
+    let _ = writeln!(
+        out,
+        "c = {}\nb = {}\nphi = {}\nl = {}",
+        v3(1),
+        v3(4),
+        num_per(t[8], a),
+        num(t[7] / l)
+    );
     let _ = writeln!(out, "g_offset = {}\nstroke = {}", num(t[0] / l), stroke(strokes[0], l));
     for (k, off) in [9usize, 22].into_iter().enumerate() {
         let _ = writeln!(
@@ -403,7 +410,7 @@ pub(super) fn write_pm5(m: &ClosedLoop<Pm5>, units: &Units, out: &mut String) {
             "\n[mechanism.limb{}]  # PR(RPRR)S: rod normal to the rail, rod length from the sub-loop (cosine law, eq. (9))",
             k + 2
         );
-        let _ = writeln!(out, "c = {}\nb = {}\nphi = {}", v3(off + 1), v3(off + 4), num(t[off + 7] / a));
+        let _ = writeln!(out, "c = {}\nb = {}\nphi = {}", v3(off + 1), v3(off + 4), num_per(t[off + 7], a));
         let _ = writeln!(out, "g_offset = {}\nstroke = {}", num(t[off] / l), stroke(strokes[1 + k], l));
         let s = &t[off + 8..off + 12];
         let names = if k == 0 { "l2, l3, l4, l5" } else { "l6, l7, l8, l9" };
@@ -446,7 +453,7 @@ pub(super) fn write_pm5(m: &ClosedLoop<Pm5>, units: &Units, out: &mut String) {
             "c = {}\nb = {}\nphi = {}",
             fmt3([r[1] / l, r[2] / l, r[3] / l]),
             fmt3([r[4] / l, r[5] / l, r[6] / l]),
-            num(r[8] / a)
+            num_per(r[8], a)
         );
     }
 }

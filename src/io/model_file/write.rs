@@ -10,7 +10,7 @@ pub(super) fn write_noise(n: &Noise, units: &Units, out: &mut String) {
         "\n[noise]  # measurement standard deviations, per axis\nposition = {}  # {}\norientation = {}  # {}\n",
         num(n.position / l.to_mm()),
         l.symbol(),
-        num(n.orientation / a.to_rad()),
+        num_per(n.orientation, a.to_rad()),
         a.symbol()
     );
     for kind in crate::measure::RowKind::ALL {
@@ -27,7 +27,7 @@ pub(super) fn write_noise(n: &Noise, units: &Units, out: &mut String) {
     }
     let d = Noise::default();
     if (n.joint_angle, n.joint_length) != (d.joint_angle, d.joint_length) {
-        let (ea, el) = (num(n.joint_angle / a.to_rad()), num(n.joint_length / l.to_mm()));
+        let (ea, el) = (num_per(n.joint_angle, a.to_rad()), num(n.joint_length / l.to_mm()));
         let _ = writeln!(
             out,
             "encoder_angle = {ea}  # {}, observed joints\nencoder_length = {el}  # {}",
@@ -69,7 +69,7 @@ pub(super) fn write_mechanism(spec: &MechanismSpec, units: &Units, out: &mut Str
                 );
                 if let Some((lo, hi)) = joint.limits {
                     let f = if joint.kind == JointKind::Revolute { a } else { l };
-                    let _ = writeln!(out, "limits = [{}, {}]", num(lo / f), num(hi / f));
+                    let _ = writeln!(out, "limits = [{}, {}]", num_per(lo, f), num_per(hi, f));
                 }
                 write_pose(&c.initial_poses()[j], units, out);
             }
@@ -133,7 +133,7 @@ fn write_joint_terms(m: &WithJointTerms, units: &Units, out: &mut String) {
     );
     let first = m.chain().n_params();
     for (p, v) in m.params()[first..].iter().zip(&t.values) {
-        let _ = writeln!(out, "{} = {}", quote(&p.name), num(v / units.angle.to_rad()));
+        let _ = writeln!(out, "{} = {}", quote(&p.name), num_per(*v, units.angle.to_rad()));
     }
 }
 
@@ -160,12 +160,55 @@ pub(super) fn num(v: f64) -> String {
     format!("{v:?}")
 }
 
+/// The texts of `v` ([`num`]) that read back and written again stay the same: `reread` is what
+/// reading the numbers and writing them again computes (a unit conversion, a rotation rebuilt
+/// from its angles), which moves them by a few units in the last place. Each value is first put
+/// on `grid` (coarser than that movement), so the re-read value falls back on the same grid
+/// point; should one not (it lay on a boundary of the grid), the re-read's text is taken, which
+/// does.
+pub(super) fn stable<const N: usize>(v: [f64; N], grid: fn(f64) -> f64, reread: impl Fn([f64; N]) -> [f64; N]) -> [String; N] {
+    let mut text = v.map(|x| num(grid(x)));
+    for _ in 0..4 {
+        let read = text.clone().map(|t| t.parse::<f64>().unwrap_or(f64::NAN));
+        let again = reread(read).map(|x| num(grid(x)));
+        if again == text {
+            break;
+        }
+        text = again;
+    }
+    text
+}
+
+/// `x` to 15 significant digits (a unit conversion moves a value by about 1e-16 of itself).
+fn significant15(x: f64) -> f64 {
+    format!("{x:.14e}").parse().unwrap_or(x)
+}
+
+/// `x` to 12 decimal places (a rotation rebuilt from its angles moves them by about 1e-15 of a
+/// degree or radian, whatever their size).
+fn decimals12(x: f64) -> f64 {
+    let r = (x * 1e12).round() / 1e12;
+    if r.is_finite() {
+        r
+    } else {
+        x
+    }
+}
+
+/// `v / f` as [`num`] writes it (to 15 significant digits), the same text when read back
+/// (times `f`) and written again.
+pub(super) fn num_per(v: f64, f: f64) -> String {
+    let [t] = stable([v / f], significant15, |[x]| [x * f / f]);
+    t
+}
+
 pub(super) fn fmt3(v: [f64; 3]) -> String {
     format!("[{}, {}, {}]", num(v[0]), num(v[1]), num(v[2]))
 }
 
 /// Writes `position` and `rpy` ([`crate::se3::rpy`]), or `rotvec` where roll/pitch/yaw would
-/// not give the rotation back to 1e-14 rad.
+/// not give the rotation back to 1e-14 rad. The angles are written to 12 decimal places of their
+/// unit ([`stable`]): read back and written again, a pose gives the same text.
 pub(super) fn write_pose(p: &Pose, units: &Units, out: &mut String) {
     let t = p.translation.vector / units.length.to_mm();
     let f = units.angle.to_rad();
@@ -173,10 +216,18 @@ pub(super) fn write_pose(p: &Pose, units: &Units, out: &mut String) {
     let [roll, pitch, yaw] = crate::se3::rpy(&p.rotation);
     let back = UnitQuaternion::from_euler_angles(roll, pitch, yaw);
     if crate::se3::so3_log(&(back.inverse() * p.rotation)).norm() <= 1e-14 {
-        let _ = writeln!(out, "rpy = {}", fmt3([roll / f, pitch / f, yaw / f]));
+        // As the reader rebuilds the rotation: the angles times `f`, then roll, pitch, yaw.
+        let [r, p, y] = stable([roll / f, pitch / f, yaw / f], decimals12, |[r, p, y]| {
+            crate::se3::rpy(&UnitQuaternion::from_euler_angles(r * f, p * f, y * f)).map(|a| a / f)
+        });
+        let _ = writeln!(out, "rpy = [{r}, {p}, {y}]");
     } else {
         let v = crate::se3::so3_log(&p.rotation) / f;
-        let _ = writeln!(out, "rotvec = {}", fmt3([v.x, v.y, v.z]));
+        let [x, y, z] = stable([v.x, v.y, v.z], decimals12, |v| {
+            let back = crate::se3::so3_log(&crate::se3::so3_exp(&(nalgebra::Vector3::from(v) * f))) / f;
+            [back.x, back.y, back.z]
+        });
+        let _ = writeln!(out, "rotvec = [{x}, {y}, {z}]");
     }
 }
 
@@ -219,7 +270,7 @@ pub(super) fn write_dh(table: &DhTable, units: &Units, out: &mut String) {
         }
         if let Some((lo, hi)) = j.limits {
             let f = if j.kind == JointKind::Revolute { a } else { l };
-            let _ = writeln!(out, "limits = [{}, {}]", num(lo / f), num(hi / f));
+            let _ = writeln!(out, "limits = [{}, {}]", num_per(lo, f), num_per(hi, f));
         }
     }
     out.push_str("\n[mechanism.tool]  # the tool in the last DH frame\n");
