@@ -369,20 +369,16 @@ fn gross_blunders_are_down_weighted_and_listed() {
     assert!(listed_clean.len() <= 2, "clean data: {listed_clean:?}");
 }
 
-/// Models whose noise-free fit with estimated frames and a tool offset stops short of round-off
-/// (held-out max measured with the data of [`run`]): the whole 3T1R machine (not analysed; see
-/// docs/parallel-machines.md). The bound guards against a regression.
-const FRAMED_FLOORS: [(&str, f64); 1] = [("t3r1", 1e-4)];
-
 /// Every built-in model (`kinecal model list`, the shipped example files among them): noise-free
-/// pose data with the tracker 2 m away and turned, the tool 150 mm out, frames estimated.
+/// pose data with the tracker 2 m away and turned, the tool 150 mm out, frames estimated, to
+/// round-off (the whole 3T1R machine too: `identify` continues its fit on the parameters its
+/// converged geometry shows beyond the start's).
 #[test]
 fn every_shipped_model_in_a_tracker_frame() {
     for (name, _) in builtin::list() {
         let e = run(name, Kind::Pose, None, 60).position_max_mm;
         eprintln!("{name}: noise-free, tracker 2 m / 120°, tool 150 mm, frames estimated: held-out max {e:.2e} mm");
-        let bound = FRAMED_FLOORS.iter().find(|(n, _)| *n == name).map_or(1e-9, |(_, b)| *b);
-        assert!(e < bound, "{name}: held-out {e:e} mm");
+        assert!(e < 1e-9, "{name}: held-out {e:e} mm");
     }
 }
 
@@ -463,18 +459,16 @@ fn position_data_at_one_tool_orientation_register_without_running_off() {
     assert!(t.norm() < 100.0, "tool offset {t} mm");
 }
 
-/// Models whose noise-free fit from one reflector's positions in a far frame stops short of
-/// round-off (held-out max measured with the data of [`run`]). The bound guards against a
-/// regression.
-const REFLECTOR_FLOORS: [(&str, f64); 1] = [("t3r1", 1e-4)];
-
 /// Models whose frames one reflector's positions do not register from the drawing: the 3-PRS
 /// head only lifts and tilts, and its fit stops in another minimum (7.6 mm RMS left, the starts
 /// 3.3–3.9 mm apart). Such a fit must be failed, never reported calibrated.
 const REFLECTOR_UNREGISTERED: [&str; 1] = ["head-3prs"];
 
 /// Every built-in model measured by one reflector (positions only) in a tracker frame 2 m away
-/// and turned, 150 mm from the flange / platform, frames estimated, noise-free.
+/// and turned, 150 mm from the flange / platform, frames estimated, noise-free: to round-off,
+/// but the 3-PRS head, which must then fail. The whole 3T1R machine gets there through
+/// `identify`'s finer refit: the tilts and shift of its rail 3, redundant at the start, are seen
+/// where the first fit converged (singular values 3e-6 and 3e-8 of the largest) and fitted.
 #[test]
 fn every_shipped_model_with_one_reflector_in_a_tracker_frame() {
     for (name, _) in builtin::list() {
@@ -485,8 +479,7 @@ fn every_shipped_model_with_one_reflector_in_a_tracker_frame() {
             assert!(e < 1e-9 || status == Status::Failed, "{name}: held-out {e:e} mm, {status:?}");
             continue;
         }
-        let bound = REFLECTOR_FLOORS.iter().find(|(n, _)| *n == name).map_or(1e-9, |(_, b)| *b);
-        assert!(e < bound, "{name}: held-out {e:e} mm");
+        assert!(e < 1e-9, "{name}: held-out {e:e} mm");
     }
 }
 
