@@ -78,7 +78,6 @@ fn continued<M: Mechanism + Clone>(
     opts: &Options,
     free: &[usize],
 ) -> Result<Option<Identification<M>>, CalibError> {
-    let decisive = |f: &Identification<M>| f.converged && f.sigma0 < DECISIVE * first.sigma0;
     let mut stage = opts.clone();
     stage.max_iterations = stage.max_iterations.min(STAGE_ITERATIONS);
     let mut pinned = stage.clone();
@@ -90,10 +89,10 @@ fn continued<M: Mechanism + Clone>(
     let Ok(b) = gauss_newton(&a.model, data, &stage, free, Some(weak), Steps::MinimumNorm) else {
         return Ok(None);
     };
-    if !decisive(&b) {
+    if !decisive(first, &b) {
         // The continuation crept: a placement the start could not see is far from where the
         // start put it. Searched with everything else fitted again at each trial.
-        return Ok(placements_searched(first, seen, data, opts, free)?.filter(decisive));
+        return Ok(placements_searched(first, seen, data, opts, free)?.filter(|f| decisive(first, f)));
     }
     let mut out = b;
     out.delta += &first.delta + &a.delta;
@@ -102,6 +101,16 @@ fn continued<M: Mechanism + Clone>(
     iterations.extend(std::mem::take(&mut out.iterations));
     out.iterations = iterations;
     Ok(Some(out))
+}
+
+/// Whether `f` explains the data [`DECISIVE`]ly better than `first`.
+fn decisive<M: Mechanism>(first: &Identification<M>, f: &Identification<M>) -> bool {
+    f.converged && f.sigma0 < DECISIVE * first.sigma0
+}
+
+/// The identifiable parameters of `seen` not held as seen too weakly (`held`).
+fn unheld(seen: &Identifiability, held: &[usize]) -> Vec<usize> {
+    seen.identifiable.iter().copied().filter(|c| !held.contains(c)).collect()
 }
 
 /// The relative rank tolerance of [`seen_more_finely`]: singular values of the column-scaled
@@ -144,7 +153,7 @@ fn seen_more_finely<M: Mechanism + Clone>(
     let Ok(seen) = sampled_analysis(&first.model, data, &opts.noise, &fine, free) else {
         return Ok(None);
     };
-    let kept: Vec<usize> = seen.identifiable.iter().copied().filter(|c| !weak.contains(c)).collect();
+    let kept = unheld(&seen, weak);
     if kept.len() <= first.identifiability.identifiable.len() {
         return Ok(None);
     }
@@ -166,7 +175,7 @@ fn seen_more_finely<M: Mechanism + Clone>(
     let Ok(seen) = sampled_analysis(&model, data, &opts.noise, &fine, free) else {
         return Ok(None);
     };
-    let kept: Vec<usize> = seen.identifiable.iter().copied().filter(|c| !weak.contains(c)).collect();
+    let kept = unheld(&seen, weak);
     let Ok(mut out) = gauss_newton(&model, data, opts, free, Some(weak), Steps::Subset(&kept)) else {
         return Ok(None);
     };
@@ -175,7 +184,7 @@ fn seen_more_finely<M: Mechanism + Clone>(
     all.extend(iterations);
     all.append(&mut out.iterations);
     out.iterations = all;
-    if !(out.converged && out.sigma0 < DECISIVE * first.sigma0) {
+    if !decisive(first, &out) {
         return Ok(None);
     }
     out.delta += &first.delta;
@@ -240,7 +249,7 @@ fn placements_searched<M: Mechanism + Clone>(
         .filter(|c| !start.identifiable.contains(c) && !held.contains(c))
         .filter(|&c| params[c].is_placement() && params[c].unit == crate::params::Unit::Length)
         .collect();
-    let cols: Vec<usize> = seen.identifiable.iter().copied().filter(|c| !held.contains(c)).collect();
+    let cols = unheld(seen, held);
     if outer.is_empty() {
         return Ok(None);
     }
