@@ -327,6 +327,8 @@ struct Counts {
     multi_line: Vec<String>,
     inputs_changed: Vec<String>,
     slowest: (f64, String),
+    /// Runs that took more than half the watchdog's time, with their seconds.
+    slow: Vec<(f64, String)>,
 }
 
 fn main() {
@@ -424,6 +426,9 @@ fn main() {
             std::thread::sleep(Duration::from_millis(2));
         };
         let secs = t0.elapsed().as_secs_f64();
+        if secs > 0.5 * timeout {
+            counts.slow.push((secs, label.clone()));
+        }
         if secs > counts.slowest.0 {
             counts.slowest = (secs, label.clone());
         }
@@ -475,6 +480,9 @@ fn main() {
         counts.slowest.0,
         counts.slowest.1
     );
+    for (secs, label) in &counts.slow {
+        println!("slow ({secs:.2} s, over half the watchdog's time): {label}");
+    }
     let defects: Vec<&String> = counts
         .panics
         .iter()

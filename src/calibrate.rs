@@ -308,6 +308,7 @@ fn calibrate_as_stated(
     calibrated.noise = Some(identification.noise);
     calibrated.covariance = Some(covariance::of(
         &calibrated,
+        model,
         &identification,
         id_opts.free.as_deref().unwrap_or_default(),
     ));
@@ -327,7 +328,7 @@ fn calibrate_as_stated(
     let names = start.params();
     report.placement = placement.iter().map(|&k| names[k].name.clone()).collect();
     let measured: Vec<&[Measurement]> = std::iter::once(data).chain(validation).map(|d| &d.measurements[..]).collect();
-    report.predicted = covariance::predicted_map(&calibrated, &measured, opts.seed);
+    report.predicted = covariance::predicted_map(&calibrated, model, &measured, opts.seed);
     if !report.weak.is_empty() {
         // On the calibrated model file: the machine with its tool point, whatever the
         // instrument's wrapping of the fitted model.

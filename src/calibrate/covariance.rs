@@ -7,8 +7,9 @@ use crate::model::Mechanism;
 /// The covariance of `identification` (whose free parameters, in its model's indices, were
 /// `free`) over the parameters of `file.build()` that it identified; the model's other parameters
 /// held, with why (a parameter of the fit that the file's model does not have — an instrument's
-/// artifact point — is left out: the matrix is the marginal one).
-pub(crate) fn of(file: &ModelFile, identification: &Identification<Box<dyn Mechanism>>, free: &[usize]) -> Covariance {
+/// artifact point — is left out: the matrix is the marginal one). The configurations it is
+/// carried at are drawn on `drawing`, the model the calibration started from.
+pub(crate) fn of(file: &ModelFile, drawing: &ModelFile, identification: &Identification<Box<dyn Mechanism>>, free: &[usize]) -> Covariance {
     let fitted = identification.model.params();
     let id = &identification.identifiability;
     let mut identified = Vec::new();
@@ -32,7 +33,7 @@ pub(crate) fn of(file: &ModelFile, identification: &Identification<Box<dyn Mecha
         };
         held.push((p.name, why));
     }
-    let carried = in_file_coordinates(file, identification, &identified);
+    let carried = in_file_coordinates(file, drawing, identification, &identified);
     let c = carried.as_ref().unwrap_or(&identification.covariance);
     Covariance {
         matrix: nalgebra::DMatrix::from_fn(identified.len(), identified.len(), |i, j| {
@@ -49,13 +50,17 @@ pub(crate) fn of(file: &ModelFile, identification: &Identification<Box<dyn Mecha
 
 /// The identification's covariance carried to the coordinates of the model `file` builds
 /// ([`crate::predict::carry_covariance`] onto the `identified` parameters, at
-/// [`crate::predict::CARRY_CONFIGURATIONS`] configurations drawn from seed 1): the rebuilt model
+/// [`crate::predict::CARRY_CONFIGURATIONS`] configurations drawn from seed 1 on `drawing`, the
+/// model the calibration started from: the configurations its workspace commands, drawn alike
+/// however far the fit went (a fit gone far from the drawing, on wrong data, may reach little of
+/// that workspace, and drawing there would take thousands of failed solves)): the rebuilt model
 /// holds the calibrated geometry with its errors at zero, so its Jacobian is not the fitted
 /// model's. `None` where the fitted model is not the file's (an instrument's artifact points
 /// around it: its parameters are not the file's) or it cannot be evaluated; the covariance is then
 /// written as identified.
 fn in_file_coordinates(
     file: &ModelFile,
+    drawing: &ModelFile,
     identification: &Identification<Box<dyn Mechanism>>,
     identified: &[(usize, crate::params::Param)],
 ) -> Option<nalgebra::DMatrix<f64>> {
@@ -69,7 +74,8 @@ fn in_file_coordinates(
         return None;
     }
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
-    let q = crate::simulate::random_configurations(&*model, &file.inputs(), crate::predict::CARRY_CONFIGURATIONS, &mut rng).ok()?;
+    let q = crate::simulate::random_configurations(&*drawing.build(), &drawing.inputs(), crate::predict::CARRY_CONFIGURATIONS, &mut rng)
+        .ok()?;
     let onto: Vec<usize> = identified.iter().map(|(k, _)| *k).collect();
     crate::predict::carry_covariance(&*model, &**fitted, &identification.covariance, &q, &onto).ok()
 }
@@ -79,10 +85,16 @@ pub(crate) const MAP_CONFIGURATIONS: usize = 200;
 
 /// The report's map of predicted accuracy: the calibrated model file's predicted position σ
 /// ([`crate::predict::accuracy_of_file`]) at the measured configurations (of `sets`, each
-/// cut to the model's inputs) and at [`MAP_CONFIGURATIONS`] drawn over the workspace with
-/// `seed`; configurations where the model cannot be evaluated are left out. `None` without a
-/// covariance.
-pub(crate) fn predicted_map(file: &ModelFile, sets: &[&[crate::measure::Measurement]], seed: u64) -> Option<crate::report::PredictedMap> {
+/// cut to the model's inputs) and at [`MAP_CONFIGURATIONS`] drawn over the workspace of
+/// `drawing` (the model the calibration started from: the configurations its workspace commands)
+/// with `seed`; configurations where the calibrated model cannot be evaluated are left out.
+/// `None` without a covariance.
+pub(crate) fn predicted_map(
+    file: &ModelFile,
+    drawing: &ModelFile,
+    sets: &[&[crate::measure::Measurement]],
+    seed: u64,
+) -> Option<crate::report::PredictedMap> {
     use rand::SeedableRng;
     let model = file.build();
     let names: Vec<String> = model.params().into_iter().map(|p| p.name).collect();
@@ -96,7 +108,7 @@ pub(crate) fn predicted_map(file: &ModelFile, sets: &[&[crate::measure::Measurem
         }
     }
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-    if let Ok(drawn) = crate::simulate::random_configurations(&*model, &file.inputs(), MAP_CONFIGURATIONS, &mut rng) {
+    if let Ok(drawn) = crate::simulate::random_configurations(&*drawing.build(), &drawing.inputs(), MAP_CONFIGURATIONS, &mut rng) {
         configurations.extend(drawn.into_iter().map(|q| (q, false)));
     }
     let mut map = crate::report::PredictedMap::default();

@@ -3,7 +3,7 @@
 //! aside, a trimmed fit checks that none hides behind it.
 use super::{BLUNDER_WEIGHT, MAX_REJECTION_ROUNDS};
 use crate::error::CalibError;
-use crate::identify::{huber_threshold, identify, linearize, pose_rms, Identification, Loss, Options};
+use crate::identify::{fit_residuals, huber_threshold, identify, linearize, pose_rms, Identification, Loss, Options};
 use crate::io::data_file::DataSet;
 use crate::io::IoError;
 use crate::measure::{Measurement, Noise};
@@ -43,7 +43,8 @@ pub struct RobustFit {
 /// grows with them and none of them stands out: three poses 25 mm off among thirty left every
 /// pose millimetres off. So when the Huber fit sets none aside, a **trimmed fit** (made on the
 /// three quarters of the poses of smallest residual, concentrated by refitting until that set
-/// repeats; Rousseeuw's least trimmed squares) judges the poses again: those beyond twice the
+/// repeats; Rousseeuw's least trimmed squares; each a plain Gauss–Newton fit,
+/// [`fit_residuals`]) judges the poses again: those beyond twice the
 /// Huber threshold of its robust scale are blunders, set aside as above. It runs when the fit's
 /// `σ̂₀` is above [`TRIM_ABOVE_SIGMA0`]; data without such blunders keep the Huber fit
 /// unchanged. Errors are located in `data`.
@@ -121,7 +122,7 @@ fn hidden_blunders<M: Mechanism + Clone>(
         }
         trimmed = next;
         let subset: Vec<Measurement> = trimmed.iter().map(|&j| all[j].clone()).collect();
-        let Ok(t) = identify(start, &subset, opts) else {
+        let Ok(t) = fit_residuals(start, &subset, opts) else {
             return Vec::new();
         };
         match residual_per_pose(&t.model, &all, &t.noise) {
