@@ -10,6 +10,7 @@
 //! cargo run --release --example drift -- 100 irb120
 //! cargo run --release --example drift -- 100 pm5
 //! cargo run --release --example drift -- 100 pm5 file   # the prior read back from the written file
+//! cargo run --release --example drift -- 1000 pm5 unchanged   # the false-alarm rate alone
 //! ```
 mod common;
 use common::drift::{calibrated, calibrated_file, configurations, drifted, held_out_rms, machine, measure, Drift};
@@ -81,8 +82,11 @@ fn main() {
     let draws: u64 = std::env::args().nth(1).and_then(|a| a.parse().ok()).unwrap_or(100);
     let model = std::env::args().nth(2).unwrap_or_else(|| "irb120".into());
     // "file": the prior read back from the calibrated model file as written.
-    let from_file = std::env::args().nth(3).as_deref() == Some("file");
-    let scen = scenarios(&model);
+    let from_file = std::env::args().skip(3).any(|a| a == "file");
+    let mut scen = scenarios(&model);
+    if std::env::args().skip(3).any(|a| a == "unchanged") {
+        scen.retain(|s| s.1 == Drift::None);
+    }
     let t = std::time::Instant::now();
     let results: Vec<Vec<Outcome>> = (0..draws)
         .into_par_iter()

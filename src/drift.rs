@@ -12,7 +12,10 @@
 //! rows when the machine is as calibrated. It is computed as a least-squares problem in
 //! square-root form: the prior as rows `I·z = 0` over whitened coordinates `z` (the parameters'
 //! change is `L·z`), stacked over the new rows `A·L·z = e`; `T` is the minimum of
-//! `|z|² + |e − A·L·z|²`. Each pose's own statistic uses its block of the same matrix.
+//! `|z|² + |e − A·L·z|²`. Each pose's own statistic uses its block of the same matrix. The check
+//! judges `T` together with each pattern's drop below (a drift of one pattern concentrates in a
+//! few coefficients, which `T` spreads over as many degrees of freedom as rows), at one threshold
+//! that holds the false-alarm rate for all of them together ([`rate`]).
 //!
 //! # Patterns
 //! What changed is looked for among named patterns ([`patterns`]): an input's offset (a joint
@@ -31,10 +34,11 @@
 //! prior, the best pattern is released and the fit repeated, as long as a release is significant.
 pub mod check;
 pub mod patterns;
+pub mod rate;
 mod stacked;
 pub mod update;
 
-pub use check::{check, Alternative, CheckOptions, CheckReport, PatternFit, PoseCheck};
+pub use check::{check, Alternative, CheckOptions, CheckReport, PatternFit, PatternTest, PoseCheck};
 pub use patterns::{patterns, Pattern, PatternKind};
 pub use update::{update, Moved, Update, UpdateOptions};
 
@@ -248,9 +252,15 @@ pub fn normal_quantile(p: f64) -> f64 {
 
 /// The χ² quantile with `k` degrees of freedom at probability `p` (Wilson–Hilferty).
 pub fn chi2_quantile(k: usize, p: f64) -> f64 {
+    chi2_at_z(k, normal_quantile(p))
+}
+
+/// The value of the χ² distribution with `k` degrees of freedom that lies `z` standard normal
+/// deviates above it (Wilson–Hilferty; the inverse of [`chi2_z`]).
+pub fn chi2_at_z(k: usize, z: f64) -> f64 {
     let k = k.max(1) as f64;
     let a = 2.0 / (9.0 * k);
-    (k * (1.0 - a + normal_quantile(p) * a.sqrt()).powi(3)).max(0.0)
+    (k * (1.0 - a + z * a.sqrt()).powi(3)).max(0.0)
 }
 
 /// How many standard normal deviates `x` lies above the χ² distribution with `k` degrees of
