@@ -608,6 +608,7 @@ fn judge<M: Mechanism + Clone>(
     report.set_inputs(&model.inputs());
     report.tolerance_check = Some(tolerances::tolerance_check(j.identification, j.free, &model.tolerances));
     report.serial_chain = matches!(model.mechanism, MechanismSpec::Serial(_));
+    report.radian_like_columns = checks::radian_like_columns(model, data);
     report.held_out = j.held_out.clone();
     report.assess(&opts.noise, &model.tolerances);
     report.judge_kinds(crate::report::kinds::kind_residuals(

@@ -41,6 +41,7 @@ use serde::Serialize;
 mod drawn;
 mod joints;
 mod loss;
+mod plain;
 mod recursive;
 mod reduced;
 mod refit;
@@ -49,6 +50,7 @@ mod weak;
 use loss::reestimate_noise;
 pub use loss::{apply_loss, Loss};
 pub(crate) use loss::{huber_threshold, loss_weights, pose_rms};
+pub use plain::fit_residuals;
 pub use recursive::rls_solve;
 use reduced::{Form, System};
 use solve::{covariance, solve_subset};
@@ -330,30 +332,6 @@ pub fn identify<M: Mechanism + Clone>(initial: &M, data: &[Measurement], opts: &
         Method::GaussNewton => drawn::fitted_with_gauge(initial, data, opts, &free),
         Method::Linear | Method::Recursive => one_step(initial, data, opts, &free),
     }
-}
-
-/// Gauss–Newton alone from `initial` on the free parameters of `opts` (minimum-norm steps,
-/// nothing held as seen too weakly, none of [`identify`]'s refinements where the fit
-/// converged): the residual of the converged geometry, which those refinements change by no more
-/// than noise. What a fit needs whose only use is ranking the poses by their residual (the
-/// trimmed fits against hidden blunders), at a third of the iterations on hopeless data.
-///
-/// Errors: as [`identify`].
-pub fn fit_residuals<M: Mechanism + Clone>(initial: &M, data: &[Measurement], opts: &Options) -> Result<Identification<M>, CalibError> {
-    let p = initial.n_params();
-    let held = initial.assembly_breaking();
-    let free: Vec<usize> = (opts.free.clone().unwrap_or_else(|| (0..p).collect()).into_iter())
-        .filter(|c| *c < p && !held.contains(c))
-        .collect();
-    if free.is_empty() {
-        return Err(CalibError::NothingToIdentify("no free parameters".into()));
-    }
-    let plain = Options {
-        weak: None,
-        method: Method::GaussNewton,
-        ..opts.clone()
-    };
-    gauss_newton(initial, data, &plain, &free, None, Steps::MinimumNorm)
 }
 
 /// The identifiable columns of `ident` and the share of residual degrees of freedom, or why

@@ -8,17 +8,17 @@ use crate::io::IoError;
 use crate::params::Unit;
 use std::f64::consts::PI;
 
-/// Angle columns whose every value, read in degrees, stays within what radians can be (±π, or
-/// the joint's limits in radians when they pass ±π: ±2π on an arm whose wrists turn twice) while
-/// the joint's limits allow far more, are almost certainly in the wrong unit.
-pub fn plausible_angles(model: &ModelFile, data: &DataSet) -> Result<(), IoError> {
-    if data.measurements.len() < 10 {
-        return Ok(());
-    }
-    let inputs = model.inputs();
-    // The largest value (rad) radians can take on a joint: π, or its limits' when larger.
-    let radians_bound = |limits: Option<(f64, f64)>| limits.map_or(PI, |(lo, hi)| lo.abs().max(hi.abs()).max(PI));
-    let suspicious: Vec<&str> = inputs
+/// The largest value (rad) radians can take on a joint: π, or its limits' when larger (±2π on
+/// an arm whose wrists turn twice).
+fn radians_bound(limits: Option<(f64, f64)>) -> f64 {
+    limits.map_or(PI, |(lo, hi)| lo.abs().max(hi.abs()).max(PI))
+}
+
+/// The angle columns (by input index) whose every value, read in degrees, stays within what
+/// radians can be ([`radians_bound`]) while the joint's limits allow far more.
+fn radian_like(model: &ModelFile, data: &DataSet) -> Vec<usize> {
+    model
+        .inputs()
         .iter()
         .enumerate()
         .filter(|(_, i)| i.unit == Unit::Angle)
@@ -27,8 +27,19 @@ pub fn plausible_angles(model: &ModelFile, data: &DataSet) -> Result<(), IoError
             let max = data.measurements.iter().map(|m| m.q[*k].abs()).fold(0.0, f64::max);
             max > 0.0 && max <= radians_bound(i.limits).to_radians() * 1.0001
         })
-        .map(|(_, i)| i.name.as_str())
-        .collect();
+        .map(|(k, _)| k)
+        .collect()
+}
+
+/// Angle columns whose every value, read in degrees, stays within what radians can be while the
+/// joint's limits allow far more ([`radian_like`]), two or more and at least half of them, are
+/// almost certainly in the wrong unit: refused before any fit.
+pub fn plausible_angles(model: &ModelFile, data: &DataSet) -> Result<(), IoError> {
+    if data.measurements.len() < 10 {
+        return Ok(());
+    }
+    let inputs = model.inputs();
+    let suspicious: Vec<&str> = radian_like(model, data).into_iter().map(|k| inputs[k].name.as_str()).collect();
     if suspicious.len() >= 2 && suspicious.len() * 2 >= inputs.iter().filter(|i| i.unit == Unit::Angle).count() {
         let largest = inputs
             .iter()
@@ -45,6 +56,32 @@ pub fn plausible_angles(model: &ModelFile, data: &DataSet) -> Result<(), IoError
         });
     }
     Ok(())
+}
+
+/// A single angle column that looks like radians ([`radian_like`]) is not refused before the
+/// fit (a joint can stay near its zero over a set of poses), but named where the fit then fails
+/// with corrections far beyond the tolerances: `j2 (never beyond ±2.4419 in its degree column,
+/// its limits ±140): radians?`. Empty on fewer than 10 poses.
+pub fn radian_like_columns(model: &ModelFile, data: &DataSet) -> Vec<String> {
+    if data.measurements.len() < 10 {
+        return Vec::new();
+    }
+    let inputs = model.inputs();
+    radian_like(model, data)
+        .into_iter()
+        .map(|k| {
+            let max = data.measurements.iter().map(|m| m.q[k].abs()).fold(0.0, f64::max);
+            let limits = inputs[k]
+                .limits
+                .map(|(lo, hi)| format!(", its limits {:.0}..{:.0}", lo.to_degrees(), hi.to_degrees()))
+                .unwrap_or_default();
+            format!(
+                "{} (never beyond ±{:.4} in its degree column{limits}): radians?",
+                inputs[k].name,
+                max.to_degrees()
+            )
+        })
+        .collect()
 }
 
 /// Unit factors a mistaken file shows: metres or inches for millimetres (and back).

@@ -282,6 +282,11 @@ pub struct CalibrationReport {
     /// The model is a serial chain without joint terms: a residual above the noise then points
     /// at them in the verdict.
     pub serial_chain: bool,
+    /// Angle columns of the data that look like radians read as degrees
+    /// (`calibrate::checks::radian_like_columns`): named in the verdict where corrections come
+    /// out far beyond the tolerances.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub radian_like_columns: Vec<String>,
     /// The machine and its frames as the report's 3-D view draws them.
     pub machine: MachineView,
     /// Each measurement kind's residual against its own stated noise (set by `calibrate`).
@@ -427,6 +432,7 @@ impl CalibrationReport {
             variants: Vec::new(),
             tolerance_check: None,
             serial_chain: false,
+            radian_like_columns: Vec::new(),
             machine: MachineView::of(nominal, &result.model, data.first()),
             kinds: Vec::new(),
             known_distances: Vec::new(),

@@ -295,6 +295,11 @@ impl CalibrationReport {
                     "the fit matches the data (σ̂₀ {:.3}): a model of another machine (check its dimensions; raise the tolerances if the machine really is this far from its drawing), or a combination of parameters the poses barely separate (fix one of them in [calibration] fixed, or add or spread poses)",
                     self.sigma0
                 )
+            } else if !self.radian_like_columns.is_empty() {
+                format!(
+                    "are the joint columns in the right unit? {} (else: is the model of this machine, are the columns in the right order?)",
+                    self.radian_like_columns.join(", ")
+                )
             } else {
                 "is the model of this machine, and are the joint columns in the right order and unit? (if the machine really is this far from its drawing, raise [calibration] tolerance_mm / tolerance_deg in the model file)".to_string()
             };

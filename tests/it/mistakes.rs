@@ -254,6 +254,18 @@ fn wrong_units_and_an_overstated_noise_are_named() {
         let e = fails(d, &["identify", "irb120", file, "--out", "c.toml"]);
         assert!(e.starts_with(file) && e.contains(expect), "{file}: {e}");
     }
+    // One column in radians is no refusal before the fit (a joint can stay near its zero), but
+    // the fit that fails for it names the column (exit 2, one line, nothing written).
+    write("q3rad.csv", &|c, v| if c == "q3_deg" { v.to_radians() } else { v });
+    let out = kinecal(d, &["identify", "irb120", "q3rad.csv", "--out", "c3.toml"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    let last: Vec<&str> = err.lines().filter(|l| l.starts_with("kinecal: ")).collect();
+    assert!(
+        last.len() == 1 && last[0].contains("are the joint columns in the right unit? q3 (never beyond ±") && last[0].contains("radians?"),
+        "{err}"
+    );
+    assert!(!d.join("c3.toml").exists());
     assert!(fails(d, &["identify", "irb120", "m.csv", "--out", "c.toml"]).contains("metres in the _mm columns"));
     assert!(fails(d, &["identify", "irb120", "in.csv", "--out", "c.toml"]).contains("inches in the _mm columns"));
     // 5 mm stated for 5 µm: calibrated, with a warning naming σ̂₀ and the residual.
