@@ -24,11 +24,21 @@ fn radian_like(model: &ModelFile, data: &DataSet) -> Vec<usize> {
         .filter(|(_, i)| i.unit == Unit::Angle)
         .filter(|(_, i)| i.limits.is_none_or(|(lo, hi)| hi - lo > 4.0 * radians_bound(i.limits).to_radians()))
         .filter(|(k, i)| {
-            let max = data.measurements.iter().map(|m| m.q[*k].abs()).fold(0.0, f64::max);
+            let max = largest_value(data, *k);
             max > 0.0 && max <= radians_bound(i.limits).to_radians() * 1.0001
         })
         .map(|(k, _)| k)
         .collect()
+}
+
+/// The largest magnitude of input `k` over the rows of `data` that carry it (a known distance
+/// between two seats carries no configuration).
+fn largest_value(data: &DataSet, k: usize) -> f64 {
+    data.measurements
+        .iter()
+        .filter_map(|m| m.q.get(k))
+        .map(|v| v.abs())
+        .fold(0.0, f64::max)
 }
 
 /// Angle columns whose every value, read in degrees, stays within what radians can be while the
@@ -70,7 +80,7 @@ pub fn radian_like_columns(model: &ModelFile, data: &DataSet) -> Vec<String> {
     radian_like(model, data)
         .into_iter()
         .map(|k| {
-            let max = data.measurements.iter().map(|m| m.q[k].abs()).fold(0.0, f64::max);
+            let max = largest_value(data, k);
             let limits = inputs[k]
                 .limits
                 .map(|(lo, hi)| format!(", its limits {:.0}..{:.0}", lo.to_degrees(), hi.to_degrees()))
