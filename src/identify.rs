@@ -310,6 +310,16 @@ pub fn linearize<M: Mechanism + ?Sized>(model: &M, data: &[Measurement], noise: 
 /// Errors: kinematics failing at a pose, fewer residual rows than identifiable parameters,
 /// nothing free or identifiable, a numerical failure.
 pub fn identify<M: Mechanism + Clone>(initial: &M, data: &[Measurement], opts: &Options) -> Result<Identification<M>, CalibError> {
+    let free = free_columns(initial, opts)?;
+    match opts.method {
+        Method::GaussNewton => drawn::fitted_with_gauge(initial, data, opts, &free),
+        Method::Linear | Method::Recursive => one_step(initial, data, opts, &free),
+    }
+}
+
+/// The free parameters of `opts` (all by default) but those `initial` cannot take alone; errors:
+/// nothing free, a free index beyond the parameters, a noise that is not positive.
+fn free_columns<M: Mechanism>(initial: &M, opts: &Options) -> Result<Vec<usize>, CalibError> {
     let p = initial.n_params();
     let held = initial.assembly_breaking();
     let free: Vec<usize> = opts
@@ -328,10 +338,7 @@ pub fn identify<M: Mechanism + Clone>(initial: &M, data: &[Measurement], opts: &
     if !(opts.noise.position > 0.0 && opts.noise.orientation > 0.0) {
         return Err(CalibError::InvalidOption("noise standard deviations must be positive".into()));
     }
-    match opts.method {
-        Method::GaussNewton => drawn::fitted_with_gauge(initial, data, opts, &free),
-        Method::Linear | Method::Recursive => one_step(initial, data, opts, &free),
-    }
+    Ok(free)
 }
 
 /// The identifiable columns of `ident` and the share of residual degrees of freedom, or why

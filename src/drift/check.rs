@@ -1,7 +1,7 @@
 //! [`check()`]: re-measured poses judged against a calibration's prediction.
 use super::patterns::{patterns, Pattern, PatternKind};
 use super::stacked::Stacked;
-use super::{chi2_at_z, chi2_quantile, chi2_z, rate, Prior, DEFAULT_FALSE_ALARM};
+use super::{chi2_at_z, chi2_quantile, rate, Prior, DEFAULT_FALSE_ALARM};
 use crate::error::CalibError;
 use crate::identify::linearize;
 use crate::measure::{self, Measurement};
@@ -249,20 +249,21 @@ pub fn check(prior: &Prior, data: &[Measurement], opts: &CheckOptions) -> Result
         .solve(None)?
         .ok_or_else(|| CalibError::Numerical("the prior's rows are singular".into()))?;
     let alpha = opts.false_alarm;
-    let poses = pose_checks(prior, &*model, data, &lin, &l, alpha)?;
+    // The new rows' Jacobian times the prior's factor: the rows' predicted covariance I + B·Bᵀ.
+    let b = &lin.jacobian * &l;
+    let poses = pose_checks(prior, &*model, data, &lin, &b, alpha)?;
     let all = patterns(&*model, &prior.model.inputs(), opts.seed)?;
     let pattern = best_pattern(&stacked, &lin.jacobian, &all, &[], base.cost, rows, alpha)?;
     let effects: Vec<DMatrix<f64>> = all.iter().map(|p| &lin.jacobian * &p.directions).collect();
-    let decision = rate::decide(&(&lin.jacobian * &l), &lin.residual, &effects, alpha, opts.seed)?;
+    let decision = rate::decide(&b, &lin.residual, &effects, alpha, opts.seed)?;
     let bound = chi2_at_z(rows, decision.z);
-    let pattern_test = (all.iter().zip(&decision.drops))
-        .filter_map(|(p, d)| d.map(|(drop, k)| (p, drop, k)))
-        .max_by(|a, b| chi2_z(a.1, a.2).total_cmp(&chi2_z(b.1, b.2)))
-        .map(|(p, drop, k)| PatternTest {
-            name: p.name.clone(),
+    let pattern_test = decision.strongest().and_then(|(i, _)| {
+        decision.drops[i].map(|(drop, k)| PatternTest {
+            name: all[i].name.clone(),
             chi2_drop: drop,
             bound: chi2_at_z(k, decision.z),
-        });
+        })
+    });
     let drifted = decision.deviate(rows) > decision.z;
     Ok(CheckReport {
         drifted,
@@ -277,16 +278,15 @@ pub fn check(prior: &Prior, data: &[Measurement], opts: &CheckOptions) -> Result
     })
 }
 
-/// Each pose's statistic over its block of `C = I + A·L·Lᵀ·Aᵀ` (noise-weighted rows).
+/// Each pose's statistic over its block of `C = I + B·Bᵀ` (`B = A·L`, noise-weighted rows).
 fn pose_checks(
     prior: &Prior,
     model: &dyn crate::model::Mechanism,
     data: &[Measurement],
     lin: &crate::identify::Linearization,
-    l: &DMatrix<f64>,
+    b: &DMatrix<f64>,
     alpha: f64,
 ) -> Result<Vec<PoseCheck>, CalibError> {
-    let b = &lin.jacobian * l;
     let reached = crate::validate::forward_all(model, data)?;
     let rows = lin.residual.len();
     let mut out = Vec::with_capacity(data.len());

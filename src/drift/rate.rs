@@ -114,13 +114,18 @@ pub fn decide(b: &DMatrix<f64>, e: &DVector<f64>, effects: &[DMatrix<f64>], alph
 }
 
 impl Decision {
+    /// The pattern (index into the effects) whose drop is the largest normal deviate, with the
+    /// deviate; `None` when the rows see no pattern whole.
+    pub fn strongest(&self) -> Option<(usize, f64)> {
+        (self.drops.iter().enumerate())
+            .filter_map(|(i, d)| d.map(|(x, k)| (i, chi2_z(x, k))))
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+    }
+
     /// The largest normal deviate of the observed statistics.
     pub fn deviate(&self, rows: usize) -> f64 {
-        self.drops
-            .iter()
-            .flatten()
-            .map(|&(x, k)| chi2_z(x, k))
-            .fold(chi2_z(self.chi2, rows), f64::max)
+        let t = chi2_z(self.chi2, rows);
+        self.strongest().map_or(t, |(_, z)| z.max(t))
     }
 }
 

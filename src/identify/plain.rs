@@ -1,5 +1,5 @@
 //! A plain fit for ranking poses: [`fit_residuals`].
-use super::{gauss_newton, Identification, Method, Options, Steps};
+use super::{free_columns, gauss_newton, Identification, Method, Options, Steps};
 use crate::error::CalibError;
 use crate::measure::Measurement;
 use crate::model::Mechanism;
@@ -12,14 +12,7 @@ use crate::model::Mechanism;
 ///
 /// Errors: as [`identify`](super::identify()).
 pub fn fit_residuals<M: Mechanism + Clone>(initial: &M, data: &[Measurement], opts: &Options) -> Result<Identification<M>, CalibError> {
-    let p = initial.n_params();
-    let held = initial.assembly_breaking();
-    let free: Vec<usize> = (opts.free.clone().unwrap_or_else(|| (0..p).collect()).into_iter())
-        .filter(|c| *c < p && !held.contains(c))
-        .collect();
-    if free.is_empty() {
-        return Err(CalibError::NothingToIdentify("no free parameters".into()));
-    }
+    let free = free_columns(initial, opts)?;
     let plain = Options {
         weak: None,
         method: Method::GaussNewton,
