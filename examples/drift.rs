@@ -11,10 +11,15 @@
 //! cargo run --release --example drift -- 100 pm5
 //! cargo run --release --example drift -- 100 pm5 file   # the prior read back from the written file
 //! cargo run --release --example drift -- 1000 pm5 unchanged   # the false-alarm rate alone
+//! cargo run --release --example drift -- 100 pm5 planned   # the check's 5 poses planned
 //! ```
+//!
+//! `planned`: the check's 5 configurations are chosen by [`kinecal::drift::plan_check_poses`]
+//! among 2000 drawn over the workspace, on the draw's calibration (before any drift), as
+//! `kinecal check CAL --plan 5` chooses them; everything else as without it.
 mod common;
 use common::drift::{calibrated, calibrated_file, configurations, drifted, held_out_rms, machine, measure, Drift};
-use kinecal::drift::{check, update, CheckOptions, UpdateOptions};
+use kinecal::drift::{check, plan_check_poses, update, CheckOptions, CheckPlanOptions, UpdateOptions};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -83,6 +88,7 @@ fn main() {
     let model = std::env::args().nth(2).unwrap_or_else(|| "irb120".into());
     // "file": the prior read back from the calibrated model file as written.
     let from_file = std::env::args().skip(3).any(|a| a == "file");
+    let planned = std::env::args().skip(3).any(|a| a == "planned");
     let mut scen = scenarios(&model);
     if std::env::args().skip(3).any(|a| a == "unchanged") {
         scen.retain(|s| s.1 == Drift::None);
@@ -98,11 +104,20 @@ fn main() {
             } else {
                 calibrated(&m, &*m.truth, &zero, 60, 2000 + k)
             };
+            let plan = planned.then(|| {
+                let mut rng = ChaCha8Rng::seed_from_u64(6000 + k);
+                let candidates = configurations(&m, 2000, &mut rng);
+                let p = plan_check_poses(&prior, &candidates, &CheckPlanOptions::default()).expect("plan");
+                p.selected.iter().map(|&i| candidates[i].clone()).collect::<Vec<_>>()
+            });
             scen.iter()
                 .map(|(_, drift, truth_name)| {
                     let mut rng = ChaCha8Rng::seed_from_u64(3000 + k);
                     let (truth, shift) = drifted(&m, *drift, &mut rng);
-                    let q5 = configurations(&m, 5, &mut rng);
+                    let mut q5 = configurations(&m, 5, &mut rng);
+                    if let Some(p) = &plan {
+                        q5 = p.clone();
+                    }
                     let five = measure(&*truth, &shift, &q5, Some(&m.noise), &mut rng);
                     let c = check(&prior, &five, &CheckOptions::default()).expect("check");
                     let pattern = c.pattern.as_ref().map(|p| p.name.clone()).unwrap_or_default();
@@ -150,7 +165,8 @@ fn main() {
         })
         .collect();
     println!(
-        "{model}: {draws} draws, calibration on 60 tracker poses (20 µm / 0.02° noise), check on 5 poses at a false-alarm rate of 1 %, update from 10 poses, held out 50 poses ({:.0} s)",
+        "{model}: {draws} draws, calibration on 60 tracker poses (20 µm / 0.02° noise), check on 5 {} poses at a false-alarm rate of 1 %, update from 10 poses, held out 50 poses ({:.0} s)",
+        if planned { "planned" } else { "random" },
         t.elapsed().as_secs_f64()
     );
     for (s, (label, drift, _)) in scen.iter().enumerate() {

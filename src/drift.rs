@@ -27,18 +27,25 @@
 //! `T − Δ + k·ln(rows)` for a pattern of `k` coefficients (Schwarz's criterion: a pattern of more
 //! coefficients is named only where it explains clearly more).
 //!
+//! # Where to measure a check
+//! Any few poses detect a drift; naming it takes poses at which the patterns act differently.
+//! [`plan_check_poses`] chooses, among candidate configurations, those at which a check is
+//! least likely to name one pattern for another ([`check_plan`]).
+//!
 //! # The update
 //! [`update()`] minimises the same sum — the prior's rows and the new rows — iterated to
 //! convergence on the non-linear model (Gauss–Newton on the stacked rows, each step the square-root
 //! recursive least squares of [`crate::identify::rls_solve`]). Where the new poses contradict the
 //! prior, the best pattern is released and the fit repeated, as long as a release is significant.
 pub mod check;
+pub mod check_plan;
 pub mod patterns;
 pub mod rate;
 mod stacked;
 pub mod update;
 
 pub use check::{check, Alternative, CheckOptions, CheckReport, PatternFit, PatternTest, PoseCheck};
+pub use check_plan::{plan_check_poses, CheckPlan, CheckPlanOptions, PairSeparation};
 pub use patterns::{patterns, Pattern, PatternKind};
 pub use update::{update, Moved, Update, UpdateOptions};
 

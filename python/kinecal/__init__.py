@@ -32,6 +32,7 @@ __all__ = [
     "Calibration",
     "Update",
     "check",
+    "plan_check",
     "Validation",
     "KinecalError",
     "calibrate",
@@ -266,6 +267,20 @@ def check(calibration: Any, data: Data, *, false_alarm: float = 0.01) -> Dict[st
     fits best (``result["pattern"]``)."""
     raw = calibration._raw if isinstance(calibration, Calibration) else calibration
     return json.loads(_kinecal.check(raw, data, false_alarm=false_alarm))
+
+
+def plan_check(
+    calibration: Any, configurations: np.ndarray, *, n: int = 5, drift_mm: float = 0.1, observe: str = "pose"
+) -> Dict[str, Any]:
+    """The ``n`` rows of ``configurations`` (candidates, (m, inputs) in rad / mm) at which a check
+    of ``calibration`` (a :class:`Calibration` or a calibrated :class:`Model`) names a drift best,
+    as ``kinecal check --plan`` chooses them: ``result["selected"]`` (row indices),
+    ``result["wrong_names"]`` (the expected wrong names per pattern for a drift moving the tool
+    ``drift_mm``) beside ``result["wrong_names_unplanned"]`` (the first ``n`` rows), and the pairs
+    of patterns least apart (``result["weakest"]``)."""
+    raw = calibration._raw if isinstance(calibration, Calibration) else calibration
+    q = np.ascontiguousarray(configurations, dtype=np.float64)
+    return json.loads(_kinecal.plan_check(raw, q, n=n, drift_mm=drift_mm, observe=observe))
 
 
 def validate(model: Model, data: Data) -> Validation:

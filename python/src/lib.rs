@@ -569,6 +569,36 @@ fn check(calibration: &Bound<'_, PyAny>, data: &Data, false_alarm: f64) -> PyRes
     serde_json::to_string(&r).map_err(err)
 }
 
+/// The configurations among `configurations` (n, inputs; rad / mm) at which a check of
+/// `calibration` names a drift best: the library call behind `kinecal check --plan`. Returns the
+/// plan as JSON (`selected` indices into the rows, `wrong_names`, …).
+#[pyfunction]
+#[pyo3(signature = (calibration, configurations, *, n = 5, drift_mm = 0.1, observe = "pose"))]
+fn plan_check(
+    py: Python<'_>,
+    calibration: &Bound<'_, PyAny>,
+    configurations: PyReadonlyArray2<'_, f64>,
+    n: usize,
+    drift_mm: f64,
+    observe: &str,
+) -> PyResult<String> {
+    let prior = prior_of(calibration)?;
+    let instrument = match observe {
+        "pose" => kinecal::simulate::Instrument::Pose,
+        "position" => kinecal::simulate::Instrument::Position,
+        other => return Err(err(format!("observe: 'pose' or 'position' (it is '{other}')"))),
+    };
+    let rows = input_rows(&configurations, &prior.model, "configurations")?;
+    let opts = kinecal::drift::CheckPlanOptions {
+        n,
+        instrument,
+        drift_mm,
+        ..Default::default()
+    };
+    let plan = py.detach(|| kinecal::drift::plan_check_poses(&prior, &rows, &opts)).map_err(err)?;
+    serde_json::to_string(&plan).map_err(err)
+}
+
 /// The result of an update (`calibrate(..., prior=...)`): the updated model and the report.
 #[pyclass(module = "kinecal._kinecal")]
 pub struct Update {
@@ -1271,6 +1301,7 @@ fn _kinecal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Calibration>()?;
     m.add_class::<Update>()?;
     m.add_function(wrap_pyfunction!(check, m)?)?;
+    m.add_function(wrap_pyfunction!(plan_check, m)?)?;
     m.add_function(wrap_pyfunction!(update, m)?)?;
     m.add_function(wrap_pyfunction!(calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(validate, m)?)?;

@@ -425,3 +425,19 @@ def test_predict_accuracy_of_a_calibrated_model():
     assert np.allclose(again["position_mm"], acc["position_mm"], rtol=1e-9)
     with pytest.raises(kinecal.KinecalError, match="no \\[covariance\\]"):
         kinecal.predict_accuracy(m, q)
+
+
+def test_plan_check_chooses_configurations_that_name_drifts_apart():
+    m = kinecal.Model.load("irb120")
+    truth, data = kinecal.simulate(m, 60, seed=7, noise_mm=0.02, noise_deg=0.02)
+    cal = kinecal.calibrate(m, data, noise_mm=0.02, noise_deg=0.02)
+    q = kinecal.simulate(m, 200, seed=8)[1].q
+    plan = kinecal.plan_check(cal, q, n=5)
+    chosen = plan["selected"]
+    assert len(chosen) == 5 and len(set(chosen)) == 5 and all(0 <= i < 200 for i in chosen)
+    assert plan["wrong_names"] < plan["wrong_names_unplanned"]
+    # The calibrated model file plans the same as the calibration in memory.
+    back = kinecal.Model.from_toml(cal.model.to_toml(), "cal.toml")
+    assert kinecal.plan_check(back, q, n=5)["selected"] == chosen
+    with pytest.raises(kinecal.KinecalError, match="configurations"):
+        kinecal.plan_check(cal, q[:, :5])

@@ -56,33 +56,49 @@ use std::io::Write;
 
 /// Write the chosen configurations as CSV, in the data-file format of [`crate::io::data_file`] so
 /// that the plan feeds `kinecal simulate --at` and `kinecal compensate` directly: `#` comment
-/// lines with the method, criterion, every index reached and the candidate numbers, then a header
-/// `id,<inputs…>,x_mm,y_mm,z_mm,roll_deg,pitch_deg,yaw_deg` and one row per configuration (its
-/// target pose). Inputs flagged in `angle_inputs` are written in degrees (`<name>_deg`), the
-/// others in millimetres (`<name>_mm`). The orientation is fixed-axes roll–pitch–yaw,
-/// `R = Rz(yaw)·Ry(pitch)·Rx(roll)`.
+/// lines with the method, criterion, every index reached and the candidate numbers, then the rows
+/// of [`write_configurations_csv`].
 pub fn write_plan_csv<W: Write>(
-    mut out: W,
+    out: W,
     input_names: &[String],
     angle_inputs: &[bool],
     candidates: &[Candidate],
     selection: &Selection,
 ) -> std::io::Result<()> {
     let ix = &selection.indices;
-    writeln!(
-        out,
-        "# kinecal plan: {:?} on {}, {} configurations",
-        selection.method,
-        selection.criterion,
-        selection.selected.len()
-    )?;
-    writeln!(
-        out,
-        "# O1 = {:.6e}, O2 = {:.6e} (O_T = 1/O2 = {:.6e}), O3 = {:.6e}, O4 = {:.6e}, O5 = {:.6e}, log det = {:.6}",
-        ix.o1, ix.o2, ix.o_t, ix.o3, ix.o4, ix.o5, ix.log_det
-    )?;
     let numbers: Vec<String> = selection.selected.iter().map(|i| i.to_string()).collect();
-    writeln!(out, "# candidate numbers: {}", numbers.join(" "))?;
+    let comments = [
+        format!(
+            "kinecal plan: {:?} on {}, {} configurations",
+            selection.method,
+            selection.criterion,
+            selection.selected.len()
+        ),
+        format!(
+            "O1 = {:.6e}, O2 = {:.6e} (O_T = 1/O2 = {:.6e}), O3 = {:.6e}, O4 = {:.6e}, O5 = {:.6e}, log det = {:.6}",
+            ix.o1, ix.o2, ix.o_t, ix.o3, ix.o4, ix.o5, ix.log_det
+        ),
+        format!("candidate numbers: {}", numbers.join(" ")),
+    ];
+    let rows: Vec<&Candidate> = selection.selected.iter().map(|&i| &candidates[i]).collect();
+    write_configurations_csv(out, input_names, angle_inputs, &comments, &rows)
+}
+
+/// Write configurations as CSV in the data-file format of [`crate::io::data_file`]: each of
+/// `comments` as a `#` line, then a header `id,<inputs…>,x_mm,y_mm,z_mm,roll_deg,pitch_deg,yaw_deg`
+/// and one row per configuration (its target pose). Inputs flagged in `angle_inputs` are written
+/// in degrees (`<name>_deg`), the others in millimetres (`<name>_mm`). The orientation is
+/// fixed-axes roll–pitch–yaw, `R = Rz(yaw)·Ry(pitch)·Rx(roll)`.
+pub fn write_configurations_csv<W: Write>(
+    mut out: W,
+    input_names: &[String],
+    angle_inputs: &[bool],
+    comments: &[String],
+    rows: &[&Candidate],
+) -> std::io::Result<()> {
+    for line in comments {
+        writeln!(out, "# {line}")?;
+    }
     write!(out, "id")?;
     for (i, name) in input_names.iter().enumerate() {
         let clean = name.replace(',', "_");
@@ -93,8 +109,7 @@ pub fn write_plan_csv<W: Write>(
         }
     }
     writeln!(out, ",x_mm,y_mm,z_mm,roll_deg,pitch_deg,yaw_deg")?;
-    for (row, &i) in selection.selected.iter().enumerate() {
-        let c = &candidates[i];
+    for (row, c) in rows.iter().enumerate() {
         write!(out, "{row}")?;
         for (j, v) in c.q.iter().enumerate() {
             if angle_inputs.get(j).copied().unwrap_or(false) {

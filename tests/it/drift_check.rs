@@ -1,7 +1,7 @@
 //! `kinecal::drift`: check and update on virtual prototypes (the scenarios of
 //! examples/drift.rs, fewer draws; the 100-draw figures are in docs/drift.md).
 #[path = "../../examples/common/drift.rs"]
-mod scenario;
+pub(crate) mod scenario;
 use kinecal::drift::{check, update, CheckOptions, Prior, UpdateOptions};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;

@@ -4,6 +4,7 @@ mod architecture;
 mod assess;
 mod assess_walkthrough;
 mod chain;
+mod check_plan;
 mod cli;
 mod cli_usage;
 mod closed;
