@@ -44,7 +44,7 @@ pub mod rate;
 mod stacked;
 pub mod update;
 
-pub use check::{check, Alternative, CheckOptions, CheckReport, PatternFit, PatternTest, PoseCheck};
+pub use check::{check, Alternative, CheckOptions, CheckReport, OnePose, PatternFit, PatternTest, PoseCheck};
 pub use check_plan::{plan_check_poses, CheckPlan, CheckPlanOptions, PairSeparation};
 pub use patterns::{patterns, Pattern, PatternKind};
 pub use update::{update, Moved, Update, UpdateOptions};
@@ -67,7 +67,8 @@ pub struct Prior {
     /// local coordinates of [`crate::model::Mechanism::retract`] at the calibrated model; zero
     /// rows for parameters held as drawn (as [`crate::identify::Identification::covariance`]).
     pub covariance: DMatrix<f64>,
-    /// The noise of the measurements (the weights of the calibration).
+    /// The noise new rows are judged against: the calibration's stated noise, times its
+    /// a-posteriori σ of unit weight `σ̂₀` where that is above 1 ([`judged_noise`]).
     pub noise: Noise,
 }
 
@@ -90,7 +91,7 @@ impl Prior {
         Ok(Prior {
             model: cal.model_file.clone(),
             covariance,
-            noise: cal.identification.noise,
+            noise: judged_noise(&cal.identification.noise, cal.identification.sigma0),
         })
     }
 
@@ -117,7 +118,7 @@ impl Prior {
         Ok(Prior {
             model: file.clone(),
             covariance: covariance_in(&*model, &*model, &c.over(&names), &q)?,
-            noise: file.noise.unwrap_or_default(),
+            noise: judged_noise(&file.noise.unwrap_or_default(), c.sigma0),
         })
     }
 
@@ -164,6 +165,20 @@ impl Prior {
             }
         }
         l
+    }
+}
+
+/// The noise a calibration's new rows are judged against: its stated `noise`, times `sigma0`
+/// (its a-posteriori σ of unit weight, by which its covariance is scaled too) where `sigma0`
+/// exceeds one. A real machine leaves more than its instrument's noise after a geometric
+/// calibration (compliance, backlash, temperature: errors the model does not describe); poses
+/// measured again leave as much, and judged against the instrument's noise alone they would
+/// always say "drifted". Otherwise the stated noise stands: new rows are never judged by less.
+pub fn judged_noise(noise: &Noise, sigma0: f64) -> Noise {
+    if sigma0.is_finite() && sigma0 > 1.0 {
+        noise.scaled(sigma0)
+    } else {
+        *noise
     }
 }
 

@@ -176,6 +176,22 @@ impl Noise {
     pub fn sigma(&self, kind: RowKind) -> f64 {
         self.kinds.get(kind).unwrap_or(self.position)
     }
+
+    /// Every σ multiplied by `factor` (e.g. a calibration's a-posteriori σ of unit weight).
+    pub fn scaled(&self, factor: f64) -> Noise {
+        let kind = |s: Option<f64>| s.map(|s| s * factor);
+        Noise {
+            position: self.position * factor,
+            orientation: self.orientation * factor,
+            joint_angle: self.joint_angle * factor,
+            joint_length: self.joint_length * factor,
+            kinds: KindNoise {
+                seat: kind(self.kinds.seat),
+                distance: kind(self.kinds.distance),
+                probe: kind(self.kinds.probe),
+            },
+        }
+    }
 }
 
 fn default_joint_angle() -> f64 {

@@ -124,6 +124,12 @@ pub fn run(a: CheckArgs) -> anyhow::Result<()> {
                 data.ids[p.index], data.lines[p.index], p.position_mm, p.expected_mm, p.chi2, p.rows, p.bound
             );
         }
+        if let Some(o) = &r.one_pose {
+            println!(
+                "without pose {} (line {}): χ² {:.1} over {} rows, within the bound {:.1}: the rows beyond rest on that pose alone (a blunder, or an error local to it), not a drift of the machine",
+                data.ids[o.index], data.lines[o.index], o.chi2_without, o.rows_without, o.bound_without
+            );
+        }
         if let (true, Some(p)) = (r.drifted, &r.pattern) {
             if p.significant() && p.explains() {
                 println!(

@@ -72,8 +72,9 @@ pub struct PairSeparation {
 pub struct CheckPlan {
     /// Indices into the candidates, in the order chosen.
     pub selected: Vec<usize>,
-    /// The expected number of wrong names at the chosen configurations, per pattern (the sum over
-    /// pairs divided by the patterns): 0 is every drift named, near 1 none.
+    /// The expected number of wrong names at the chosen configurations, per pattern (the sum of
+    /// `Φ(−√sᵢⱼ/2)` over the pairs divided by the patterns): 0 when every drift is told apart
+    /// from every other; a union bound, so beyond 1 where many patterns crowd together.
     pub wrong_names: f64,
     /// The same for the first `n` candidates (a plan that does not choose).
     pub wrong_names_unplanned: f64,

@@ -73,6 +73,49 @@ fn check_passes_an_unchanged_irb120_and_names_each_drift() {
 }
 
 #[test]
+fn one_pose_off_is_named_to_measure_again_not_a_drift() {
+    let (m, prior) = prototype("irb120", 3);
+    let (mut five, _, _) = new_poses(&m, Drift::None, 5, 21);
+    // A blunder: the third pose measured 1.5 mm off (a reflector not seated, a beam break).
+    if let kinecal::measure::Observation::Pose(p) = &mut five[2].obs {
+        p.translation.vector.x += 1.5;
+    } else {
+        panic!("tracker poses expected");
+    }
+    let r = check(&prior, &five, &CheckOptions::default()).unwrap();
+    assert!(r.chi2 > r.bound, "the rows as a whole are beyond: {}", r.verdict());
+    assert!(!r.drifted, "{}", r.verdict());
+    let o = r.one_pose.as_ref().expect("the pose named");
+    assert_eq!(o.index, 2);
+    assert!(o.chi2_without <= o.bound_without && o.rows_without == 24);
+    assert!(r.verdict().contains("measure it again"), "{}", r.verdict());
+    // A drift shows in every pose: leaving one out does not hide it.
+    let drift = Drift::InputOffset {
+        input: 1,
+        amount: 0.05f64.to_radians(),
+    };
+    let (five, _, _) = new_poses(&m, drift, 5, 21);
+    let r = check(&prior, &five, &CheckOptions::default()).unwrap();
+    assert!(r.drifted && r.one_pose.is_none(), "{}", r.verdict());
+}
+
+#[test]
+fn new_rows_are_judged_by_what_the_calibration_left() {
+    use kinecal::drift::judged_noise;
+    let noise = kinecal::measure::Noise {
+        position: 0.05,
+        orientation: 0.03f64.to_radians(),
+        ..Default::default()
+    };
+    // A real machine leaves 4.6× its tracker's noise: new poses are judged by that residual.
+    let real = judged_noise(&noise, 4.6);
+    assert!((real.position - 0.23).abs() < 1e-12 && (real.orientation - 4.6 * noise.orientation).abs() < 1e-15);
+    // Below 1 the stated noise stands.
+    assert_eq!(judged_noise(&noise, 0.8), noise);
+    assert_eq!(judged_noise(&noise, f64::NAN), noise);
+}
+
+#[test]
 fn check_works_with_three_poses_and_sizes_a_joint_offset() {
     let (m, prior) = prototype("irb120", 7);
     let (three, _, _) = new_poses(&m, Drift::None, 3, 11);
