@@ -139,6 +139,13 @@ fn unknown_unit_and_bad_values_are_one_line() {
     let e = load(&t.replace("kind = \"serial\"", "kind = \"delta\"")).unwrap_err();
     assert!(e.contains("unknown mechanism kind 'delta'"), "{e}");
     assert_eq!(e.lines().count(), 1);
+    // A joint named as a measurement's column (a quill 'z', a wrist 'roll', a reflector 'm1x')
+    // would take that column of every data file and plan.
+    for name in ["z", "roll", "m1x"] {
+        let e = load(&t.replace("name = \"q3\"", &format!("name = \"{name}\""))).unwrap_err();
+        assert!(e.contains(&format!("joint '{name}'")) && e.contains("rename the joint"), "{e}");
+        assert_eq!(e.lines().count(), 1);
+    }
 }
 
 /// The encoders' noise of observed joints in `[noise]` (file units), read and written back; a

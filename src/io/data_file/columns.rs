@@ -72,6 +72,34 @@ const TOUCH_COLUMNS: [(&str, PointKind, Option<&str>); 3] = [
     ("face", PointKind::Cube, Some("cube_edge")),
 ];
 
+/// Whether `stem` (a column's name without its unit) names a measurement column of a data file:
+/// an input of that name would take the measurement's column (`z` → `z_mm`, `roll` → `roll_deg`).
+pub fn is_measurement_column(stem: &str) -> bool {
+    matches!(
+        stem,
+        "id" | "seat"
+            | "pivot"
+            | "sphere"
+            | "plane"
+            | "face"
+            | "sphere_diameter"
+            | "cube_edge"
+            | "probe_radius"
+            | "length"
+            | "reading"
+            | "x"
+            | "y"
+            | "z"
+            | "qw"
+            | "qx"
+            | "qy"
+            | "qz"
+            | "roll"
+            | "pitch"
+            | "yaw"
+    ) || reflector_column(stem).is_some()
+}
+
 /// What a column holds and its factor to mm / rad; errors name the file (line 1) and column.
 pub(super) fn classify(path: &Path, col: &str, inputs: &[InputSpec]) -> Result<(Slot, f64), IoError> {
     let at_header = |message: String| IoError::AtLine {

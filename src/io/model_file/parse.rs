@@ -391,6 +391,19 @@ impl Ctx<'_> {
     }
 
     pub(super) fn finish<M>(&self, raw: RawFile<M>, units: Units, mechanism: MechanismSpec) -> Result<ModelFile, IoError> {
+        if let Some(i) = mechanism
+            .data_columns()
+            .into_iter()
+            .find(|i| crate::io::data_file::is_measurement_column(&i.name))
+        {
+            return Err(IoError::Invalid {
+                path: self.path.to_path_buf(),
+                message: format!(
+                    "joint '{0}': '{0}' names a measurement's columns in data files ({0}_mm, {0}_deg, …), which a joint's column would take: rename the joint (e.g. '{0}_axis')",
+                    i.name
+                ),
+            });
+        }
         let params = mechanism.build().params();
         let (free, fixed) = match &raw.calibration {
             Some(c) => (
