@@ -263,8 +263,9 @@ def check(calibration: Any, data: Data, *, false_alarm: float = 0.01) -> Dict[st
     """Re-measured poses ``data`` judged against the prediction of ``calibration`` (a
     :class:`Calibration`, or a :class:`Model` loaded from a calibrated model file), as ``kinecal
     check`` does: ``result["drifted"]``, the statistic and its bound, the pattern whose drop is
-    furthest beyond its own bound (``result["pattern_test"]``), each pose, and the pattern that
-    fits best (``result["pattern"]``)."""
+    furthest beyond its own bound (``result["pattern_test"]``), each pose, the pattern that
+    fits best (``result["pattern"]``), and the one pose a disagreement rests on when the others
+    agree (``result["one_pose"]``: then not drifted; measure that pose again)."""
     raw = calibration._raw if isinstance(calibration, Calibration) else calibration
     return json.loads(_kinecal.check(raw, data, false_alarm=false_alarm))
 
