@@ -306,11 +306,13 @@ fn calibrate_as_stated(
     }
     calibrated.description = Some(format!("calibrated from '{}' on {}", model.name, data.path.display()));
     calibrated.noise = Some(identification.noise);
+    let fitted: Vec<Measurement> = kept.iter().map(|&i| measurements[i].clone()).collect();
     calibrated.covariance = Some(covariance::of(
         &calibrated,
         model,
         &identification,
         id_opts.free.as_deref().unwrap_or_default(),
+        &fitted,
     ));
     let start_tolerance_mm = START_COVERAGE * opts.noise.position.max(identification.sigma0 * identification.noise.position);
     let judged = Judged {

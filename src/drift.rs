@@ -17,6 +17,18 @@
 //! few coefficients, which `T` spreads over as many degrees of freedom as rows), at one threshold
 //! that holds the false-alarm rate for all of them together ([`rate`]).
 //!
+//! # Judged by what the calibration left
+//! A real machine leaves more than its instrument's noise after a geometric calibration
+//! (compliance, backlash, temperature), and not as Gaussian noise: most poses closer, a few much
+//! further. New rows are weighted by the stated noise times `σ̂₀` where that is above 1
+//! ([`judged_noise`]), and the distributions of every statistic (over all rows, each pattern's
+//! drop, each pose, an update's releases and its final test) are simulated with each new pose's
+//! noise drawn from the residual rows the calibration's own poses left ([`reference`]), which the
+//! calibrated model file carries, and hold where they are above those of Gaussian rows (a
+//! reference of a few poses under-represents a normal tail: rows are never judged more strictly
+//! than as Gaussian at the judged noise). Without them (a calibration whose residual the stated
+//! noise explains) the rows are taken as Gaussian.
+//!
 //! # Patterns
 //! What changed is looked for among named patterns ([`patterns`]): an input's offset (a joint
 //! offset), a uniform scale of the machine's lengths about its base (temperature), the tool's
@@ -41,13 +53,15 @@ pub mod check;
 pub mod check_plan;
 pub mod patterns;
 pub mod rate;
+pub mod reference;
 mod stacked;
 pub mod update;
 
 pub use check::{check, Alternative, CheckOptions, CheckReport, OnePose, PatternFit, PatternTest, PoseCheck};
 pub use check_plan::{plan_check_poses, CheckPlan, CheckPlanOptions, PairSeparation};
 pub use patterns::{patterns, Pattern, PatternKind};
-pub use update::{update, Moved, Update, UpdateOptions};
+pub use reference::Reference;
+pub use update::{update, Moved, SetAside, Update, UpdateOptions};
 
 use crate::error::CalibError;
 use crate::io::model_file::ModelFile;
@@ -70,6 +84,10 @@ pub struct Prior {
     /// The noise new rows are judged against: the calibration's stated noise, times its
     /// a-posteriori σ of unit weight `σ̂₀` where that is above 1 ([`judged_noise`]).
     pub noise: Noise,
+    /// What the calibration's own poses left, by which new rows are judged: the calibrated model
+    /// file's `[covariance] residuals`, written where the calibration left more than its stated
+    /// noise (`σ̂₀` above 1); `None`: new rows are judged as Gaussian at [`Self::noise`].
+    pub reference: Option<Reference>,
 }
 
 impl Prior {
@@ -92,6 +110,11 @@ impl Prior {
             model: cal.model_file.clone(),
             covariance,
             noise: judged_noise(&cal.identification.noise, cal.identification.sigma0),
+            reference: cal
+                .model_file
+                .covariance
+                .as_ref()
+                .and_then(|c| Reference::from_residuals(&c.residuals)),
         })
     }
 
@@ -119,6 +142,7 @@ impl Prior {
             model: file.clone(),
             covariance: covariance_in(&*model, &*model, &c.over(&names), &q)?,
             noise: judged_noise(&file.noise.unwrap_or_default(), c.sigma0),
+            reference: Reference::from_residuals(&c.residuals),
         })
     }
 
@@ -182,10 +206,10 @@ pub fn judged_noise(noise: &Noise, sigma0: f64) -> Noise {
     }
 }
 
-/// `file` carrying `covariance` (over its model's parameters) and `noise` for a later
-/// [`Prior::from_model_file`]: `[covariance]` over the parameters with a variance, the others
+/// `file` carrying `covariance` (over its model's parameters), `noise` and the residuals of
+/// `reference` (in units of that noise) for a later [`Prior::from_model_file`]: `[covariance]` over the parameters with a variance, the others
 /// held as [`crate::io::model_file::Held::Fixed`] (they stay as they are).
-pub fn with_covariance(file: ModelFile, covariance: &DMatrix<f64>, noise: &Noise) -> ModelFile {
+pub fn with_covariance(file: ModelFile, covariance: &DMatrix<f64>, noise: &Noise, reference: Option<&Reference>) -> ModelFile {
     let params = file.build().params();
     let (with, without): (Vec<usize>, Vec<usize>) = (0..params.len()).partition(|&k| covariance[(k, k)] > 0.0);
     let matrix = DMatrix::from_fn(with.len(), with.len(), |i, j| {
@@ -197,6 +221,7 @@ pub fn with_covariance(file: ModelFile, covariance: &DMatrix<f64>, noise: &Noise
         units: with.iter().map(|&k| params[k].unit).collect(),
         matrix,
         sigma0: 1.0,
+        residuals: reference.map(|r| r.residuals().to_vec()).unwrap_or_default(),
         held: without
             .iter()
             .map(|&k| (params[k].name.clone(), crate::io::model_file::Held::Fixed))

@@ -258,6 +258,12 @@ class Update:
         """The new poses and the updated calibration agree within noise."""
         return bool(self.report["passed"])
 
+    @property
+    def set_aside(self) -> Optional[Dict[str, Any]]:
+        """The new pose set aside (its index among the new poses, position error in mm, χ² and
+        rows), when the others agree without it and not with it: measure it again; else None."""
+        return self.report["set_aside"]
+
 
 def check(calibration: Any, data: Data, *, false_alarm: float = 0.01) -> Dict[str, Any]:
     """Re-measured poses ``data`` judged against the prediction of ``calibration`` (a

@@ -620,7 +620,8 @@ impl Update {
         serde_json::to_string(&serde_json::json!({
             "released": u.releases, "declined": u.declined, "moved": u.moved,
             "largest_move_sigmas": u.largest_move_sigmas, "chi2": u.chi2, "rows": u.rows, "bound": u.bound,
-            "converged": u.converged, "passed": u.passed(), "before": u.before, "after": u.after}))
+            "converged": u.converged, "passed": u.passed(), "before": u.before, "after": u.after,
+            "set_aside": u.set_aside}))
         .map_err(err)
     }
 }

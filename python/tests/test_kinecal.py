@@ -441,3 +441,22 @@ def test_plan_check_chooses_configurations_that_name_drifts_apart():
     assert kinecal.plan_check(back, q, n=5)["selected"] == chosen
     with pytest.raises(kinecal.KinecalError, match="configurations"):
         kinecal.plan_check(cal, q[:, :5])
+
+
+def test_an_update_sets_a_pose_off_aside_and_its_model_checks_again():
+    m = kinecal.Model.load("irb120")
+    truth, data = kinecal.simulate(m, 60, seed=7, noise_mm=0.02, noise_deg=0.02)
+    cal = kinecal.calibrate(m, data, noise_mm=0.02, noise_deg=0.02)
+    q = kinecal.simulate(m, 10, seed=9)[1].q
+    poses = truth.forward(q)
+    rng = np.random.default_rng(3)
+    positions = poses[:, :3, 3] + rng.normal(0.0, 0.02, (10, 3))
+    # A blunder: the fifth pose measured 3 mm off.
+    positions[4, 0] += 3.0
+    new = kinecal.Data.from_arrays(m, q, positions, poses[:, :3, :3])
+    up = kinecal.calibrate(m, new, prior=cal)
+    assert up.passed and up.released == []
+    assert up.set_aside["index"] == 4 and abs(up.set_aside["position_mm"] - 3.0) < 0.2
+    # The updated model carries its covariance: it is checked as a calibrated model file is.
+    again = kinecal.check(up.model, new)
+    assert not again["drifted"] and again["one_pose"]["index"] == 4

@@ -2,14 +2,25 @@
 //! parameters of the model the file builds, and why each other parameter has none.
 use crate::identify::Identification;
 use crate::io::model_file::{Covariance, Held, ModelFile};
+use crate::measure::Measurement;
 use crate::model::Mechanism;
 
+/// Most identification poses whose residuals a calibrated model file carries
+/// ([`Covariance::residuals`]); beyond this many, evenly spaced among them.
+pub const MAX_RESIDUAL_POSES: usize = 1000;
+
 /// The covariance of `identification` (whose free parameters, in its model's indices, were
-/// `free`) over the parameters of `file.build()` that it identified; the model's other parameters
+/// `free`, its poses `poses`) over the parameters of `file.build()` that it identified; the model's other parameters
 /// held, with why (a parameter of the fit that the file's model does not have — an instrument's
 /// artifact point — is left out: the matrix is the marginal one). The configurations it is
 /// carried at are drawn on `drawing`, the model the calibration started from.
-pub(crate) fn of(file: &ModelFile, drawing: &ModelFile, identification: &Identification<Box<dyn Mechanism>>, free: &[usize]) -> Covariance {
+pub(crate) fn of(
+    file: &ModelFile,
+    drawing: &ModelFile,
+    identification: &Identification<Box<dyn Mechanism>>,
+    free: &[usize],
+    poses: &[Measurement],
+) -> Covariance {
     let fitted = identification.model.params();
     let id = &identification.identifiability;
     let mut identified = Vec::new();
@@ -44,6 +55,7 @@ pub(crate) fn of(file: &ModelFile, drawing: &ModelFile, identification: &Identif
         names: identified.iter().map(|(_, p)| p.name.clone()).collect(),
         units: identified.iter().map(|(_, p)| p.unit).collect(),
         sigma0: identification.sigma0,
+        residuals: pose_residuals(identification, poses),
         held,
     }
 }
@@ -123,4 +135,35 @@ pub(crate) fn predicted_map(
         map.measured.push(measured);
     }
     (!map.sigma_mm.is_empty()).then_some(map)
+}
+
+/// Each of the `fitted` poses' residual rows at the identified model, in units of the judged
+/// noise (the stated noise times `σ̂₀`) and scaled by `√(rows / (rows − parameters))`, the
+/// shrinkage of a fitted residual undone: as a pose the fit did not see would leave them. Only
+/// where `σ̂₀` is above 1 (otherwise the stated noise describes the residual); at most
+/// [`MAX_RESIDUAL_POSES`] poses; to four decimals.
+fn pose_residuals(identification: &Identification<Box<dyn Mechanism>>, fitted: &[Measurement]) -> Vec<Vec<f64>> {
+    let s0 = identification.sigma0;
+    if !(s0.is_finite() && s0 > 1.0) || fitted.is_empty() {
+        return Vec::new();
+    }
+    let Ok(lin) = crate::identify::linearize(&*identification.model, fitted, &identification.noise) else {
+        return Vec::new();
+    };
+    let rows = lin.residual.len();
+    let p = identification.identifiability.identifiable.len();
+    if rows <= p {
+        return Vec::new();
+    }
+    let scale = (rows as f64 / (rows - p) as f64).sqrt() / s0;
+    let n = fitted.len();
+    let take = n.min(MAX_RESIDUAL_POSES);
+    (0..take)
+        // To the four decimals the file holds: the calibration in memory and read back alike.
+        .map(|k| {
+            lin.pose_rows(k * n / take)
+                .map(|r| (lin.residual[r] * scale * 1e4).round() / 1e4)
+                .collect()
+        })
+        .collect()
 }

@@ -30,8 +30,15 @@ pub fn run(a: &IdentifyArgs, prior_path: &Path, data_path: &Path) -> anyhow::Res
     let passed = up.passed();
     let verdict = if passed {
         format!(
-            "verdict: passed: the new poses and the updated calibration agree within noise (χ² {:.1} over {} rows, bound {:.1})",
-            up.chi2, up.rows, up.bound
+            "verdict: passed: the new poses{} and the updated calibration agree within noise (χ² {:.1} over {} rows, bound {:.1})",
+            if up.set_aside.is_some() {
+                " (all but the one set aside)"
+            } else {
+                ""
+            },
+            up.chi2,
+            up.rows,
+            up.bound
         )
     } else if !up.converged {
         "verdict: failed: the update did not converge".to_string()
@@ -50,7 +57,6 @@ pub fn run(a: &IdentifyArgs, prior_path: &Path, data_path: &Path) -> anyhow::Res
         date: super::utc_now(),
         data: vec![format!("{} (prior)", prior_path.display()), data_path.display().to_string()],
     });
-    let file = kinecal::drift::with_covariance(file, &up.covariance, &prior.noise);
     if passed || a.force {
         let text = file.to_toml().map_err(|e| anyhow::anyhow!("{}: {e}", a.out.display()))?;
         outputs.stage(&a.out, text.as_bytes())?;
@@ -67,7 +73,9 @@ pub fn run(a: &IdentifyArgs, prior_path: &Path, data_path: &Path) -> anyhow::Res
             serde_json::to_string_pretty(&serde_json::json!({
                 "prior": prior_path, "data": data_path, "released": releases, "declined": up.declined,
                 "moved": up.moved, "largest_move_sigmas": up.largest_move_sigmas, "chi2": up.chi2, "rows": up.rows,
-                "bound": up.bound, "converged": up.converged, "before": up.before, "after": up.after, "passed": passed}))?
+                "bound": up.bound, "converged": up.converged, "before": up.before, "after": up.after, "passed": passed,
+                "set_aside": up.set_aside.as_ref().map(|s| serde_json::json!({
+                    "id": data.ids[s.index], "line": data.lines[s.index], "position_mm": s.position_mm, "chi2": s.chi2, "rows": s.rows}))}))?
         );
     } else {
         println!(
@@ -77,6 +85,12 @@ pub fn run(a: &IdentifyArgs, prior_path: &Path, data_path: &Path) -> anyhow::Res
             super::count(data.measurements.len(), "pose"),
             if up.converged { "converged" } else { "NOT converged" }
         );
+        if let Some(s) = &up.set_aside {
+            println!(
+                "pose {} (line {}) set aside: {:.4} mm off, χ² {:.1} over its {} rows; the others agree without it (a blunder, or an error local to that pose): measure it again",
+                data.ids[s.index], data.lines[s.index], s.position_mm, s.chi2, s.rows
+            );
+        }
         if up.releases.is_empty() {
             println!("the new poses agree with the calibration: no pattern released");
         }
@@ -89,8 +103,9 @@ pub fn run(a: &IdentifyArgs, prior_path: &Path, data_path: &Path) -> anyhow::Res
                 d.name, d.chi2_drop, d.bound
             );
         }
-        println!("new poses before: {}", up.before);
-        println!("new poses after:  {}", up.after);
+        let which = if up.set_aside.is_some() { "the other poses" } else { "new poses" };
+        println!("{which} before: {}", up.before);
+        println!("{which} after:  {}", up.after);
         if up.moved.is_empty() {
             println!("no parameter moved beyond its σ (largest move {:.2} σ)", up.largest_move_sigmas);
         } else {

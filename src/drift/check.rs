@@ -1,11 +1,13 @@
 //! [`check()`]: re-measured poses judged against a calibration's prediction.
 use super::patterns::{patterns, Pattern, PatternKind};
+use super::reference::{quantile, NullRows, Reference};
 use super::stacked::Stacked;
 use super::{chi2_at_z, chi2_quantile, rate, Prior, DEFAULT_FALSE_ALARM};
 use crate::error::CalibError;
 use crate::identify::linearize;
 use crate::measure::{self, Measurement};
 use nalgebra::{DMatrix, DVector};
+use rand::SeedableRng;
 use serde::Serialize;
 
 /// Options of [`check()`].
@@ -15,7 +17,7 @@ pub struct CheckOptions {
     /// "drifted" for a machine as calibrated.
     pub false_alarm: f64,
     /// Seed of the configurations the patterns are found at ([`super::patterns()`]) and of the
-    /// simulation that sets the threshold ([`super::rate`]).
+    /// simulations that set the thresholds ([`super::rate`], each pose's with a [`Reference`]).
     pub seed: u64,
 }
 
@@ -37,7 +39,8 @@ pub struct PoseCheck {
     pub rows: usize,
     /// `eᵀ·C⁻¹·e` over its rows (χ² with `rows` degrees of freedom when as calibrated).
     pub chi2: f64,
-    /// The χ² quantile of its rows at the false-alarm rate.
+    /// The χ² quantile of its rows at the false-alarm rate; with the prior's [`Reference`], the
+    /// quantile of its statistic over rows drawn from the calibration's own where that is higher.
     pub bound: f64,
     /// Position error (mm).
     pub position_mm: f64,
@@ -80,7 +83,8 @@ pub struct PatternFit {
     /// How much releasing it lowers the statistic, `Δ`.
     pub chi2_drop: f64,
     /// The χ² quantile `Δ` is tested against: of the pattern's size, at the false-alarm rate
-    /// divided by the number of patterns tried.
+    /// divided by the number of patterns tried (an update with a [`Reference`]: the quantile of
+    /// `Δ` over rows drawn from it where that is higher).
     pub bound: f64,
     /// The statistic left once it is released.
     pub chi2_after: f64,
@@ -277,11 +281,13 @@ pub fn check(prior: &Prior, data: &[Measurement], opts: &CheckOptions) -> Result
     let alpha = opts.false_alarm;
     // The new rows' Jacobian times the prior's factor: the rows' predicted covariance I + B·Bᵀ.
     let b = &lin.jacobian * &l;
-    let poses = pose_checks(prior, &*model, data, &lin, &b, alpha)?;
+    let poses = pose_checks(prior, &*model, data, &lin, &b, alpha, opts.seed)?;
     let all = patterns(&*model, &prior.model.inputs(), opts.seed)?;
     let pattern = best_pattern(&stacked, &lin.jacobian, &all, &[], base.cost, rows, alpha)?;
     let effects: Vec<DMatrix<f64>> = all.iter().map(|p| &lin.jacobian * &p.directions).collect();
-    let decision = rate::decide(&b, &lin.residual, &effects, alpha, opts.seed)?;
+    let layout = lin.layout();
+    let reference = prior.reference.as_ref().map(|r| (&layout[..], r));
+    let decision = rate::decide(&b, &lin.residual, &effects, alpha, opts.seed, reference)?;
     let bound = chi2_at_z(rows, decision.z);
     let pattern_test = decision.strongest().and_then(|(i, _)| {
         decision.drops[i].map(|(drop, k)| PatternTest {
@@ -293,7 +299,7 @@ pub fn check(prior: &Prior, data: &[Measurement], opts: &CheckOptions) -> Result
     let mut drifted = decision.deviate(rows) > decision.z;
     let mut one_pose = None;
     if drifted && data.len() >= 3 {
-        one_pose = without_worst(&lin, &b, &effects, &poses, alpha, opts.seed)?;
+        one_pose = without_worst(&lin, &b, &effects, &poses, alpha, opts.seed, prior.reference.as_ref())?;
         // One pose's rows set free against the best pattern, each coefficient charged ln(rows)
         // as the patterns are: a drift that a pattern explains stays a drift, even where one
         // pose shows most of it.
@@ -329,6 +335,7 @@ fn without_worst(
     poses: &[PoseCheck],
     alpha: f64,
     seed: u64,
+    reference: Option<&Reference>,
 ) -> Result<Option<OnePose>, CalibError> {
     let Some(worst) = poses.iter().max_by(|a, b| a.chi2.total_cmp(&b.chi2)) else {
         return Ok(None);
@@ -337,7 +344,11 @@ fn without_worst(
     let keep: Vec<usize> = (0..lin.residual.len()).filter(|&r| r < start || r >= start + worst.rows).collect();
     let e = DVector::from_iterator(keep.len(), keep.iter().map(|&r| lin.residual[r]));
     let others: Vec<DMatrix<f64>> = effects.iter().map(|g| g.select_rows(&keep)).collect();
-    let d = rate::decide(&b.select_rows(&keep), &e, &others, alpha, seed)?;
+    let layout: Vec<usize> = (0..lin.offsets.len())
+        .filter(|&i| i != worst.index)
+        .map(|i| lin.pose_rows(i).len())
+        .collect();
+    let d = rate::decide(&b.select_rows(&keep), &e, &others, alpha, seed, reference.map(|r| (&layout[..], r)))?;
     if d.deviate(keep.len()) > d.z {
         return Ok(None);
     }
@@ -349,7 +360,9 @@ fn without_worst(
     }))
 }
 
-/// Each pose's statistic over its block of `C = I + B·Bᵀ` (`B = A·L`, noise-weighted rows).
+/// Each pose's statistic over its block of `C = I + B·Bᵀ` (`B = A·L`, noise-weighted rows), and
+/// its bound: the χ² quantile of its rows, or with the prior's [`Reference`] the quantile of the
+/// statistic over rows drawn from it (from `seed`) where that is higher.
 fn pose_checks(
     prior: &Prior,
     model: &dyn crate::model::Mechanism,
@@ -357,14 +370,13 @@ fn pose_checks(
     lin: &crate::identify::Linearization,
     b: &DMatrix<f64>,
     alpha: f64,
+    seed: u64,
 ) -> Result<Vec<PoseCheck>, CalibError> {
     let reached = crate::validate::forward_all(model, data)?;
-    let rows = lin.residual.len();
     let mut out = Vec::with_capacity(data.len());
     for (i, m) in data.iter().enumerate() {
-        let start = lin.offsets[i];
-        let end = lin.offsets.get(i + 1).copied().unwrap_or(rows);
-        let n = end - start;
+        let at = lin.pose_rows(i);
+        let (start, n) = (at.start, at.len());
         let bb = b.rows(start, n);
         let c = DMatrix::identity(n, n) + bb * bb.transpose();
         let e = lin.residual.rows(start, n).into_owned();
@@ -373,11 +385,23 @@ fn pose_checks(
         let positions = n.min(3).min(weights.len());
         let expected = (0..positions).map(|k| c[(k, k)] / (weights[k] * weights[k])).sum::<f64>().sqrt();
         let (position_mm, orientation) = measure::errors(&m.obs, &reached[i]);
+        let null = prior
+            .reference
+            .as_ref()
+            .and_then(|r| NullRows::new(&bb.into_owned(), &[n], Some(r)));
+        let bound = match null {
+            Some(null) => {
+                let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed.wrapping_add(i as u64));
+                let drawn = quantile(rate::NULL_DRAWS, 1.0 - alpha, &mut rng, |rng| null.draw(rng).norm_squared());
+                drawn.max(chi2_quantile(n, 1.0 - alpha))
+            }
+            None => chi2_quantile(n, 1.0 - alpha),
+        };
         out.push(PoseCheck {
             index: i,
             rows: n,
             chi2,
-            bound: chi2_quantile(n, 1.0 - alpha),
+            bound,
             position_mm,
             orientation_deg: orientation.map(f64::to_degrees),
             expected_mm: expected,

@@ -189,11 +189,9 @@ pub fn plan_check_poses(prior: &Prior, configurations: &[Vec<f64>], opts: &Check
         .filter(|p| p.directions.ncols() == 1)
         .collect();
     let d = DMatrix::from_fn(model.n_params(), all.len(), |r, c| all[c].directions[(r, 0)]);
-    let total = lin.residual.len();
     let block = |i: usize| {
-        let s = lin.offsets[i];
-        let e = lin.offsets.get(i + 1).copied().unwrap_or(total);
-        (s, e - s)
+        let at = lin.pose_rows(i);
+        (at.start, at.len())
     };
     let mut b = Vec::with_capacity(data.len());
     let mut g = Vec::with_capacity(data.len());

@@ -1,6 +1,8 @@
 //! [`update()`]: a calibration brought up to date from a few new poses.
 use super::check::{best_pattern, PatternFit};
 use super::patterns::{patterns, Pattern};
+use super::rate;
+use super::reference::{basis, quantile, NullRows, Reference};
 use super::stacked::Stacked;
 use super::{chi2_quantile, Prior, DEFAULT_FALSE_ALARM};
 use crate::error::CalibError;
@@ -10,6 +12,7 @@ use crate::measure::Measurement;
 use crate::model::Mechanism;
 use crate::validate::{pose_errors, ErrorStats};
 use nalgebra::{DMatrix, DVector};
+use rand::SeedableRng;
 use serde::Serialize;
 
 /// Options of [`update()`].
@@ -22,7 +25,8 @@ pub struct UpdateOptions {
     pub max_releases: usize,
     /// Gauss–Newton iterations of each fit at most.
     pub max_iterations: usize,
-    /// Seed of the configurations the patterns are found at.
+    /// Seed of the configurations the patterns are found at, and of the simulated bounds where
+    /// the prior has a [`Reference`].
     pub seed: u64,
 }
 
@@ -55,7 +59,9 @@ pub struct Moved {
 /// What [`update()`] produced.
 #[derive(Debug, Clone)]
 pub struct Update {
-    /// The updated model file (the prior's with the new geometry and frames).
+    /// The updated model file: the prior's with the new geometry and frames, the update's
+    /// covariance, the noise and the calibration's residuals ([`super::with_covariance`]), what a
+    /// later check or update reads.
     pub model_file: ModelFile,
     /// The change of every parameter (model units, local coordinates at the prior's model).
     pub delta: DVector<f64>,
@@ -79,6 +85,10 @@ pub struct Update {
     pub bound: f64,
     /// Whether the last fit converged.
     pub converged: bool,
+    /// A pose the update set aside: the new poses disagreed with every update beyond noise, and
+    /// without this one alone they agree (a blunder, or an error local to that pose: measure it
+    /// again). The update, its statistic and its errors are then over the other poses.
+    pub set_aside: Option<SetAside>,
     /// The new poses' errors under the prior's model.
     pub before: ErrorStats,
     /// … and under the updated model.
@@ -90,6 +100,19 @@ impl Update {
     pub fn passed(&self) -> bool {
         self.converged && self.chi2 <= self.bound
     }
+}
+
+/// A new pose an [`Update`] set aside.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SetAside {
+    /// Its index in the new poses.
+    pub index: usize,
+    /// Its position error under the update made without it (mm).
+    pub position_mm: f64,
+    /// Its rows' χ² under that update (weighted by the judged noise).
+    pub chi2: f64,
+    /// Its rows.
+    pub rows: usize,
 }
 
 /// One fit of the prior and the new rows with the patterns `released` free.
@@ -105,6 +128,11 @@ struct Fit {
     cov: Option<DMatrix<f64>>,
     converged: bool,
 }
+
+/// A Gauss–Newton step no shorter step along which lowers the cost is at the minimum when it is
+/// below this in the stacked, whitened rows: it would lower χ² by less than its square (1e-6) and
+/// move every prediction by less than a thousandth of its σ.
+const NEGLIGIBLE_STEP: f64 = 1e-3;
 
 /// A model moved from the prior's, its change, the stacked rows there and the new rows' Jacobian.
 type State = (Box<dyn Mechanism>, DVector<f64>, Stacked, DMatrix<f64>);
@@ -144,9 +172,10 @@ fn fit(prior: &Prior, l: &DMatrix<f64>, d: &DMatrix<f64>, data: &[Measurement], 
             alpha *= 0.5;
         }
         let Some((next_u, next)) = accepted else {
-            // No shorter step lowers the cost: at the minimum to round-off, or stuck.
+            // No shorter step lowers the cost: at the minimum to round-off (or to the tolerance
+            // a closed loop's kinematics are solved to), or stuck.
             let scale = 1.0 + state.2.rhs.norm();
-            converged = (&state.2.k * &sol.u).norm() <= 1e-5 * scale;
+            converged = (&state.2.k * &sol.u).norm() <= (1e-5 * scale).max(NEGLIGIBLE_STEP);
             break;
         };
         let size = alpha * (&state.2.k * &sol.u).norm();
@@ -180,11 +209,49 @@ fn fit(prior: &Prior, l: &DMatrix<f64>, d: &DMatrix<f64>, data: &[Measurement], 
 /// information, the new poses as data, iterated to convergence; where the new poses contradict
 /// the prior, the pattern that explains it best is released (its prior dropped) while the release
 /// lowers the cost beyond the χ² quantile of its size at `opts.false_alarm` divided by the number
-/// of patterns (noise releases nothing), at most `opts.max_releases` of them.
+/// of patterns (noise releases nothing), at most `opts.max_releases` of them. When the new poses
+/// still disagree with the converged update beyond noise, and an update without the pose that disagrees
+/// most (of three or more) agrees with the others, that pose is set aside
+/// ([`Update::set_aside`]) and that update returned.
 ///
 /// Errors: the covariance does not match the model, kinematics failing at a pose, a numerical
 /// failure.
 pub fn update(prior: &Prior, data: &[Measurement], opts: &UpdateOptions) -> Result<Update, CalibError> {
+    let all = update_all(prior, data, opts)?;
+    if all.passed() || !all.converged || data.len() < 3 {
+        return Ok(all);
+    }
+    let model = all.model_file.build();
+    let lin = linearize(&*model, data, &prior.noise)?;
+    let chi2 = |i: usize| lin.residual.rows_range(lin.pose_rows(i)).norm_squared();
+    let Some(worst) = (0..data.len()).max_by(|&a, &b| chi2(a).total_cmp(&chi2(b))) else {
+        return Ok(all);
+    };
+    let rest: Vec<Measurement> = data
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| *i != worst)
+        .map(|(_, m)| m.clone())
+        .collect();
+    let mut without = update_all(prior, &rest, opts)?;
+    if !without.passed() {
+        return Ok(all);
+    }
+    // The pose against the update made without it.
+    let updated = without.model_file.build();
+    let alone = &data[worst..=worst];
+    let own = linearize(&*updated, alone, &prior.noise)?;
+    without.set_aside = Some(SetAside {
+        index: worst,
+        position_mm: pose_errors(&*updated, alone)?.position[0],
+        chi2: own.residual.norm_squared(),
+        rows: own.residual.len(),
+    });
+    Ok(without)
+}
+
+/// [`update()`] on every pose given.
+fn update_all(prior: &Prior, data: &[Measurement], opts: &UpdateOptions) -> Result<Update, CalibError> {
     if !(opts.false_alarm > 0.0 && opts.false_alarm < 1.0) {
         return Err(CalibError::InvalidOption(format!(
             "the false-alarm rate must be between 0 and 1 (it is {})",
@@ -210,6 +277,8 @@ pub fn update(prior: &Prior, data: &[Measurement], opts: &UpdateOptions) -> Resu
     };
     let mut current = fit(prior, &l, &directions(&released), data, opts.max_iterations)?;
     let rows = current.jacobian.nrows();
+    let layout = linearize(&*start, data, &prior.noise)?.layout();
+    let tried = all.len().max(1) as f64;
     let mut declined = None;
     // What the new poses could not tell each release from, when it was released.
     let mut alternatives = Vec::new();
@@ -223,6 +292,31 @@ pub fn update(prior: &Prior, data: &[Measurement], opts: &UpdateOptions) -> Resu
             rows,
             opts.false_alarm,
         )?;
+        // Judged by the calibration's own residuals where it has them: the release's drop
+        // against its simulated distribution, where that is above the χ² quantile (a reference of
+        // a few poses under-represents a normal tail; no release is judged more strictly).
+        let best = match (best, &prior.reference) {
+            (Some(mut b), Some(reference)) => {
+                let null = Null {
+                    reference,
+                    layout: &layout,
+                    l: &l,
+                    jacobian: &current.jacobian,
+                };
+                let draws = rate::NULL_DRAWS.max((20.0 * tried / opts.false_alarm).ceil() as usize);
+                if let Some(bound) = null.bound(
+                    &directions(&released),
+                    Some(&all[b.index].directions),
+                    1.0 - opts.false_alarm / tried,
+                    draws,
+                    opts.seed,
+                ) {
+                    b.bound = b.bound.max(bound);
+                }
+                Some(b)
+            }
+            (best, _) => best,
+        };
         match best {
             Some(b) if b.significant() => {
                 let mut trial = released.clone();
@@ -324,9 +418,24 @@ pub fn update(prior: &Prior, data: &[Measurement], opts: &UpdateOptions) -> Resu
         .with_geometry_of(&*current.model)
         .map_err(|message| CalibError::InvalidOption(format!("the updated model: {message}")))?;
     model_file.description = Some(format!("'{}' updated from {} new poses", prior.model.name, data.len()));
+    let model_file = super::with_covariance(model_file, &covariance, &prior.noise, prior.reference.as_ref());
     let before = ErrorStats::of(&pose_errors(&*start, data)?);
     let after = ErrorStats::of(&pose_errors(&*current.model, data)?);
     let dof = rows.saturating_sub(d.ncols()).max(1);
+    let chi2_bound = prior
+        .reference
+        .as_ref()
+        .and_then(|reference| {
+            let null = Null {
+                reference,
+                layout: &layout,
+                l: &l,
+                jacobian: &current.jacobian,
+            };
+            null.bound(&d, None, 1.0 - opts.false_alarm, rate::NULL_DRAWS, opts.seed)
+        })
+        .map_or(f64::NEG_INFINITY, |b| b)
+        .max(chi2_quantile(dof, 1.0 - opts.false_alarm));
     Ok(Update {
         model_file,
         delta: current.delta,
@@ -337,9 +446,54 @@ pub fn update(prior: &Prior, data: &[Measurement], opts: &UpdateOptions) -> Resu
         largest_move_sigmas: largest,
         chi2: current.cost,
         rows,
-        bound: chi2_quantile(dof, 1.0 - opts.false_alarm),
+        bound: chi2_bound,
         converged: current.converged,
+        set_aside: None,
         before,
         after,
     })
+}
+
+/// The null distribution of an update's statistics where the prior has a [`Reference`]: the new
+/// rows' noise drawn from the calibration's own poses ([`super::reference`]).
+struct Null<'a> {
+    reference: &'a Reference,
+    layout: &'a [usize],
+    /// The prior's factor.
+    l: &'a DMatrix<f64>,
+    /// The new rows' noise-weighted Jacobian.
+    jacobian: &'a DMatrix<f64>,
+}
+
+impl Null<'_> {
+    /// The `p` quantile over `draws` null draws (from `seed`) of, with the patterns `released`
+    /// (their directions) free: the drop that releasing `tested` too brings, or without `tested`
+    /// the statistic left (`T` less what the released patterns take). `None` where the rows do
+    /// not see the patterns whole.
+    fn bound(&self, released: &DMatrix<f64>, tested: Option<&DMatrix<f64>>, p: f64, draws: usize, seed: u64) -> Option<f64> {
+        let null = NullRows::new(&(self.jacobian * self.l), self.layout, Some(self.reference))?;
+        let k = released.ncols();
+        let effects = match tested {
+            Some(t) => DMatrix::from_columns(&released.column_iter().chain(t.column_iter()).collect::<Vec<_>>()),
+            None => released.clone(),
+        };
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        if effects.ncols() == 0 {
+            return Some(quantile(draws, p, &mut rng, |rng| null.draw(rng).norm_squared()));
+        }
+        // The first k columns of the basis span the released patterns' effects.
+        let q = basis(&null.whiten(&(self.jacobian * effects))?)?;
+        match tested {
+            Some(_) => {
+                let projection = null.projection(&q)?;
+                Some(quantile(draws, p, &mut rng, |rng| {
+                    null.draw_projected(&projection, rng).rows_range(k..).norm_squared()
+                }))
+            }
+            None => Some(quantile(draws, p, &mut rng, |rng| {
+                let w = null.draw(rng);
+                w.norm_squared() - (q.transpose() * w).norm_squared()
+            })),
+        }
+    }
 }

@@ -1,5 +1,6 @@
 //! The loss applied to each pose's weighted residual ([`Loss`]): plain least squares or Huber's
 //! robust loss on the per-pose RMS residual, with the pose weights it gives.
+use super::linearization::pose_rows;
 use super::Linearization;
 use crate::measure::Noise;
 use nalgebra::DVector;
@@ -28,13 +29,12 @@ pub enum Loss {
 /// returned too (1 = full weight).
 pub fn apply_loss(lin: &mut Linearization, loss: Loss) -> (f64, Vec<f64>) {
     let (cost, weights) = loss_weights(&lin.residual, &lin.offsets, loss);
-    let rows = lin.residual.len();
     for (i, &w) in weights.iter().enumerate() {
         if w < 1.0 {
-            let (a, b) = (lin.offsets[i], lin.offsets.get(i + 1).copied().unwrap_or(rows));
+            let at = lin.pose_rows(i);
             let r = w.sqrt();
-            lin.residual.rows_mut(a, b - a).scale_mut(r);
-            lin.jacobian.rows_mut(a, b - a).scale_mut(r);
+            lin.residual.rows_mut(at.start, at.len()).scale_mut(r);
+            lin.jacobian.rows_mut(at.start, at.len()).scale_mut(r);
         }
     }
     (cost, weights)
@@ -44,8 +44,6 @@ pub fn apply_loss(lin: &mut Linearization, loss: Loss) -> (f64, Vec<f64>) {
 /// weighted `residual`) under `loss`, without changing anything (see [`apply_loss`]).
 pub(crate) fn loss_weights(residual: &DVector<f64>, offsets: &[usize], loss: Loss) -> (f64, Vec<f64>) {
     let n = offsets.len();
-    let rows = residual.len();
-    let end = |i: usize| if i + 1 < n { offsets[i + 1] } else { rows };
     let Loss::Huber { k } = loss else {
         return (0.5 * residual.norm_squared(), vec![1.0; n]);
     };
@@ -54,7 +52,7 @@ pub(crate) fn loss_weights(residual: &DVector<f64>, offsets: &[usize], loss: Los
     let mut cost = 0.0;
     let mut weights = Vec::with_capacity(n);
     for (i, &si) in s.iter().enumerate() {
-        let m = (end(i) - offsets[i]) as f64;
+        let m = pose_rows(offsets, residual.len(), i).len() as f64;
         let w = if threshold > 0.0 && si > threshold { threshold / si } else { 1.0 };
         cost += if w < 1.0 {
             m * (threshold * si - 0.5 * threshold * threshold)
@@ -72,8 +70,8 @@ pub(crate) fn pose_rms(residual: &DVector<f64>, offsets: &[usize]) -> Vec<f64> {
     let rows = residual.len();
     (0..offsets.len())
         .map(|i| {
-            let (a, b) = (offsets[i], offsets.get(i + 1).copied().unwrap_or(rows));
-            (residual.rows(a, b - a).norm_squared() / (b - a).max(1) as f64).sqrt()
+            let at = pose_rows(offsets, rows, i);
+            (residual.rows(at.start, at.len()).norm_squared() / at.len().max(1) as f64).sqrt()
         })
         .collect()
 }

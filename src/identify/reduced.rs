@@ -90,8 +90,8 @@ pub(crate) fn evaluate<M: Mechanism + ?Sized>(model: &M, data: &[Measurement], n
     let (cost, pose_weights) = loss_weights(&residual, &offsets, loss);
     for (i, &w) in pose_weights.iter().enumerate() {
         if w < 1.0 {
-            let end = offsets.get(i + 1).copied().unwrap_or(rows);
-            residual.rows_mut(offsets[i], end - offsets[i]).scale_mut(w.sqrt());
+            let at = super::linearization::pose_rows(&offsets, rows, i);
+            residual.rows_mut(at.start, at.len()).scale_mut(w.sqrt());
         }
     }
     Ok(Evaluated {

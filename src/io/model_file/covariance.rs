@@ -67,6 +67,12 @@ pub struct Covariance {
     /// The a-posteriori standard deviation of unit weight the matrix was scaled by (1 when the
     /// stated noise explains the residual).
     pub sigma0: f64,
+    /// Each identification pose's residual rows in units of the judged noise (the stated noise
+    /// times `sigma0`), as a pose the fit did not see would leave them: what an unchanged machine
+    /// leaves, by which `kinecal check` and `identify --prior` judge new poses
+    /// ([`crate::drift::Reference`]). Written where `sigma0` is above 1 (and kept by an update,
+    /// whose noise is already the judged one); empty otherwise.
+    pub residuals: Vec<Vec<f64>>,
     /// Every other parameter of the model, by name, with why it has no entry (its variance is 0:
     /// it stays as drawn).
     pub held: Vec<(String, Held)>,
@@ -116,6 +122,16 @@ pub(super) fn write_covariance(c: &Covariance, out: &mut String) {
         let _ = writeln!(out, "    [{}],", row.join(", "));
     }
     out.push_str("]\n");
+    if !c.residuals.is_empty() {
+        out.push_str("# Each identification pose's residual rows in units of the stated noise times sigma0: what an\n");
+        out.push_str("# unchanged machine leaves, by which kinecal check and identify --prior judge new poses.\n");
+        out.push_str("residuals = [\n");
+        for r in &c.residuals {
+            let row: Vec<String> = r.iter().map(|v| format!("{v:.4}")).collect();
+            let _ = writeln!(out, "    [{}],", row.join(", "));
+        }
+        out.push_str("]\n");
+    }
     if !c.held.is_empty() {
         out.push_str("[covariance.held]  # the model's other parameters, kept as they are: fixed, redundant, weak or placement\n");
         for (name, why) in &c.held {
@@ -132,6 +148,7 @@ pub(super) struct RawCovariance {
     parameters: Spanned<Vec<String>>,
     units: Spanned<Vec<String>>,
     matrix: Spanned<Vec<Vec<f64>>>,
+    residuals: Option<Spanned<Vec<Vec<f64>>>>,
     #[serde(default)]
     held: BTreeMap<String, Held>,
 }
@@ -197,6 +214,19 @@ impl Ctx<'_> {
         if !(sigma0.is_finite() && sigma0 >= 0.0) {
             return Err(self.at(&r.sigma0.span(), "covariance.sigma0: must be finite and ≥ 0".into()));
         }
+        let residuals = match &r.residuals {
+            Some(res) => {
+                let v = res.get_ref();
+                if v.iter().any(|row| row.is_empty() || row.iter().any(|x| !x.is_finite())) {
+                    return Err(self.at(
+                        &res.span(),
+                        "covariance.residuals: each pose's rows must be finite, at least one".into(),
+                    ));
+                }
+                v.clone()
+            }
+            None => Vec::new(),
+        };
         let mut held = Vec::with_capacity(r.held.len());
         for p in params {
             if let Some(why) = r.held.get(&p.name) {
@@ -214,6 +244,7 @@ impl Ctx<'_> {
             units,
             matrix,
             sigma0,
+            residuals,
             held,
         })
     }
