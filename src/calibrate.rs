@@ -306,7 +306,12 @@ fn calibrate_as_stated(
     }
     calibrated.description = Some(format!("calibrated from '{}' on {}", model.name, data.path.display()));
     calibrated.noise = Some(identification.noise);
-    let fitted: Vec<Measurement> = kept.iter().map(|&i| measurements[i].clone()).collect();
+    // The poses whose residuals a later check judges by: tracker rows only (an instrument
+    // calibration's fit holds its artifacts, which no check or update takes).
+    let fitted: Vec<Measurement> = match &instrument {
+        Some(_) => Vec::new(),
+        None => kept.iter().map(|&i| measurements[i].clone()).collect(),
+    };
     calibrated.covariance = Some(covariance::of(
         &calibrated,
         model,

@@ -70,8 +70,8 @@ pub struct Covariance {
     /// Each identification pose's residual rows in units of the judged noise (the stated noise
     /// times `sigma0`), as a pose the fit did not see would leave them: what an unchanged machine
     /// leaves, by which `kinecal check` and `identify --prior` judge new poses
-    /// ([`crate::drift::Reference`]). Written where `sigma0` is above 1 (and kept by an update,
-    /// whose noise is already the judged one); empty otherwise.
+    /// ([`crate::drift::Reference`]). Written for tracker data where `sigma0` is above 1 (and
+    /// kept by an update, whose noise is already the judged one); empty otherwise.
     pub residuals: Vec<Vec<f64>>,
     /// Every other parameter of the model, by name, with why it has no entry (its variance is 0:
     /// it stays as drawn).
