@@ -106,25 +106,26 @@ impl<'a> NullRows<'a> {
 
     /// One draw of `Qᵀ·w` for a [`Self::projection`].
     pub fn draw_projected<R: Rng + ?Sized>(&self, p: &Projection, rng: &mut R) -> DVector<f64> {
-        let n = match self.reference {
-            Some(r) => r.draw(&self.layout, rng),
-            None => DVector::from_fn(self.l.nrows(), |_, _| StandardNormal.sample(rng)),
-        };
-        let xi = DVector::from_fn(self.lb.ncols(), |_, _| StandardNormal.sample(rng));
+        let (n, xi) = self.draw_noise(rng);
         &p.m1 * n + &p.m2 * xi
     }
 
     /// One draw of `w`.
     pub fn draw<R: Rng + ?Sized>(&self, rng: &mut R) -> DVector<f64> {
-        let rows = self.l.nrows();
-        let n = match self.reference {
-            Some(r) => r.draw(&self.layout, rng),
-            None => DVector::from_fn(rows, |_, _| StandardNormal.sample(rng)),
-        };
-        let xi = DVector::from_fn(self.lb.ncols(), |_, _| StandardNormal.sample(rng));
-        let mut w = self.l.solve_lower_triangular(&n).unwrap_or_else(|| DVector::zeros(rows));
+        let (n, xi) = self.draw_noise(rng);
+        let mut w = self.l.solve_lower_triangular(&n).unwrap_or_else(|| DVector::zeros(n.len()));
         w += &self.lb * xi;
         w
+    }
+
+    /// The rows' noise `n` and the prior's coordinates `ξ` of one draw, in that order.
+    fn draw_noise<R: Rng + ?Sized>(&self, rng: &mut R) -> (DVector<f64>, DVector<f64>) {
+        let n = match self.reference {
+            Some(r) => r.draw(&self.layout, rng),
+            None => DVector::from_fn(self.l.nrows(), |_, _| StandardNormal.sample(rng)),
+        };
+        let xi = DVector::from_fn(self.lb.ncols(), |_, _| StandardNormal.sample(rng));
+        (n, xi)
     }
 }
 
