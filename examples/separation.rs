@@ -1,10 +1,12 @@
-//! How well 5 check poses can tell a leg's patterns apart on pm5: for a rod 0.1 mm longer
-//! (`dl1`), the χ² that fitting each other pattern of the same leg leaves (noise-free rows,
-//! the prior's covariance included), for 5 random poses and for the 5 poses chosen greedily
-//! among 2000 to make the closest alternative leave the most.
+//! How well 5 check poses can tell pm5's patterns apart: for one pattern's change (by default
+//! a rod 0.1 mm longer, `dl1`), the χ² that fitting each other pattern leaves (noise-free
+//! rows, the prior's covariance included), for 5 random poses and for the 5 poses chosen
+//! greedily among 2000 to make the closest alternative leave the most. The smaller that χ²,
+//! the more often noise makes a check name the alternative first.
 //!
 //! ```text
 //! cargo run --release --example separation -- 20
+//! cargo run --release --example separation -- 20 "joint g2 zero" 0.05
 //! ```
 mod common;
 use common::drift::{calibrated, configurations, machine, measure};
@@ -35,7 +37,11 @@ fn closest(a: &DMatrix<f64>, l: &DMatrix<f64>, d: &[DMatrix<f64>], t: usize, alt
 }
 
 fn main() {
-    let draws: u64 = std::env::args().nth(1).and_then(|a| a.parse().ok()).unwrap_or(20);
+    let args: Vec<String> = std::env::args().collect();
+    let draws: u64 = args.get(1).and_then(|a| a.parse().ok()).unwrap_or(20);
+    let target = args.get(2).map_or("dl1", String::as_str);
+    let size: f64 = args.get(3).and_then(|a| a.parse().ok()).unwrap_or(0.1);
+    let mut names: Vec<String> = Vec::new();
     let mut random_best = Vec::new();
     let mut greedy_best = Vec::new();
     for k in 0..draws {
@@ -46,11 +52,8 @@ fn main() {
         let l = prior.factor();
         let all = patterns(&*model, &prior.model.inputs(), 1).expect("patterns");
         let idx = |name: &str| all.iter().position(|p| p.name == name).expect(name);
-        let t = idx("dl1");
-        let alts: Vec<usize> = ["db1z", "db1y", "joint g1 zero", "dc1y", "dc1z", "dc1x", "db1x"]
-            .iter()
-            .filter_map(|n| all.iter().position(|p| p.name == *n))
-            .collect();
+        let t = idx(target);
+        let alts: Vec<usize> = (0..all.len()).filter(|&k| k != t).collect();
         let d: Vec<DMatrix<f64>> = all.iter().map(|p| p.directions.clone()).collect();
         let mut rng = ChaCha8Rng::seed_from_u64(5000 + k);
         let q = configurations(&m, 2000, &mut rng);
@@ -73,7 +76,7 @@ fn main() {
             a
         };
         // Five random poses (the first five drawn).
-        let random = closest(&stack(&[0, 1, 2, 3, 4]), &l, &d, t, &alts, 0.1);
+        let random = closest(&stack(&[0, 1, 2, 3, 4]), &l, &d, t, &alts, size);
         // Five chosen greedily among the 2000.
         let mut chosen: Vec<usize> = Vec::new();
         for _ in 0..5 {
@@ -84,17 +87,31 @@ fn main() {
                 }
                 let mut set = chosen.clone();
                 set.push(i);
-                let v = closest(&stack(&set), &l, &d, t, &alts, 0.1);
+                let v = closest(&stack(&set), &l, &d, t, &alts, size);
                 if v > best.0 {
                     best = (v, i);
                 }
             }
             chosen.push(best.1);
         }
-        let greedy = closest(&stack(&chosen), &l, &d, t, &alts, 0.1);
+        let greedy = closest(&stack(&chosen), &l, &d, t, &alts, size);
+        let nearest = |set: &[usize]| {
+            alts.iter()
+                .copied()
+                .min_by(|&x, &y| {
+                    let a = closest(&stack(set), &l, &d, t, &[x], size);
+                    let b = closest(&stack(set), &l, &d, t, &[y], size);
+                    a.total_cmp(&b)
+                })
+                .map(|k| all[k].name.clone())
+                .unwrap_or_default()
+        };
+        let near = nearest(&[0, 1, 2, 3, 4]);
         println!(
-            "draw {k}: χ² left by the closest alternative to dl1 +0.1 mm: 5 random poses {random:.2}, 5 chosen among 2000 {greedy:.2}"
+            "draw {k}: χ² left by the closest alternative to {target} {size:+}: 5 random poses {random:.2} ({near}), 5 chosen among 2000 {greedy:.2} ({})",
+            nearest(&chosen)
         );
+        names.push(near);
         random_best.push(random);
         greedy_best.push(greedy);
     }
