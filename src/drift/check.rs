@@ -1,6 +1,6 @@
 //! [`check()`]: re-measured poses judged against a calibration's prediction.
 use super::patterns::{patterns, Pattern, PatternKind};
-use super::reference::{quantile, NullRows, Reference};
+use super::reference::{quantile, Null, NullRows, Reference};
 use super::stacked::Stacked;
 use super::{chi2_at_z, chi2_quantile, rate, Prior, DEFAULT_FALSE_ALARM};
 use crate::error::CalibError;
@@ -88,7 +88,9 @@ pub struct PatternFit {
     pub bound: f64,
     /// The statistic left once it is released.
     pub chi2_after: f64,
-    /// The χ² quantile of the rows left, at the false-alarm rate.
+    /// The χ² quantile of the rows left, at the false-alarm rate; in [`check()`] with the
+    /// prior's [`Reference`], the quantile of what the pattern leaves of rows drawn from the
+    /// calibration's own where that is higher.
     pub bound_after: f64,
     /// Patterns the new rows cannot tell from it: each leaves a statistic within the χ² quantile
     /// of one degree of freedom at the false-alarm rate of what this one leaves (both charged
@@ -283,7 +285,20 @@ pub fn check(prior: &Prior, data: &[Measurement], opts: &CheckOptions) -> Result
     let b = &lin.jacobian * &l;
     let poses = pose_checks(prior, &*model, data, &lin, &b, alpha, opts.seed)?;
     let all = patterns(&*model, &prior.model.inputs(), opts.seed)?;
-    let pattern = best_pattern(&stacked, &lin.jacobian, &all, &[], base.cost, rows, alpha)?;
+    let mut pattern = best_pattern(&stacked, &lin.jacobian, &all, &[], base.cost, rows, alpha)?;
+    // What the named pattern leaves judged, as the rows were, by the calibration's own
+    // residuals where it has them (held at least at the χ² quantile).
+    if let (Some(p), Some(reference)) = (pattern.as_mut(), prior.reference.as_ref()) {
+        let null = Null {
+            reference,
+            layout: &lin.layout(),
+            l: &l,
+            jacobian: &lin.jacobian,
+        };
+        if let Some(bound) = null.bound(&all[p.index].directions, None, 1.0 - alpha, rate::NULL_DRAWS, opts.seed) {
+            p.bound_after = p.bound_after.max(bound);
+        }
+    }
     let effects: Vec<DMatrix<f64>> = all.iter().map(|p| &lin.jacobian * &p.directions).collect();
     let layout = lin.layout();
     let reference = prior.reference.as_ref().map(|r| (&layout[..], r));

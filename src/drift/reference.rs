@@ -10,7 +10,7 @@
 //! model file): the null distribution of new rows is drawn from them, a stored pose with as many
 //! rows for each new pose (rows of a kind the calibration did not measure are drawn Gaussian).
 use nalgebra::{DMatrix, DVector};
-use rand::{Rng, RngExt};
+use rand::{Rng, RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 use std::collections::BTreeMap;
 
@@ -152,6 +152,51 @@ pub fn basis(m: &DMatrix<f64>) -> Option<DMatrix<f64>> {
     let r = qr.r();
     let largest = (0..r.ncols()).map(|j| r[(j, j)].abs()).fold(0.0, f64::max);
     ((0..r.ncols()).all(|j| r[(j, j)].abs() > 1e-10 * largest.max(1e-300))).then(|| qr.q())
+}
+
+/// The null distribution of a check's or an update's statistics where the prior has a
+/// [`Reference`]: the new rows' noise drawn from the calibration's own poses.
+pub(super) struct Null<'a> {
+    pub(super) reference: &'a Reference,
+    /// The new rows' pose layout.
+    pub(super) layout: &'a [usize],
+    /// The prior's factor.
+    pub(super) l: &'a DMatrix<f64>,
+    /// The new rows' noise-weighted Jacobian.
+    pub(super) jacobian: &'a DMatrix<f64>,
+}
+
+impl Null<'_> {
+    /// The `p` quantile over `draws` null draws (from `seed`) of, with the patterns `released`
+    /// (their directions) free: the drop that releasing `tested` too brings, or without `tested`
+    /// the statistic left (`T` less what the released patterns take). `None` where the rows do
+    /// not see the patterns whole.
+    pub(super) fn bound(&self, released: &DMatrix<f64>, tested: Option<&DMatrix<f64>>, p: f64, draws: usize, seed: u64) -> Option<f64> {
+        let null = NullRows::new(&(self.jacobian * self.l), self.layout, Some(self.reference))?;
+        let k = released.ncols();
+        let effects = match tested {
+            Some(t) => DMatrix::from_columns(&released.column_iter().chain(t.column_iter()).collect::<Vec<_>>()),
+            None => released.clone(),
+        };
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        if effects.ncols() == 0 {
+            return Some(quantile(draws, p, &mut rng, |rng| null.draw(rng).norm_squared()));
+        }
+        // The first k columns of the basis span the released patterns' effects.
+        let q = basis(&null.whiten(&(self.jacobian * effects))?)?;
+        match tested {
+            Some(_) => {
+                let projection = null.projection(&q)?;
+                Some(quantile(draws, p, &mut rng, |rng| {
+                    null.draw_projected(&projection, rng).rows_range(k..).norm_squared()
+                }))
+            }
+            None => Some(quantile(draws, p, &mut rng, |rng| {
+                let w = null.draw(rng);
+                w.norm_squared() - (q.transpose() * w).norm_squared()
+            })),
+        }
+    }
 }
 
 #[cfg(test)]

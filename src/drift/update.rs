@@ -2,7 +2,7 @@
 use super::check::{best_pattern, PatternFit};
 use super::patterns::{patterns, Pattern};
 use super::rate;
-use super::reference::{basis, quantile, NullRows, Reference};
+use super::reference::Null;
 use super::stacked::Stacked;
 use super::{chi2_quantile, Prior, DEFAULT_FALSE_ALARM};
 use crate::error::CalibError;
@@ -12,7 +12,6 @@ use crate::measure::Measurement;
 use crate::model::Mechanism;
 use crate::validate::{pose_errors, ErrorStats};
 use nalgebra::{DMatrix, DVector};
-use rand::SeedableRng;
 use serde::Serialize;
 
 /// Options of [`update()`].
@@ -26,7 +25,7 @@ pub struct UpdateOptions {
     /// Gauss–Newton iterations of each fit at most.
     pub max_iterations: usize,
     /// Seed of the configurations the patterns are found at, and of the simulated bounds where
-    /// the prior has a [`Reference`].
+    /// the prior has a [`Reference`](super::Reference).
     pub seed: u64,
 }
 
@@ -452,48 +451,4 @@ fn update_all(prior: &Prior, data: &[Measurement], opts: &UpdateOptions) -> Resu
         before,
         after,
     })
-}
-
-/// The null distribution of an update's statistics where the prior has a [`Reference`]: the new
-/// rows' noise drawn from the calibration's own poses ([`super::reference`]).
-struct Null<'a> {
-    reference: &'a Reference,
-    layout: &'a [usize],
-    /// The prior's factor.
-    l: &'a DMatrix<f64>,
-    /// The new rows' noise-weighted Jacobian.
-    jacobian: &'a DMatrix<f64>,
-}
-
-impl Null<'_> {
-    /// The `p` quantile over `draws` null draws (from `seed`) of, with the patterns `released`
-    /// (their directions) free: the drop that releasing `tested` too brings, or without `tested`
-    /// the statistic left (`T` less what the released patterns take). `None` where the rows do
-    /// not see the patterns whole.
-    fn bound(&self, released: &DMatrix<f64>, tested: Option<&DMatrix<f64>>, p: f64, draws: usize, seed: u64) -> Option<f64> {
-        let null = NullRows::new(&(self.jacobian * self.l), self.layout, Some(self.reference))?;
-        let k = released.ncols();
-        let effects = match tested {
-            Some(t) => DMatrix::from_columns(&released.column_iter().chain(t.column_iter()).collect::<Vec<_>>()),
-            None => released.clone(),
-        };
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-        if effects.ncols() == 0 {
-            return Some(quantile(draws, p, &mut rng, |rng| null.draw(rng).norm_squared()));
-        }
-        // The first k columns of the basis span the released patterns' effects.
-        let q = basis(&null.whiten(&(self.jacobian * effects))?)?;
-        match tested {
-            Some(_) => {
-                let projection = null.projection(&q)?;
-                Some(quantile(draws, p, &mut rng, |rng| {
-                    null.draw_projected(&projection, rng).rows_range(k..).norm_squared()
-                }))
-            }
-            None => Some(quantile(draws, p, &mut rng, |rng| {
-                let w = null.draw(rng);
-                w.norm_squared() - (q.transpose() * w).norm_squared()
-            })),
-        }
-    }
 }
