@@ -39,6 +39,12 @@
 //! `T − Δ + k·ln(rows)` for a pattern of `k` coefficients (Schwarz's criterion: a pattern of more
 //! coefficients is named only where it explains clearly more).
 //!
+//! # An instrument's rows
+//! A check takes seat and ballbar (or draw-wire) rows as it takes a tracker's: the artifact,
+//! put back somewhere unknown, is placed by the new rows at the calibrated model and projected
+//! out of them ([`artifact_rows`]); each artifact point's rows are then judged together, as a
+//! pose's are.
+//!
 //! # Where to measure a check
 //! Any few poses detect a drift; naming it takes poses at which the patterns act differently.
 //! [`plan_check_poses`] chooses, among candidate configurations, those at which a check is
@@ -49,6 +55,7 @@
 //! convergence on the non-linear model (Gauss–Newton on the stacked rows, each step the square-root
 //! recursive least squares of [`crate::identify::rls_solve`]). Where the new poses contradict the
 //! prior, the best pattern is released and the fit repeated, as long as a release is significant.
+pub mod artifact_rows;
 pub mod check;
 pub mod check_plan;
 pub mod patterns;
@@ -57,6 +64,7 @@ pub mod reference;
 mod stacked;
 pub mod update;
 
+pub use artifact_rows::ArtifactRows;
 pub use check::{check, Alternative, CheckOptions, CheckReport, OnePose, PatternFit, PatternTest, PoseCheck};
 pub use check_plan::{plan_check_poses, CheckPlan, CheckPlanOptions, PairSeparation};
 pub use patterns::{patterns, Pattern, PatternKind};

@@ -44,7 +44,7 @@ pub use mixed::{has_tracker_rows, NO_POINT};
 #[cfg(test)]
 use offset::fit_offset_and_pivots;
 pub use planned::measure_planned;
-pub use start::start_points;
+pub use start::{place_points, start_points};
 pub use zero::{sphere_and_zero, Zero, MIN_ZERO_PIVOT_ROWS};
 
 pub use crate::measure::PointKind;

@@ -58,14 +58,25 @@ pub fn load_prior(path: &Path) -> anyhow::Result<Prior> {
     kinecal::drift::Prior::from_model_file(&file).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
 }
 
-/// Tracker rows only: the instrument kinds' artifacts are placed by their own rows.
+/// Tracker rows only: an update's artifacts would be placed by its own few rows.
 pub fn tracker_rows(data: &DataSet) -> anyhow::Result<()> {
     anyhow::ensure!(
         !matches!(
             data.format,
             MeasurementFormat::Seat | MeasurementFormat::Distance | MeasurementFormat::Touch | MeasurementFormat::Mixed
         ),
-        "{}: check and identify --prior judge tracker rows (poses, positions, reflectors); this file gives {}",
+        "{}: identify --prior updates from tracker rows (poses, positions, reflectors); this file gives {} (kinecal check judges seat and ballbar rows; a recalibration updates from them)",
+        data.path.display(),
+        data.format.describe()
+    );
+    Ok(())
+}
+
+/// What a check takes: tracker rows, or seat and ballbar (draw-wire) rows alone.
+fn checked_rows(data: &DataSet) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        !matches!(data.format, MeasurementFormat::Touch | MeasurementFormat::Mixed),
+        "{}: check judges tracker rows, or seat and ballbar (draw-wire) rows alone; this file gives {}",
         data.path.display(),
         data.format.describe()
     );
@@ -91,7 +102,7 @@ pub fn run(a: CheckArgs) -> anyhow::Result<()> {
         );
     };
     let data = read_data(&path, &prior.model.data_columns(), InputColumns::Required)?;
-    tracker_rows(&data)?;
+    checked_rows(&data)?;
     super::warn_limits(&data);
     let opts = CheckOptions {
         false_alarm: a.false_alarm / 100.0,
@@ -113,18 +124,39 @@ pub fn run(a: CheckArgs) -> anyhow::Result<()> {
             r.rows
         );
         for p in &r.poses {
-            let o = p.orientation_deg.map(|o| format!(", {o:.4}°")).unwrap_or_default();
             let mark = if p.beyond() {
                 format!("BEYOND by {:.1}×", p.chi2 / p.bound)
             } else {
                 "within".to_string()
             };
+            if let Some(a) = &p.artifact {
+                let (first, last) = (a.poses.first().copied().unwrap_or(0), a.poses.last().copied().unwrap_or(0));
+                println!(
+                    "  {} ({}, lines {}–{}): {:.4} mm RMS off it, the calibration expects {:.4} mm; χ² {:.1} over {} rows, {mark} its bound {:.1}",
+                    a.name,
+                    super::count(a.poses.len(), "pose"),
+                    data.lines[first],
+                    data.lines[last],
+                    p.position_mm,
+                    p.expected_mm,
+                    p.chi2,
+                    p.rows,
+                    p.bound
+                );
+                continue;
+            }
+            let o = p.orientation_deg.map(|o| format!(", {o:.4}°")).unwrap_or_default();
             println!(
                 "  pose {} (line {}): {:.4} mm{o} off, the calibration expects {:.4} mm; χ² {:.1} over {} rows, {mark} its bound {:.1}",
                 data.ids[p.index], data.lines[p.index], p.position_mm, p.expected_mm, p.chi2, p.rows, p.bound
             );
         }
-        if let Some(o) = &r.one_pose {
+        if let Some((o, a)) = r.one_pose.as_ref().and_then(|o| r.poses[o.index].artifact.as_ref().map(|a| (o, a))) {
+            println!(
+                "without {}: χ² {:.1} over {} rows, within the bound {:.1}: the rows beyond rest on that artifact point alone (moved while measured, a ball not seated), not a drift of the machine",
+                a.name, o.chi2_without, o.rows_without, o.bound_without
+            );
+        } else if let Some(o) = &r.one_pose {
             println!(
                 "without pose {} (line {}): χ² {:.1} over {} rows, within the bound {:.1}: the rows beyond rest on that pose alone (a blunder, or an error local to it), not a drift of the machine",
                 data.ids[o.index], data.lines[o.index], o.chi2_without, o.rows_without, o.bound_without

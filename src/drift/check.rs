@@ -49,6 +49,11 @@ pub struct PoseCheck {
     /// The position error the prediction expects (mm, RMS of the 3-D error: the parameters'
     /// covariance at this pose and the noise).
     pub expected_mm: f64,
+    /// An instrument's rows: the artifact point whose rows these are, judged together (then
+    /// `index` is the point's block, `position_mm` the RMS over its poses of the tool point's
+    /// distance from it, `expected_mm` what the prediction expects of that RMS).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub artifact: Option<super::ArtifactRows>,
 }
 
 impl PoseCheck {
@@ -236,6 +241,12 @@ impl CheckReport {
         let rate = 100.0 * self.false_alarm;
         if let Some(o) = &self.one_pose {
             let pose = &self.poses[o.index];
+            if let Some(a) = &pose.artifact {
+                return format!(
+                    "{word}: the other artifact points agree (χ² {:.1} over {} rows, bound {:.1} at a false-alarm rate of {rate} %); {} alone disagrees ({:.4} mm RMS off it, χ² {:.1} over {} rows): measure there again",
+                    o.chi2_without, o.rows_without, o.bound_without, a.name, pose.position_mm, pose.chi2, pose.rows
+                );
+            }
             return format!(
                 "{word}: the other poses agree (χ² {:.1} over {} rows, bound {:.1} at a false-alarm rate of {rate} %); one pose alone disagrees ({:.4} mm off, χ² {:.1} over {} rows): measure it again",
                 o.chi2_without, o.rows_without, o.bound_without, pose.position_mm, pose.chi2, pose.rows
@@ -273,7 +284,11 @@ pub fn check(prior: &Prior, data: &[Measurement], opts: &CheckOptions) -> Result
     let model = prior.model.build();
     prior.check_size(model.n_params())?;
     let l = prior.factor();
-    let lin = linearize(&*model, data, &prior.noise)?;
+    let projected = super::artifact_rows::project(&*model, data, &prior.noise)?;
+    let lin = match &projected {
+        Some(p) => p.lin.clone(),
+        None => linearize(&*model, data, &prior.noise)?,
+    };
     let rows = lin.residual.len();
     let none = DMatrix::zeros(model.n_params(), 0);
     let stacked = Stacked::new(&lin, &l, &none, &DVector::zeros(l.ncols()));
@@ -283,12 +298,20 @@ pub fn check(prior: &Prior, data: &[Measurement], opts: &CheckOptions) -> Result
     let alpha = opts.false_alarm;
     // The new rows' Jacobian times the prior's factor: the rows' predicted covariance I + B·Bᵀ.
     let b = &lin.jacobian * &l;
-    let poses = pose_checks(prior, &*model, data, &lin, &b, alpha, opts.seed)?;
-    let all = patterns(&*model, &prior.model.inputs(), opts.seed)?;
+    let poses = match &projected {
+        Some(p) => artifact_checks(&p.points, &lin, &b, &prior.noise, alpha),
+        None => pose_checks(prior, &*model, data, &lin, &b, alpha, opts.seed)?,
+    };
+    // An instrument calibration carries no residuals: its rows are judged as Gaussian.
+    let reference_rows = prior.reference.as_ref().filter(|_| projected.is_none());
+    let mut all = patterns(&*model, &prior.model.inputs(), opts.seed)?;
+    if let Some(p) = &projected {
+        all.retain(|pattern| p.sees(&pattern.directions));
+    }
     let mut pattern = best_pattern(&stacked, &lin.jacobian, &all, &[], base.cost, rows, alpha)?;
     // What the named pattern leaves judged, as the rows were, by the calibration's own
     // residuals where it has them (held at least at the χ² quantile).
-    if let (Some(p), Some(reference)) = (pattern.as_mut(), prior.reference.as_ref()) {
+    if let (Some(p), Some(reference)) = (pattern.as_mut(), reference_rows) {
         let null = Null {
             reference,
             layout: &lin.layout(),
@@ -301,7 +324,7 @@ pub fn check(prior: &Prior, data: &[Measurement], opts: &CheckOptions) -> Result
     }
     let effects: Vec<DMatrix<f64>> = all.iter().map(|p| &lin.jacobian * &p.directions).collect();
     let layout = lin.layout();
-    let reference = prior.reference.as_ref().map(|r| (&layout[..], r));
+    let reference = reference_rows.map(|r| (&layout[..], r));
     let decision = rate::decide(&b, &lin.residual, &effects, alpha, opts.seed, reference)?;
     let bound = chi2_at_z(rows, decision.z);
     let pattern_test = decision.strongest().and_then(|(i, _)| {
@@ -314,7 +337,7 @@ pub fn check(prior: &Prior, data: &[Measurement], opts: &CheckOptions) -> Result
     let mut drifted = decision.deviate(rows) > decision.z;
     let mut one_pose = None;
     if drifted && data.len() >= 3 {
-        one_pose = without_worst(&lin, &b, &effects, &poses, alpha, opts.seed, prior.reference.as_ref())?;
+        one_pose = without_worst(&lin, &b, &effects, &poses, alpha, opts.seed, reference_rows)?;
         // One pose's rows set free against the best pattern, each coefficient charged ln(rows)
         // as the patterns are: a drift that a pattern explains stays a drift, even where one
         // pose shows most of it.
@@ -375,6 +398,42 @@ fn without_worst(
     }))
 }
 
+/// Each artifact point's statistic over its block of `C = I + B·Bᵀ` (its projected rows) and
+/// its bound, the χ² quantile of its rows.
+fn artifact_checks(
+    points: &[super::ArtifactRows],
+    lin: &crate::identify::Linearization,
+    b: &DMatrix<f64>,
+    noise: &measure::Noise,
+    alpha: f64,
+) -> Vec<PoseCheck> {
+    points
+        .iter()
+        .enumerate()
+        .map(|(i, point)| {
+            let at = lin.pose_rows(i);
+            let (start, n) = (at.start, at.len());
+            let bb = b.rows(start, n);
+            let c = DMatrix::identity(n, n) + bb * bb.transpose();
+            let e = lin.residual.rows(start, n).into_owned();
+            let chi2 = c.clone().cholesky().map_or(f64::INFINITY, |ch| e.dot(&ch.solve(&e)));
+            // The rows are in units of the position noise: their predicted sum of squares over
+            // the point's poses, as mm² per pose.
+            let expected = (c.trace() / point.poses.len().max(1) as f64).sqrt() * noise.position;
+            PoseCheck {
+                index: i,
+                rows: n,
+                chi2,
+                bound: chi2_quantile(n, 1.0 - alpha),
+                position_mm: point.rms_mm,
+                orientation_deg: None,
+                expected_mm: expected,
+                artifact: Some(point.clone()),
+            }
+        })
+        .collect()
+}
+
 /// Each pose's statistic over its block of `C = I + B·Bᵀ` (`B = A·L`, noise-weighted rows), and
 /// its bound: the χ² quantile of its rows, or with the prior's [`Reference`] the quantile of the
 /// statistic over rows drawn from it (from `seed`) where that is higher.
@@ -420,6 +479,7 @@ fn pose_checks(
             position_mm,
             orientation_deg: orientation.map(f64::to_degrees),
             expected_mm: expected,
+            artifact: None,
         });
     }
     Ok(out)

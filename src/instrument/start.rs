@@ -109,6 +109,55 @@ pub fn start_points<M: Mechanism + Clone + 'static>(
     })
 }
 
+/// The seats and pivots of `points` placed for the mechanism `inner` as it is (its tool point
+/// not moved): each seat at the mean of its rows' tool points, each pivot by a sphere fit of
+/// them to its lengths (and its zero where the readings are relative). What a check of an
+/// instrument's rows against a calibration starts from ([`crate::drift::check`]): the machine is
+/// the calibration's, the artifact is wherever it now stands. Touched artifacts and tracker
+/// rows are refused (`InvalidOption`).
+pub fn place_points<M: Mechanism + Clone + 'static>(
+    inner: M,
+    mut points: Vec<ArtifactPoint>,
+    indexed: &[Measurement],
+) -> Result<Artifact<M>, CalibError> {
+    let n_q = inner.input_names().len();
+    if has_tracker_rows(indexed) {
+        return Err(CalibError::InvalidOption(
+            "tracker rows and instrument rows together: check each kind on its own".into(),
+        ));
+    }
+    if let Some(p) = points.iter().find(|p| p.kind > PointKind::Pivot) {
+        return Err(CalibError::InvalidOption(format!(
+            "{} {}: touched artifacts are not checked; check with seats, a ballbar or a tracker",
+            p.kind.name(),
+            p.id
+        )));
+    }
+    let rows: Vec<Row> = indexed
+        .iter()
+        .enumerate()
+        .map(|(i, m)| {
+            let pose = inner
+                .forward(&m.q[..n_q])
+                .map_err(|source| CalibError::Kinematics { pose: i, source })?;
+            Ok((m.q[n_q] as usize, pose, &m.obs))
+        })
+        .collect::<Result<_, CalibError>>()?;
+    for (k, point) in points.iter_mut().enumerate() {
+        if point.kind != PointKind::Seat {
+            continue;
+        }
+        let at: Vec<Vector3<f64>> = rows.iter().filter(|r| r.0 == k).map(|r| r.1.translation.vector).collect();
+        point.centre = at.iter().sum::<Vector3<f64>>() / at.len().max(1) as f64;
+    }
+    place_pivots(&distance_rows(&rows), &Vector3::zeros(), &mut points)?;
+    Ok(Artifact {
+        inner,
+        points,
+        pairs: Vec::new(),
+    })
+}
+
 /// The measurement frame that best takes the points `tool` of mechanism `inner` at the
 /// `tracker` rows' inputs onto the positions those rows measured (a pose's origin); `None` when
 /// they do not fix one (fewer than three points, or on a line).

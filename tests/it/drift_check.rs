@@ -508,3 +508,92 @@ fn a_machine_that_leaves_heavy_tails_is_judged_by_its_own_residuals() {
         up.releases.len()
     );
 }
+
+/// `n` seat rows of `m`'s true machine in one seat (the tool point at a mid-workspace
+/// configuration), tilted up to 60°, 20 µm where the ball settles; `seed` draws them.
+fn seat_check_rows(m: &Machine, n: usize, seed: u64) -> Vec<kinecal::measure::Measurement> {
+    use kinecal::instrument::simulate::{seat_rows, Placement};
+    let reference: Vec<f64> = [5.0f64, 20.0, 10.0, 10.0, 40.0, 0.0].iter().map(|d| d.to_radians()).collect();
+    let seat = m.truth.forward(&reference).unwrap().translation.vector;
+    let how = Placement {
+        per_point: n,
+        reference,
+        max_tilt: 60f64.to_radians(),
+        noise_mm: m.noise.position,
+        seed,
+        inputs: m.file.inputs(),
+    };
+    seat_rows(&*m.truth, &[seat], &how).unwrap()
+}
+
+#[test]
+fn a_seat_or_a_ballbar_checks_a_tracker_calibration() {
+    let (m, prior) = prototype("irb120", 7);
+    // Unchanged: one seat's 30 rows, placed anew by them, agree with the calibration.
+    let mut alarms = 0;
+    for k in 0..10 {
+        let rows = seat_check_rows(&m, 30, 400 + k);
+        let r = check(&prior, &rows, &CheckOptions::default()).unwrap();
+        assert_eq!(r.poses.len(), 1, "one block: the seat's rows");
+        let seat = &r.poses[0];
+        let a = seat.artifact.as_ref().expect("the seat's rows");
+        assert_eq!((a.name.as_str(), a.poses.len(), seat.rows), ("seat 0", 30, 87));
+        assert!(
+            a.rms_mm < 0.1 && seat.expected_mm > 0.0,
+            "{} mm RMS, expects {}",
+            a.rms_mm,
+            seat.expected_mm
+        );
+        // A uniform scale or a turn of the base moves the ball with its seat: not tried.
+        assert!(r.patterns_tried > 10);
+        alarms += usize::from(r.drifted);
+    }
+    assert!(alarms <= 1, "{alarms} of 10 unchanged seats called drifted");
+    // The controller's q5 reading moved by 0.1°: drifted, and the offset named and sized. (A
+    // seat sees the joints whose axes turn as the tool tilts in it; q2's axis hardly moves,
+    // and its offset moves the ball the same way at every tilt, which the seat's placement
+    // takes.)
+    let mut named = 0;
+    for k in 0..5 {
+        let mut rows = seat_check_rows(&m, 30, 500 + k);
+        for r in rows.iter_mut() {
+            r.q[4] += 0.1f64.to_radians();
+        }
+        let r = check(&prior, &rows, &CheckOptions::default()).unwrap();
+        assert!(r.drifted, "{}", r.verdict());
+        let p = r.pattern.as_ref().unwrap();
+        // Named, or among the patterns one seat cannot tell from the one named (the wrist's
+        // length along q5's axis moves the ball alike).
+        if p.name == "joint q5 offset" {
+            assert!((p.values[0].value + 0.1).abs() < 4.0 * p.values[0].sigma + 0.01, "{}", p.describe());
+        }
+        named += usize::from(p.name == "joint q5 offset" || p.alternatives.iter().any(|a| a.name == "joint q5 offset"));
+    }
+    assert!(named >= 4, "q5 named, or among those named, in {named} of 5");
+    // A ballbar about one pivot: 30 lengths, its three coordinates placed by them.
+    use kinecal::instrument::simulate::{distance_rows, Placement};
+    let reference: Vec<f64> = [5.0f64, 20.0, 10.0, 10.0, 40.0, 0.0].iter().map(|d| d.to_radians()).collect();
+    let home = m.truth.forward(&reference).unwrap().translation.vector;
+    let pivot = home - nalgebra::Vector3::new(0.0, 0.0, 100.0);
+    let bar = |seed: u64| Placement {
+        per_point: 30,
+        reference: reference.clone(),
+        max_tilt: 20f64.to_radians(),
+        noise_mm: m.noise.position,
+        seed,
+        inputs: m.file.inputs(),
+    };
+    let rows = distance_rows(&*m.truth, &[pivot], 100.0, 0.8, &bar(600)).unwrap();
+    let r = check(&prior, &rows, &CheckOptions::default()).unwrap();
+    assert!(!r.drifted, "{}", r.verdict());
+    assert_eq!(
+        (r.poses[0].artifact.as_ref().unwrap().name.as_str(), r.poses[0].rows),
+        ("pivot 0", 27)
+    );
+    let mut rows = distance_rows(&*m.truth, &[pivot], 100.0, 0.8, &bar(601)).unwrap();
+    for r in rows.iter_mut() {
+        r.q[4] += 0.2f64.to_radians();
+    }
+    let r = check(&prior, &rows, &CheckOptions::default()).unwrap();
+    assert!(r.drifted, "q5 +0.2° seen on a ballbar: {}", r.verdict());
+}
