@@ -65,18 +65,18 @@ pub fn tracker_rows(data: &DataSet) -> anyhow::Result<()> {
             data.format,
             MeasurementFormat::Seat | MeasurementFormat::Distance | MeasurementFormat::Touch | MeasurementFormat::Mixed
         ),
-        "{}: identify --prior updates from tracker rows (poses, positions, reflectors); this file gives {} (kinecal check judges seat and ballbar rows; a recalibration updates from them)",
+        "{}: identify --prior updates from tracker rows (poses, positions, reflectors); this file gives {} (kinecal check judges an instrument's rows; a recalibration updates from them)",
         data.path.display(),
         data.format.describe()
     );
     Ok(())
 }
 
-/// What a check takes: tracker rows, or seat and ballbar (draw-wire) rows alone.
+/// What a check takes: tracker rows, or an instrument's rows alone.
 fn checked_rows(data: &DataSet) -> anyhow::Result<()> {
     anyhow::ensure!(
-        !matches!(data.format, MeasurementFormat::Touch | MeasurementFormat::Mixed),
-        "{}: check judges tracker rows, or seat and ballbar (draw-wire) rows alone; this file gives {}",
+        !matches!(data.format, MeasurementFormat::Mixed),
+        "{}: check judges tracker rows, or an instrument's rows (seats, pivots, touches) alone; this file gives {}",
         data.path.display(),
         data.format.describe()
     );

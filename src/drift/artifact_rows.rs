@@ -1,5 +1,6 @@
-//! An instrument's rows in a check: seats and ballbar (or draw-wire) pivots placed where the new
-//! rows put them, with the machine as calibrated, then taken out of the rows.
+//! An instrument's rows in a check: seats, ballbar (or draw-wire) pivots and touched spheres,
+//! planes or cubes placed where the new rows put them, with the machine as calibrated, then
+//! taken out of the rows.
 //!
 //! An artifact put back on the table stands somewhere unknown: its coordinates are nuisance
 //! parameters of the check. They are fitted to the new rows at the calibrated model (started
@@ -7,14 +8,17 @@
 //! alone), and each artifact point's rows are projected onto the complement of its columns (an
 //! orthonormal basis of what its fit leaves free). What is left is a [`Linearization`] in the
 //! model's parameters whose blocks are the artifact points: `3·n − 3` rows for a seat of `n`
-//! poses, `n − 3` for a pivot of `n` lengths (`n − 4` with its zero unknown). With the noise
+//! poses, `n − 3` for a pivot of `n` lengths (`n − 4` with its zero unknown) or a sphere or
+//! plane of `n` touches, `n − 6` for a cube. With the noise
 //! white and the calibration right, each block is χ² with as many degrees of freedom as rows,
 //! which is what [`super::check()`] judges.
 use crate::error::CalibError;
 use crate::identify::{linearize, Linearization};
 use crate::instrument::{index_points, place_points, Artifact};
+use crate::io::model_file::ModelFile;
 use crate::measure::{self, Measurement, Noise};
 use crate::model::Mechanism;
+use crate::se3::Pose;
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
@@ -60,13 +64,28 @@ impl Projected {
 /// The rows of `data` at `model` with every artifact point fitted and projected out (module
 /// docs), or `None` when `data` has no instrument rows.
 ///
-/// Errors: tracker and instrument rows mixed, touched artifacts, a point whose rows do not
-/// place it or leave nothing once it is placed.
-pub(super) fn project(model: &dyn Mechanism, data: &[Measurement], noise: &Noise) -> Result<Option<Projected>, CalibError> {
+/// Errors: tracker and instrument rows mixed, a point whose rows do not place it or leave
+/// nothing once it is placed.
+pub(super) fn project(file: &ModelFile, data: &[Measurement], noise: &Noise) -> Result<Option<Projected>, CalibError> {
     let Some((points, _, indexed)) = index_points(data, &[])? else {
         return Ok(None);
     };
-    let mut artifact: Artifact<Box<dyn Mechanism>> = place_points(model.box_clone(), points, &indexed)?;
+    // The flange at each row (the mechanism without the probe), for which side of a touched
+    // surface the probe came from.
+    let bare = file.mechanism.build();
+    let placed = file.frames.as_ref().map_or_else(Pose::identity, |f| f.measurement);
+    let n_q = bare.input_names().len();
+    let flanges = indexed
+        .iter()
+        .enumerate()
+        .map(|(i, m)| {
+            let pose = bare
+                .forward(&m.q[..n_q])
+                .map_err(|source| CalibError::Kinematics { pose: i, source })?;
+            Ok((placed * pose).translation.vector)
+        })
+        .collect::<Result<Vec<_>, CalibError>>()?;
+    let mut artifact: Artifact<Box<dyn Mechanism>> = place_points(file.build(), points, &indexed, &flanges)?;
     let columns: Vec<usize> = artifact.artifact_columns().collect();
     let p = artifact.inner.n_params();
     let mut lin = linearize(&artifact, &indexed, noise)?;
@@ -117,23 +136,26 @@ pub(super) fn project(model: &dyn Mechanism, data: &[Measurement], noise: &Noise
             poses,
         });
     }
-    let total: usize = blocks.iter().map(|b| b.1.len()).sum();
-    let mut jacobian = DMatrix::zeros(total, p);
-    let mut residual = DVector::zeros(total);
-    let mut offsets = Vec::with_capacity(blocks.len());
-    let mut at = 0;
-    for (j, r) in &blocks {
-        offsets.push(at);
-        jacobian.view_mut((at, 0), (j.nrows(), p)).copy_from(j);
-        residual.rows_mut(at, r.len()).copy_from(r);
-        at += r.len();
-    }
+    let jacobians: Vec<DMatrix<f64>> = blocks.iter().map(|b| b.0.clone()).collect();
+    let residuals: Vec<DMatrix<f64>> = blocks
+        .iter()
+        .map(|b| DMatrix::from_column_slice(b.1.len(), 1, b.1.as_slice()))
+        .collect();
+    let offsets = blocks
+        .iter()
+        .scan(0, |at, b| {
+            let start = *at;
+            *at += b.1.len();
+            Some(start)
+        })
+        .collect();
+    let residual = stack(&residuals, 1).column(0).into_owned();
     Ok(Some(Projected {
         lin: Linearization {
-            jacobian,
+            jacobian: stack(&jacobians, p),
+            angular_rows: vec![false; residual.len()],
             residual,
             offsets,
-            angular_rows: vec![false; total],
         },
         points: out,
         unprojected: stack(&unprojected, p),

@@ -284,7 +284,7 @@ pub fn check(prior: &Prior, data: &[Measurement], opts: &CheckOptions) -> Result
     let model = prior.model.build();
     prior.check_size(model.n_params())?;
     let l = prior.factor();
-    let projected = super::artifact_rows::project(&*model, data, &prior.noise)?;
+    let projected = super::artifact_rows::project(&prior.model, data, &prior.noise)?;
     let lin = match &projected {
         Some(p) => p.lin.clone(),
         None => linearize(&*model, data, &prior.noise)?,
@@ -398,6 +398,17 @@ fn without_worst(
     }))
 }
 
+/// Block `i` of `lin`: its rows, its predicted covariance `C = I + B·Bᵀ` and `eᵀ·C⁻¹·e`.
+fn block_chi2(lin: &crate::identify::Linearization, b: &DMatrix<f64>, i: usize) -> (usize, DMatrix<f64>, f64) {
+    let at = lin.pose_rows(i);
+    let (start, n) = (at.start, at.len());
+    let bb = b.rows(start, n);
+    let c = DMatrix::identity(n, n) + bb * bb.transpose();
+    let e = lin.residual.rows(start, n).into_owned();
+    let chi2 = c.clone().cholesky().map_or(f64::INFINITY, |ch| e.dot(&ch.solve(&e)));
+    (n, c, chi2)
+}
+
 /// Each artifact point's statistic over its block of `C = I + B·Bᵀ` (its projected rows) and
 /// its bound, the χ² quantile of its rows.
 fn artifact_checks(
@@ -411,12 +422,7 @@ fn artifact_checks(
         .iter()
         .enumerate()
         .map(|(i, point)| {
-            let at = lin.pose_rows(i);
-            let (start, n) = (at.start, at.len());
-            let bb = b.rows(start, n);
-            let c = DMatrix::identity(n, n) + bb * bb.transpose();
-            let e = lin.residual.rows(start, n).into_owned();
-            let chi2 = c.clone().cholesky().map_or(f64::INFINITY, |ch| e.dot(&ch.solve(&e)));
+            let (n, c, chi2) = block_chi2(lin, b, i);
             // The rows are in units of the position noise: their predicted sum of squares over
             // the point's poses, as mm² per pose.
             let expected = (c.trace() / point.poses.len().max(1) as f64).sqrt() * noise.position;
@@ -449,12 +455,8 @@ fn pose_checks(
     let reached = crate::validate::forward_all(model, data)?;
     let mut out = Vec::with_capacity(data.len());
     for (i, m) in data.iter().enumerate() {
-        let at = lin.pose_rows(i);
-        let (start, n) = (at.start, at.len());
-        let bb = b.rows(start, n);
-        let c = DMatrix::identity(n, n) + bb * bb.transpose();
-        let e = lin.residual.rows(start, n).into_owned();
-        let chi2 = c.clone().cholesky().map_or(f64::INFINITY, |ch| e.dot(&ch.solve(&e)));
+        let (n, c, chi2) = block_chi2(lin, b, i);
+        let bb = b.rows(lin.pose_rows(i).start, n);
         let weights = measure::row_weights(&m.obs, &prior.noise);
         let positions = n.min(3).min(weights.len());
         let expected = (0..positions).map(|k| c[(k, k)] / (weights[k] * weights[k])).sum::<f64>().sqrt();

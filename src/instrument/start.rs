@@ -109,29 +109,24 @@ pub fn start_points<M: Mechanism + Clone + 'static>(
     })
 }
 
-/// The seats and pivots of `points` placed for the mechanism `inner` as it is (its tool point
-/// not moved): each seat at the mean of its rows' tool points, each pivot by a sphere fit of
-/// them to its lengths (and its zero where the readings are relative). What a check of an
-/// instrument's rows against a calibration starts from ([`crate::drift::check`]): the machine is
-/// the calibration's, the artifact is wherever it now stands. Touched artifacts and tracker
-/// rows are refused (`InvalidOption`).
+/// The artifacts of `points` placed for the mechanism `inner` as it is (its tool point not
+/// moved): each seat at the mean of its rows' tool points, each pivot by a sphere fit of them to
+/// its lengths (and its zero where the readings are relative), each touched artifact from its
+/// touches ([`touch::place`], `flanges` the flange's position at each row, which side of a
+/// surface the probe came from). What a check of an instrument's rows against a calibration
+/// starts from ([`crate::drift::check`]): the machine is the calibration's, the artifact is
+/// wherever it now stands. Tracker rows are refused (`InvalidOption`).
 pub fn place_points<M: Mechanism + Clone + 'static>(
     inner: M,
     mut points: Vec<ArtifactPoint>,
     indexed: &[Measurement],
+    flanges: &[Vector3<f64>],
 ) -> Result<Artifact<M>, CalibError> {
     let n_q = inner.input_names().len();
     if has_tracker_rows(indexed) {
         return Err(CalibError::InvalidOption(
             "tracker rows and instrument rows together: check each kind on its own".into(),
         ));
-    }
-    if let Some(p) = points.iter().find(|p| p.kind > PointKind::Pivot) {
-        return Err(CalibError::InvalidOption(format!(
-            "{} {}: touched artifacts are not checked; check with seats, a ballbar or a tracker",
-            p.kind.name(),
-            p.id
-        )));
     }
     let rows: Vec<Row> = indexed
         .iter()
@@ -151,6 +146,13 @@ pub fn place_points<M: Mechanism + Clone + 'static>(
         point.centre = at.iter().sum::<Vector3<f64>>() / at.len().max(1) as f64;
     }
     place_pivots(&distance_rows(&rows), &Vector3::zeros(), &mut points)?;
+    let touched: Vec<touch::TouchRow> = rows
+        .iter()
+        .zip(flanges)
+        .filter(|((_, _, obs), _)| matches!(obs, Observation::Touch(_)))
+        .map(|(&(k, pose, obs), flange)| (k, pose, *flange, obs))
+        .collect();
+    touch::place(&touched, &mut points)?;
     Ok(Artifact {
         inner,
         points,

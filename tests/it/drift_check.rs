@@ -284,7 +284,8 @@ fn cli_check_and_identify_prior_on_a_changed_length() {
     // A model file without a covariance: one line, exit 1.
     let none = run(&["check", "truth.toml", "five.csv"]);
     assert_eq!(none.status.code(), Some(1));
-    // Instrument rows (here seats): one line naming what check and identify --prior judge.
+    // Instrument rows (here two seats): check judges each seat's rows as one block; identify
+    // --prior refuses them with one line.
     let seats = run(&[
         "simulate",
         "truth.toml",
@@ -302,16 +303,27 @@ fn cli_check_and_identify_prior_on_a_changed_length() {
         "seats.csv",
     ]);
     assert!(seats.status.success(), "{}", String::from_utf8_lossy(&seats.stderr));
-    for args in [
-        vec!["check", "cal.toml", "seats.csv"],
-        vec!["identify", "--prior", "cal.toml", "seats.csv", "-o", "u.toml"],
-    ] {
-        let out = run(&args);
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
-        assert_eq!(err.lines().count(), 1, "{err}");
-        assert!(err.contains("judge tracker rows (poses, positions, reflectors)"), "{err}");
-    }
+    let out = run(&["check", "cal.toml", "seats.csv"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        matches!(out.status.code(), Some(0 | 2)),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        text.contains("  seat 0 (6 poses, lines 2–7): ") && text.contains("  seat 1 (6 poses, lines 8–13): "),
+        "{text}"
+    );
+    assert!(text.contains("over 30 rows"), "two seats of 6 poses leave 2 × 15 rows: {text}");
+    let out = run(&["identify", "--prior", "cal.toml", "seats.csv", "-o", "u.toml"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.contains("identify --prior updates from tracker rows (poses, positions, reflectors)"),
+        "{err}"
+    );
+    assert!(!dir.path().join("u.toml").exists(), "nothing written");
 }
 
 /// The prior read back from the calibrated model file as written (its `[covariance]` in the
@@ -527,7 +539,7 @@ fn seat_check_rows(m: &Machine, n: usize, seed: u64) -> Vec<kinecal::measure::Me
 }
 
 #[test]
-fn a_seat_or_a_ballbar_checks_a_tracker_calibration() {
+fn a_seat_a_ballbar_or_touches_check_a_tracker_calibration() {
     let (m, prior) = prototype("irb120", 7);
     // Unchanged: one seat's 30 rows, placed anew by them, agree with the calibration.
     let mut alarms = 0;
@@ -596,4 +608,24 @@ fn a_seat_or_a_ballbar_checks_a_tracker_calibration() {
     }
     let r = check(&prior, &rows, &CheckOptions::default()).unwrap();
     assert!(r.drifted, "q5 +0.2° seen on a ballbar: {}", r.verdict());
+    // A touch probe on a sphere of 25 mm and on a plane: 30 touches each, placed by them.
+    use kinecal::instrument::simulate::{random_touches, Touched};
+    let artifacts = [
+        Touched::sphere(0, home + nalgebra::Vector3::new(0.0, 0.0, -60.0), 25.0, 1.0),
+        Touched::plane(0, home + nalgebra::Vector3::new(0.0, 0.0, -40.0), nalgebra::Vector3::z(), 1.0),
+    ];
+    for (a, rows_left) in artifacts.iter().zip([27, 27]) {
+        let mut rng = ChaCha8Rng::seed_from_u64(700);
+        let touches = random_touches(&*m.truth, &m.file.inputs(), std::slice::from_ref(a), 30, m.noise.position, &mut rng).unwrap();
+        let r = check(&prior, &touches, &CheckOptions::default()).unwrap();
+        let name = r.poses[0].artifact.as_ref().unwrap().name.clone();
+        assert!(!r.drifted, "{name}: {}", r.verdict());
+        assert_eq!(r.poses[0].rows, rows_left, "{name}");
+        let mut moved = touches.clone();
+        for t in moved.iter_mut() {
+            t.q[4] += 0.2f64.to_radians();
+        }
+        let r = check(&prior, &moved, &CheckOptions::default()).unwrap();
+        assert!(r.drifted, "{name}, q5 +0.2°: {}", r.verdict());
+    }
 }
