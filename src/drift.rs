@@ -110,6 +110,11 @@ impl Prior {
     /// ([`covariance_in`]) at configurations drawn from seed 1.
     pub fn from_calibration(cal: &crate::calibrate::Calibration) -> Result<Prior, CalibError> {
         let model = cal.model_file.build();
+        if cal.identification.model.input_names().len() != model.input_names().len() {
+            // An instrument's fit: its model takes the artifact point as one more input, and
+            // the written file's covariance is over the machine's own parameters.
+            return Prior::from_model_file(&cal.model_file);
+        }
         let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(1);
         let q = crate::simulate::random_configurations(&*model, &cal.model_file.inputs(), CARRY_CONFIGURATIONS, &mut rng)
             .map_err(|source| CalibError::Kinematics { pose: 0, source })?;

@@ -194,6 +194,21 @@ def test_held_out_placements_are_their_own_artifacts_as_on_the_command_line(tmp_
         assert abs(mine["rms_mm"] - theirs["rms_mm"]) <= 1e-9
     assert abs(h["calibrated"]["distances"][0][3] - cli["distances"][0][3]) <= 1e-9
     assert h["before_rms_mm"] > 3.0 and h["after_rms_mm"] < 0.5
+    # One held-out socket checks the calibration: the seat placed anew by its rows, still
+    # calibrated; with joint 2's reading moved by 0.2°, drifted and that offset named.
+    run("data", "join", "panda.toml", "--seat", str(data / "mid_left" / "socket_0.csv"), "--angles", "rad", "--out", "seat.csv")
+    seat = kinecal.check(cal, kinecal.Data.read(str(tmp_path / "seat.csv"), m))
+    assert not seat["drifted"] and seat["poses"][0]["artifact"]["name"] == "seat 0"
+    lines = (tmp_path / "seat.csv").read_text().splitlines()
+    column = lines[0].split(",").index("panda_joint2_deg")
+    moved = [lines[0]]
+    for line in lines[1:]:
+        cells = line.split(",")
+        cells[column] = repr(float(cells[column]) + 0.2)
+        moved.append(",".join(cells))
+    (tmp_path / "moved.csv").write_text("\n".join(moved) + "\n")
+    drift = kinecal.check(cal, kinecal.Data.read(str(tmp_path / "moved.csv"), m))
+    assert drift["drifted"] and drift["pattern"]["name"] == "joint panda_joint2 offset", drift["pattern"]
 
 
 def test_plan_chooses_a_well_conditioned_set():
