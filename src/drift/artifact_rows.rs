@@ -101,7 +101,7 @@ pub(super) fn project(file: &ModelFile, data: &[Measurement], noise: &Noise) -> 
         }
         artifact.retract(&delta);
         lin = linearize(&artifact, &indexed, noise)?;
-        if step.norm() < 1e-10 * (1.0 + delta.norm()) || step.norm() < 1e-12 {
+        if step.norm() < 1e-10 * (1.0 + step.norm()) {
             break;
         }
     }
